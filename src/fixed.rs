@@ -1,0 +1,133 @@
+//! Fixed-point window coordinates: the grid every vertex snaps to before any inside test.
+//!
+//! A window coordinate `x` (pixels, origin at the image's top-left corner, y down) becomes the
+//! integer `round_half_even(x * 256)`: 8 sub-pixel bits, as in D3D10+ and Vulkan
+//! implementations (llvmpipe, NVIDIA). `x * 256` is exact in `f32` (a power-of-two scale), so the
+//! only rounding is the snap itself.
+//!
+//! # Range and the overflow bound
+//! Vertices must lie in [-32768, 32768) pixels (the D3D "16.8" range), so a snapped coordinate
+//! `X` satisfies `|X| <= 2^23`. Targets are at most 16384 x 16384 pixels, so a pixel centre
+//! `256 * px + 128` lies in `[0, 2^22)`.
+//! - Edge coefficients `A = Ya - Yb`, `B = Xb - Xa`: `|A|, |B| <= 2^24`.
+//! - `C = -(A * Xa + B * Ya)`: `|C| <= 2 * 2^24 * 2^23 = 2^48`.
+//! - `E(P) = A * X + B * Y + C` at a pixel centre: `|E| <= 2 * 2^24 * 2^22 + 2^48 < 2^49`, and
+//!   relative to a vertex, `A * (X - Xa) + B * (Y - Ya)` with `|X - Xa| < 2^24`: again `< 2^49`.
+//! - Twice the signed area is an edge function at the third vertex: `< 2^49`.
+//!
+//! So `i64` holds every edge value with 14 bits to spare, and every edge value is an integer of
+//! magnitude below 2^53, hence *exact* in `f64` too: interpolation may use edge values in `f64`
+//! without ever rounding them. `tests/range.rs` checks triangles at the extremes.
+
+/// Sub-pixel bits of the snapped grid.
+pub const SUBPIXEL_BITS: u32 = 8;
+
+/// Fixed-point units per pixel (`1 << SUBPIXEL_BITS`).
+pub const ONE: i32 = 1 << SUBPIXEL_BITS;
+
+/// Half a pixel in fixed point: pixel `px` is sampled at `px * ONE + HALF`.
+pub const HALF: i32 = ONE / 2;
+
+/// Smallest accepted window coordinate, in pixels (inclusive).
+pub const MIN_COORD: f32 = -32768.0;
+
+/// Largest accepted window coordinate, in pixels (exclusive).
+pub const MAX_COORD: f32 = 32768.0;
+
+/// Largest accepted target width or height, in pixels.
+pub const MAX_TARGET_SIZE: u32 = 16384;
+
+/// Snaps a finite window coordinate in `[MIN_COORD, MAX_COORD)` to the sub-pixel grid.
+///
+/// Returns `None` when `x` is NaN, infinite or outside the range: such a vertex cannot be
+/// represented without overflowing the edge-function bound above. Rounding is half to even,
+/// which is what the GPUs we match do.
+#[must_use]
+pub fn snap(x: f32) -> Option<i32> {
+    if !(MIN_COORD..MAX_COORD).contains(&x) {
+        return None;
+    }
+    let scaled = (x * ONE as f32).round_ties_even();
+    // 32767.999 rounds up to 2^23 = 32768 pixels, just past the range.
+    if scaled >= (MAX_COORD * ONE as f32) {
+        return None;
+    }
+    Some(scaled as i32)
+}
+
+/// The fixed-point coordinate of the centre of pixel column (or row) `p`.
+#[inline]
+#[must_use]
+pub fn pixel_centre(p: i32) -> i64 {
+    i64::from(p) * i64::from(ONE) + i64::from(HALF)
+}
+
+/// The smallest pixel index whose centre is `>= v` (a fixed-point coordinate).
+#[inline]
+#[must_use]
+pub fn first_centre_at_or_after(v: i64) -> i64 {
+    ceil_div(v - i64::from(HALF), i64::from(ONE))
+}
+
+/// The largest pixel index whose centre is `<= v` (a fixed-point coordinate).
+#[inline]
+#[must_use]
+pub fn last_centre_at_or_before(v: i64) -> i64 {
+    (v - i64::from(HALF)).div_euclid(i64::from(ONE))
+}
+
+/// `ceil(n / d)` for `d > 0`, exact for all `i64` operands in range.
+#[inline]
+#[must_use]
+pub fn ceil_div(n: i64, d: i64) -> i64 {
+    debug_assert!(d > 0);
+    -((-n).div_euclid(d))
+}
+
+/// `floor(n / d)` for `d > 0`.
+#[inline]
+#[must_use]
+pub fn floor_div(n: i64, d: i64) -> i64 {
+    debug_assert!(d > 0);
+    n.div_euclid(d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn snap_rounds_half_to_even() {
+        // 1/512 is half a sub-pixel step: ties go to the even neighbour.
+        assert_eq!(snap(1.0 / 512.0), Some(0));
+        assert_eq!(snap(3.0 / 512.0), Some(2));
+        assert_eq!(snap(-1.0 / 512.0), Some(0));
+        assert_eq!(snap(-3.0 / 512.0), Some(-2));
+        assert_eq!(snap(0.5), Some(128));
+        assert_eq!(snap(10.25), Some(2624));
+    }
+
+    #[test]
+    fn snap_rejects_out_of_range_and_non_finite() {
+        assert_eq!(snap(f32::NAN), None);
+        assert_eq!(snap(f32::INFINITY), None);
+        assert_eq!(snap(f32::NEG_INFINITY), None);
+        assert_eq!(snap(32768.0), None);
+        assert_eq!(snap(32767.999), None, "rounds up onto the excluded bound");
+        assert_eq!(snap(-32768.0), Some(-(1 << 23)));
+        assert_eq!(snap(-32768.01), None);
+        assert_eq!(snap(32767.99), Some((1 << 23) - 3));
+    }
+
+    #[test]
+    fn centre_ranges() {
+        assert_eq!(first_centre_at_or_after(128), 0);
+        assert_eq!(first_centre_at_or_after(129), 1);
+        assert_eq!(first_centre_at_or_after(127), 0);
+        assert_eq!(first_centre_at_or_after(-129), -1);
+        assert_eq!(last_centre_at_or_before(128), 0);
+        assert_eq!(last_centre_at_or_before(127), -1);
+        assert_eq!(last_centre_at_or_before(383), 0);
+        assert_eq!(last_centre_at_or_before(384), 1);
+    }
+}

@@ -1,0 +1,43 @@
+//! Edge equations over the bounding box: the reference rasterizer.
+//!
+//! The three biased edge values are evaluated once at the first pixel centre of the clipped
+//! box and then stepped: `+a * 256` per pixel to the right, `+b * 256` per row. A pixel is in
+//! iff `(e0 | e1 | e2) >= 0`, i.e. no sign bit is set. Each row stops as soon as it leaves the
+//! span, since a convex triangle's row coverage is contiguous.
+
+use super::Span;
+use crate::fixed;
+use crate::setup::{PIXEL_STEP, PixelRect, TriangleSetup};
+
+/// Emits the spans of `tri` within `clip`, top to bottom.
+pub fn rasterize(tri: &TriangleSetup, clip: &PixelRect, mut emit: impl FnMut(Span)) {
+    let Some(r) = tri.bounds.intersect(clip) else {
+        return;
+    };
+    let (x0, y0) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
+    let mut row = tri.edges.map(|e| e.eval(x0, y0));
+    let step_x = tri.edges.map(|e| e.a * PIXEL_STEP);
+    let step_y = tri.edges.map(|e| e.b * PIXEL_STEP);
+    for y in r.y0..=r.y1 {
+        let mut e = row;
+        let mut start = None;
+        let mut end = r.x1 + 1;
+        for x in r.x0..=r.x1 {
+            if (e[0] | e[1] | e[2]) >= 0 {
+                start.get_or_insert(x);
+            } else if start.is_some() {
+                end = x;
+                break;
+            }
+            for k in 0..3 {
+                e[k] += step_x[k];
+            }
+        }
+        if let Some(x_start) = start {
+            emit(Span { y, x_start, x_end: end });
+        }
+        for k in 0..3 {
+            row[k] += step_y[k];
+        }
+    }
+}

@@ -1,0 +1,73 @@
+//! Coverage: which pixel centres a set-up triangle covers, as horizontal [`Span`]s.
+//!
+//! Two independent rasterizers produce the same spans for every triangle, and the tests hold
+//! them to it:
+//! - [`edge`]: edge functions over the bounding box, stepped incrementally (the reference the
+//!   fast paths are tested against);
+//! - [`scanline`]: the classic edge walker, vertices sorted by y and split at the middle one,
+//!   span ends from exact integer ceil/floor rules.
+//!
+//! A triangle is convex, so its covered centres on one row are contiguous: a span per row
+//! describes coverage completely. Spans come out top to bottom, never empty, clipped to the
+//! caller's rectangle.
+
+pub mod edge;
+pub mod scanline;
+
+use crate::setup::{PixelRect, TriangleSetup};
+
+/// Covered pixels `x_start..x_end` (half-open) on row `y`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Span {
+    /// Row.
+    pub y: i32,
+    /// First covered column.
+    pub x_start: i32,
+    /// One past the last covered column.
+    pub x_end: i32,
+}
+
+impl Span {
+    /// Number of pixels in the span (always > 0 for spans a rasterizer emits).
+    #[must_use]
+    pub fn len(&self) -> usize {
+        (self.x_end - self.x_start) as usize
+    }
+
+    /// True for a span with no pixels (rasterizers never emit one).
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.x_end <= self.x_start
+    }
+}
+
+/// Which coverage algorithm to run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Algorithm {
+    /// Edge equations over the bounding box.
+    #[default]
+    EdgeFunctions,
+    /// Scanline edge walking.
+    Scanline,
+}
+
+/// Calls `emit` with every span of `tri` inside `clip`, top to bottom.
+pub fn rasterize(
+    algorithm: Algorithm,
+    tri: &TriangleSetup,
+    clip: &PixelRect,
+    emit: impl FnMut(Span),
+) {
+    match algorithm {
+        Algorithm::EdgeFunctions => edge::rasterize(tri, clip, emit),
+        Algorithm::Scanline => scanline::rasterize(tri, clip, emit),
+    }
+}
+
+/// Collects the spans of one triangle (convenient for tests and tools).
+#[must_use]
+pub fn spans(algorithm: Algorithm, tri: &TriangleSetup, clip: &PixelRect) -> Vec<Span> {
+    let mut out = Vec::new();
+    rasterize(algorithm, tri, clip, |s| out.push(s));
+    out
+}

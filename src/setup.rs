@@ -1,0 +1,303 @@
+//! Triangle setup: snap the vertices, build the three integer edge functions with the fill rule
+//! folded in, and classify the triangle (winding, culling, degeneracy).
+//!
+//! Contract: `TriangleSetup::new` either rejects a triangle (a [`Rejection`] the caller counts)
+//! or returns edges such that a sample point `P` (fixed point) is covered iff
+//! `edge.eval(P) >= 0` for all three edges. Nothing downstream knows about windings or ties.
+
+use crate::fixed::{self, ONE};
+
+/// A vertex in window space: `x`, `y` in pixels (origin at the top-left corner of the image,
+/// y down), `z` in [0, 1], and `inv_w = 1/w` for perspective-correct varyings (1 when the
+/// vertex did not come through a projection).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Vertex {
+    /// Horizontal window coordinate, pixels.
+    pub x: f32,
+    /// Vertical window coordinate, pixels, growing downwards.
+    pub y: f32,
+    /// Depth in [0, 1]; interpolated linearly in screen space.
+    pub z: f32,
+    /// Reciprocal of the clip-space `w`; weights perspective-correct varyings.
+    pub inv_w: f32,
+    /// Vertex colour, RGBA8.
+    pub color: [u8; 4],
+}
+
+impl Vertex {
+    /// A vertex with `inv_w = 1` (no perspective).
+    #[must_use]
+    pub const fn new(x: f32, y: f32, z: f32, color: [u8; 4]) -> Self {
+        Self { x, y, z, inv_w: 1.0, color }
+    }
+}
+
+/// Which screen-space winding to discard. Windings are as seen on the image (y down):
+/// a triangle whose vertices go clockwise on screen is `Clockwise`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CullMode {
+    /// Draw both windings.
+    #[default]
+    None,
+    /// Discard triangles that are clockwise on screen.
+    Clockwise,
+    /// Discard triangles that are counter-clockwise on screen.
+    CounterClockwise,
+}
+
+/// Why setup produced no triangle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Rejection {
+    /// A coordinate (x, y, z or 1/w) is NaN or infinite: dropped and counted, never rasterized.
+    NonFinite,
+    /// A vertex lies outside [-32768, 32768) pixels; the edge functions could overflow.
+    OutOfRange,
+    /// Zero area after snapping: covers no sample.
+    Degenerate,
+    /// Removed by the cull mode.
+    Culled,
+}
+
+/// The fill rule that decides samples exactly on an edge: D3D10+/Vulkan top-left, y down.
+///
+/// A sample on an edge belongs to the triangle iff the edge is a *top* edge (exactly horizontal,
+/// the third vertex below it) or a *left* edge. With the winding normalised so that the inside
+/// is `E > 0`, an edge `a -> b` has `A = Ya - Yb` and `B = Xb - Xa`; it is
+/// - *left* iff `A > 0` (the edge goes up the screen, so the inside lies to its right), and
+/// - *top* iff `A == 0 && B > 0` (horizontal, going right, so the inside lies below it).
+///
+/// Proof that shared edges are owned once: two triangles sharing the edge with the inside on
+/// opposite sides see it as `a -> b` and `b -> a`, i.e. with `(A, B)` and `(-A, -B)`. Exactly
+/// one of those pairs satisfies `A > 0 || (A == 0 && B > 0)` unless `A == B == 0`, which a
+/// non-degenerate edge never is. So a sample exactly on the shared edge is in exactly one of
+/// the two triangles; a sample at a shared vertex follows the same argument around the fan.
+///
+/// Because `E` is an integer at every sample, "`E >= 0` on owned edges, `E > 0` elsewhere" is
+/// `E + bias >= 0` with `bias = 0` on owned edges and `-1` elsewhere: the rule is applied once,
+/// here, and the inner loops test plain signs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FillRule;
+
+impl FillRule {
+    /// The bias added to `C` of an edge with coefficients `(a, b)` (inside is positive).
+    #[inline]
+    #[must_use]
+    pub fn bias(a: i64, b: i64) -> i64 {
+        if a > 0 || (a == 0 && b > 0) { 0 } else { -1 }
+    }
+}
+
+/// An edge function `E(X, Y) = a*X + b*Y + c` over fixed-point coordinates, positive inside,
+/// with the fill-rule bias already in `c`. Ranges: see [`crate::fixed`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EdgeFunction {
+    /// Coefficient of X (`Ya - Yb`): stepping one fixed-point unit right adds `a`.
+    pub a: i64,
+    /// Coefficient of Y (`Xb - Xa`).
+    pub b: i64,
+    /// Constant term, including the fill-rule bias.
+    pub c: i64,
+}
+
+impl EdgeFunction {
+    /// The biased edge value at fixed-point `(x, y)`: the sample is on the inside of this edge
+    /// (ties resolved by the fill rule) iff the result is `>= 0`.
+    #[inline]
+    #[must_use]
+    pub fn eval(&self, x: i64, y: i64) -> i64 {
+        self.a * x + self.b * y + self.c
+    }
+
+    /// True iff this edge owns samples lying exactly on it (top or left edge).
+    #[must_use]
+    pub fn is_top_left(&self) -> bool {
+        FillRule::bias(self.a, self.b) == 0
+    }
+}
+
+/// Inclusive pixel rectangle `[x0, x1] x [y0, y1]`, used for bounding boxes and scissors.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelRect {
+    /// First column.
+    pub x0: i32,
+    /// First row.
+    pub y0: i32,
+    /// Last column (inclusive).
+    pub x1: i32,
+    /// Last row (inclusive).
+    pub y1: i32,
+}
+
+impl PixelRect {
+    /// The rectangle of a whole `width x height` target.
+    #[must_use]
+    pub fn of_target(width: u32, height: u32) -> Self {
+        Self { x0: 0, y0: 0, x1: width as i32 - 1, y1: height as i32 - 1 }
+    }
+
+    /// Intersection; `None` when empty.
+    #[must_use]
+    pub fn intersect(&self, other: &Self) -> Option<Self> {
+        let r = Self {
+            x0: self.x0.max(other.x0),
+            y0: self.y0.max(other.y0),
+            x1: self.x1.min(other.x1),
+            y1: self.y1.min(other.y1),
+        };
+        (r.x0 <= r.x1 && r.y0 <= r.y1).then_some(r)
+    }
+}
+
+/// Everything the rasterizers and the shader need to know about one triangle.
+///
+/// Edge `i` is the edge opposite vertex `i` (from vertex `i+1` to vertex `i+2`), so its
+/// unbiased value at a sample is `2 * area * barycentric_i`.
+#[derive(Clone, Copy, Debug)]
+pub struct TriangleSetup {
+    /// Snapped vertex positions, in the caller's order.
+    pub xy: [[i64; 2]; 3],
+    /// Edge functions, inside positive whatever the input winding, fill rule applied.
+    pub edges: [EdgeFunction; 3],
+    /// Twice the (absolute) area in fixed-point units squared: `E_i(v_i)` unbiased. `> 0`.
+    pub area2: i64,
+    /// True when the input winding is clockwise on screen (y down).
+    pub clockwise: bool,
+    /// Pixels whose centres may be covered: the snapped bounding box, not yet clipped.
+    pub bounds: PixelRect,
+}
+
+impl TriangleSetup {
+    /// Snaps and sets up a triangle; see [`Rejection`] for the ways it can produce nothing.
+    pub fn new(v: &[Vertex; 3], cull: CullMode) -> Result<Self, Rejection> {
+        let finite = v.iter().all(|p| {
+            p.x.is_finite() && p.y.is_finite() && p.z.is_finite() && p.inv_w.is_finite()
+        });
+        if !finite {
+            return Err(Rejection::NonFinite);
+        }
+        let mut xy = [[0i64; 2]; 3];
+        for (dst, p) in xy.iter_mut().zip(v) {
+            let (Some(x), Some(y)) = (fixed::snap(p.x), fixed::snap(p.y)) else {
+                return Err(Rejection::OutOfRange);
+            };
+            *dst = [i64::from(x), i64::from(y)];
+        }
+        Self::from_snapped(xy, cull)
+    }
+
+    /// Sets up a triangle from already-snapped coordinates (each within `+-2^23`).
+    pub fn from_snapped(xy: [[i64; 2]; 3], cull: CullMode) -> Result<Self, Rejection> {
+        let [p0, p1, p2] = xy;
+        // Twice the signed area; > 0 means clockwise on a y-down screen.
+        let signed = (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (p1[1] - p0[1]);
+        if signed == 0 {
+            return Err(Rejection::Degenerate);
+        }
+        let clockwise = signed > 0;
+        match cull {
+            CullMode::Clockwise if clockwise => return Err(Rejection::Culled),
+            CullMode::CounterClockwise if !clockwise => return Err(Rejection::Culled),
+            _ => {}
+        }
+        let sign = if clockwise { 1 } else { -1 };
+        let edge = |a: [i64; 2], b: [i64; 2]| {
+            let ea = sign * (a[1] - b[1]);
+            let eb = sign * (b[0] - a[0]);
+            let c = -(ea * a[0] + eb * a[1]);
+            EdgeFunction { a: ea, b: eb, c: c + FillRule::bias(ea, eb) }
+        };
+        let edges = [edge(p1, p2), edge(p2, p0), edge(p0, p1)];
+        let min = |k: usize| p0[k].min(p1[k]).min(p2[k]);
+        let max = |k: usize| p0[k].max(p1[k]).max(p2[k]);
+        let bounds = PixelRect {
+            x0: fixed::first_centre_at_or_after(min(0)) as i32,
+            y0: fixed::first_centre_at_or_after(min(1)) as i32,
+            x1: fixed::last_centre_at_or_before(max(0)) as i32,
+            y1: fixed::last_centre_at_or_before(max(1)) as i32,
+        };
+        Ok(Self { xy, edges, area2: signed.abs(), clockwise, bounds })
+    }
+
+    /// Does the triangle cover the centre of pixel `(px, py)`? The definition every
+    /// rasterizer must agree with.
+    #[inline]
+    #[must_use]
+    pub fn covers(&self, px: i32, py: i32) -> bool {
+        self.covers_point(fixed::pixel_centre(px), fixed::pixel_centre(py))
+    }
+
+    /// Does the triangle cover the fixed-point sample `(x, y)`?
+    #[inline]
+    #[must_use]
+    pub fn covers_point(&self, x: i64, y: i64) -> bool {
+        (self.edges[0].eval(x, y) | self.edges[1].eval(x, y) | self.edges[2].eval(x, y)) >= 0
+    }
+
+    /// Unbiased edge values `(E_1, E_2)` at fixed-point `(x, y)`, computed relative to vertex 0
+    /// (which lies on both edges) so that they are exact integers below 2^49: `E_i / area2`
+    /// is the barycentric weight of vertex `i`.
+    #[inline]
+    #[must_use]
+    pub fn barycentric_numerators(&self, x: i64, y: i64) -> (i64, i64) {
+        let dx = x - self.xy[0][0];
+        let dy = y - self.xy[0][1];
+        let e1 = self.edges[1].a * dx + self.edges[1].b * dy;
+        let e2 = self.edges[2].a * dx + self.edges[2].b * dy;
+        (e1, e2)
+    }
+}
+
+/// Fixed-point units per pixel, as `i64`, for stepping edge functions by whole pixels.
+pub const PIXEL_STEP: i64 = ONE as i64;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri(p: [[f32; 2]; 3]) -> [Vertex; 3] {
+        p.map(|[x, y]| Vertex::new(x, y, 0.5, [255; 4]))
+    }
+
+    #[test]
+    fn both_windings_cover_the_same_pixels() {
+        let cw = TriangleSetup::new(&tri([[1.0, 1.0], [9.0, 2.0], [3.0, 8.0]]), CullMode::None)
+            .unwrap();
+        let ccw = TriangleSetup::new(&tri([[1.0, 1.0], [3.0, 8.0], [9.0, 2.0]]), CullMode::None)
+            .unwrap();
+        assert!(cw.clockwise && !ccw.clockwise);
+        for y in 0..10 {
+            for x in 0..10 {
+                assert_eq!(cw.covers(x, y), ccw.covers(x, y), "pixel {x},{y}");
+            }
+        }
+    }
+
+    #[test]
+    fn culling_and_degenerate() {
+        let cw = tri([[1.0, 1.0], [9.0, 2.0], [3.0, 8.0]]);
+        assert_eq!(TriangleSetup::new(&cw, CullMode::Clockwise).err(), Some(Rejection::Culled));
+        assert!(TriangleSetup::new(&cw, CullMode::CounterClockwise).is_ok());
+        let line = tri([[0.0, 0.0], [5.0, 5.0], [10.0, 10.0]]);
+        assert_eq!(TriangleSetup::new(&line, CullMode::None).err(), Some(Rejection::Degenerate));
+        let mut nan = cw;
+        nan[1].z = f32::NAN;
+        assert_eq!(TriangleSetup::new(&nan, CullMode::None).err(), Some(Rejection::NonFinite));
+        let far = tri([[0.0, 0.0], [40000.0, 0.0], [0.0, 10.0]]);
+        assert_eq!(TriangleSetup::new(&far, CullMode::None).err(), Some(Rejection::OutOfRange));
+    }
+
+    #[test]
+    fn edge_value_at_opposite_vertex_is_twice_the_area() {
+        let s = TriangleSetup::new(&tri([[1.5, 1.0], [9.25, 2.0], [3.0, 8.75]]), CullMode::None)
+            .unwrap();
+        for i in 0..3 {
+            let [x, y] = s.xy[i];
+            let unbiased = s.edges[i].eval(x, y) - FillRule::bias(s.edges[i].a, s.edges[i].b);
+            assert_eq!(unbiased, s.area2);
+        }
+        let [x1, y1] = s.xy[1];
+        assert_eq!(s.barycentric_numerators(x1, y1), (s.area2, 0));
+        let [x2, y2] = s.xy[2];
+        assert_eq!(s.barycentric_numerators(x2, y2), (0, s.area2));
+    }
+}
