@@ -1,0 +1,875 @@
+//! End-to-end tests of the `trirast` binary: they run it as a user would, on OBJ files written
+//! here, and check what it wrote (PNG, `.npy`) or what it said (exit status, stderr).
+//!
+//! Every check is a property that follows from the inputs (which triangle owns which pixel,
+//! which depth a flat triangle has, which one a depth test keeps), not a stored snapshot.
+
+use std::ffi::OsStr;
+use std::fmt::Write as _;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+// ---------------------------------------------------------------------------------------------
+// Helpers
+// ---------------------------------------------------------------------------------------------
+
+/// A fresh directory under the system temp dir, removed on drop.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(test: &str) -> Self {
+        static COUNTER: AtomicUsize = AtomicUsize::new(0);
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.subsec_nanos());
+        let dir = std::env::temp_dir().join(format!(
+            "trirast-cli-{test}-{}-{n}-{nanos}",
+            std::process::id()
+        ));
+        fs::create_dir_all(&dir).unwrap();
+        Self(dir)
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+
+    fn write(&self, name: &str, contents: &str) -> PathBuf {
+        let p = self.path(name);
+        fs::write(&p, contents).unwrap();
+        p
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = fs::remove_dir_all(&self.0);
+    }
+}
+
+fn trirast_in<I, S>(dir: &Path, args: I) -> Output
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<OsStr>,
+{
+    Command::new(env!("CARGO_BIN_EXE_trirast"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("failed to start the trirast binary")
+}
+
+fn stderr_of(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// Runs trirast in `dir` and asserts it succeeded without panicking; returns stderr.
+fn run_ok<I, S>(dir: &Path, args: I) -> String
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<OsStr>,
+{
+    let out = trirast_in(dir, args);
+    let err = stderr_of(&out);
+    assert!(
+        out.status.success(),
+        "trirast failed ({}): {err}",
+        out.status
+    );
+    assert!(!err.contains("panicked"), "trirast panicked: {err}");
+    err
+}
+
+/// Runs trirast in `dir` and asserts it failed cleanly (non-zero, a message, no panic).
+fn run_err<I, S>(dir: &Path, args: I) -> String
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<OsStr>,
+{
+    let out = trirast_in(dir, args);
+    let err = stderr_of(&out);
+    assert!(
+        !out.status.success(),
+        "trirast should have failed; stderr: {err}"
+    );
+    assert!(
+        out.status.code().is_some(),
+        "trirast was killed by a signal: {err}"
+    );
+    assert!(!err.contains("panicked"), "trirast panicked: {err}");
+    assert!(!err.trim().is_empty(), "trirast failed without a message");
+    err
+}
+
+/// A decoded `.npy` file: dtype descriptor, shape and raw little-endian data.
+struct Npy {
+    descr: String,
+    shape: Vec<usize>,
+    data: Vec<u8>,
+}
+
+/// Value of `key` in a numpy header dict such as
+/// `{'descr': '<i4', 'fortran_order': False, 'shape': (48, 64), }`.
+fn header_value<'a>(dict: &'a str, key: &str) -> &'a str {
+    let pat = format!("'{key}':");
+    let start = dict
+        .find(&pat)
+        .unwrap_or_else(|| panic!("no {key} in {dict:?}"))
+        + pat.len();
+    let rest = dict[start..].trim_start();
+    let end = match rest.as_bytes()[0] {
+        b'\'' => rest[1..].find('\'').unwrap() + 2,
+        b'(' => rest.find(')').unwrap() + 1,
+        _ => rest.find([',', '}']).unwrap(),
+    };
+    rest[..end].trim()
+}
+
+fn read_npy(path: &Path) -> Npy {
+    let bytes = fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!(&bytes[..6], b"\x93NUMPY", "bad magic in {}", path.display());
+    let (major, minor) = (bytes[6], bytes[7]);
+    let (header_len, text_start) = match major {
+        1 => (usize::from(u16::from_le_bytes([bytes[8], bytes[9]])), 10),
+        2 | 3 => (
+            u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize,
+            12,
+        ),
+        v => panic!("unknown npy version {v}.{minor}"),
+    };
+    assert_eq!(minor, 0, "npy minor version");
+    let data_start = text_start + header_len;
+    assert_eq!(data_start % 16, 0, "npy data must start 16-byte aligned");
+    let header = std::str::from_utf8(&bytes[text_start..data_start]).unwrap();
+    assert!(
+        header.ends_with('\n'),
+        "npy header must end with a newline: {header:?}"
+    );
+    let dict = header.trim();
+    assert!(
+        dict.starts_with('{') && dict.ends_with('}'),
+        "header is not a dict: {dict:?}"
+    );
+    let descr = header_value(dict, "descr").trim_matches('\'').to_string();
+    assert_eq!(header_value(dict, "fortran_order"), "False");
+    let shape = header_value(dict, "shape");
+    let shape: Vec<usize> = shape
+        .trim_matches(['(', ')'])
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().unwrap())
+        .collect();
+    Npy {
+        descr,
+        shape,
+        data: bytes[data_start..].to_vec(),
+    }
+}
+
+impl Npy {
+    fn check(&self, descr: &str, height: usize, width: usize) {
+        assert_eq!(self.descr, descr);
+        assert_eq!(self.shape, [height, width]);
+        assert_eq!(
+            self.data.len(),
+            height * width * 4,
+            "data length for shape {:?}",
+            self.shape
+        );
+    }
+
+    fn words(&self) -> impl Iterator<Item = [u8; 4]> + '_ {
+        self.data.chunks_exact(4).map(|c| c.try_into().unwrap())
+    }
+
+    fn i32s(&self) -> Vec<i32> {
+        assert_eq!(self.descr, "<i4");
+        self.words().map(i32::from_le_bytes).collect()
+    }
+
+    fn u32s(&self) -> Vec<u32> {
+        assert_eq!(self.descr, "<u4");
+        self.words().map(u32::from_le_bytes).collect()
+    }
+
+    fn f32s(&self) -> Vec<f32> {
+        assert_eq!(self.descr, "<f4");
+        self.words().map(f32::from_le_bytes).collect()
+    }
+}
+
+/// A decoded RGBA8 PNG.
+struct Image {
+    width: usize,
+    height: usize,
+    rgba: Vec<u8>,
+}
+
+impl Image {
+    fn at(&self, x: usize, y: usize) -> [u8; 4] {
+        let i = 4 * (y * self.width + x);
+        self.rgba[i..i + 4].try_into().unwrap()
+    }
+
+    fn distinct_colors(&self) -> usize {
+        let mut c: Vec<[u8; 4]> = self
+            .rgba
+            .chunks_exact(4)
+            .map(|p| p.try_into().unwrap())
+            .collect();
+        c.sort_unstable();
+        c.dedup();
+        c.len()
+    }
+}
+
+fn read_png(path: &Path) -> Image {
+    let file = fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgba);
+    assert_eq!(info.bit_depth, png::BitDepth::Eight);
+    buf.truncate(info.buffer_size());
+    Image {
+        width: info.width as usize,
+        height: info.height as usize,
+        rgba: buf,
+    }
+}
+
+/// Renders `obj` (window projection, `W x H`) with extra `args`, returning the PNG and the
+/// three `.npy` buffers (ids, depth, overdraw).
+struct Rendered {
+    image: Image,
+    ids: Vec<i32>,
+    depth: Vec<f32>,
+    overdraw: Vec<u32>,
+    stderr: String,
+}
+
+const W: usize = 64;
+const H: usize = 48;
+
+fn render_obj(dir: &TempDir, obj: &str, args: &[&str]) -> Rendered {
+    let input = dir.write("scene.obj", obj);
+    let mut all: Vec<&OsStr> = vec![
+        "render".as_ref(),
+        input.as_os_str(),
+        "--projection".as_ref(),
+        "window".as_ref(),
+        "--size".as_ref(),
+        "64x48".as_ref(),
+        "-o".as_ref(),
+        "c.png".as_ref(),
+        "--depth".as_ref(),
+        "d.npy".as_ref(),
+        "--ids".as_ref(),
+        "i.npy".as_ref(),
+        "--overdraw".as_ref(),
+        "o.npy".as_ref(),
+    ];
+    all.extend(args.iter().map(OsStr::new));
+    let stderr = run_ok(&dir.0, &all);
+    let image = read_png(&dir.path("c.png"));
+    assert_eq!((image.width, image.height), (W, H));
+    let (ids, depth, overdraw) = (
+        read_npy(&dir.path("i.npy")),
+        read_npy(&dir.path("d.npy")),
+        read_npy(&dir.path("o.npy")),
+    );
+    ids.check("<i4", H, W);
+    depth.check("<f4", H, W);
+    overdraw.check("<u4", H, W);
+    Rendered {
+        image,
+        ids: ids.i32s(),
+        depth: depth.f32s(),
+        overdraw: overdraw.u32s(),
+        stderr,
+    }
+}
+
+fn idx(x: usize, y: usize) -> usize {
+    y * W + x
+}
+
+const BLACK: [u8; 4] = [0, 0, 0, 255];
+const WHITE: [u8; 4] = [255, 255, 255, 255];
+
+// ---------------------------------------------------------------------------------------------
+// Rendering to PNG and .npy
+// ---------------------------------------------------------------------------------------------
+
+/// Quad A: (4,4)-(28,20) at z = 0.25, two explicit triangles split along (4,4)-(28,20), the
+/// first with red, green, blue vertices. Quad B: (36,24)-(60,44) at z = 0.5, one `f` with four
+/// corners (fanned into triangles 2 and 3 along (36,24)-(60,44)), no colours (white).
+const QUADS: &str = "\
+# quad A: two triangles
+v 4 4 0.25 1 0 0
+v 28 4 0.25 0 1 0
+v 28 20 0.25 0 0 1
+v 4 20 0.25 1 1 1
+f 1 2 3
+f 1 3 4
+# quad B: one face of four corners
+v 36 24 0.5
+v 60 24 0.5
+v 60 44 0.5
+v 36 44 0.5
+f 5 6 7 8
+";
+
+/// Which side of the diagonal `a -> c` the centre of pixel (x, y) lies on, exactly (all
+/// coordinates doubled so that pixel centres are integers): < 0 above-right, > 0 below-left.
+fn side(a: (i64, i64), c: (i64, i64), x: usize, y: usize) -> i64 {
+    let (px, py) = (2 * x as i64 + 1, 2 * y as i64 + 1);
+    (c.0 - a.0) * (py - 2 * a.1) - (c.1 - a.1) * (px - 2 * a.0)
+}
+
+#[test]
+fn render_writes_png_and_npy_buffers_that_match_the_mesh() {
+    let dir = TempDir::new("quads");
+    let r = render_obj(&dir, QUADS, &[]);
+    assert!(r.stderr.contains("4 triangles"), "stderr: {}", r.stderr);
+
+    // Every pixel: which quad contains its centre (quad edges are on integer coordinates, so no
+    // centre is ever on one), and within a quad which fan triangle.
+    let quads = [
+        ((4, 4), (28, 20), 0.25f32, [0, 1]),
+        ((36, 24), (60, 44), 0.5, [2, 3]),
+    ];
+    let mut counted = [0usize; 4];
+    for y in 0..H {
+        for x in 0..W {
+            let i = idx(x, y);
+            let (cx, cy) = (x as f64 + 0.5, y as f64 + 0.5);
+            let inside = quads.iter().find(|(a, c, _, _)| {
+                (a.0 as f64) < cx && cx < c.0 as f64 && (a.1 as f64) < cy && cy < c.1 as f64
+            });
+            match inside {
+                None => {
+                    assert_eq!(r.ids[i], -1, "id at ({x}, {y})");
+                    assert_eq!(r.overdraw[i], 0, "overdraw at ({x}, {y})");
+                    assert_eq!(r.depth[i], 1.0, "depth at ({x}, {y})");
+                    assert_eq!(r.image.at(x, y), BLACK, "colour at ({x}, {y})");
+                }
+                Some(&(a, c, z, [upper, lower])) => {
+                    // A tiled quad: exactly one fragment per pixel, diagonal included.
+                    assert_eq!(r.overdraw[i], 1, "overdraw at ({x}, {y})");
+                    assert_eq!(r.depth[i], z, "depth at ({x}, {y})");
+                    let s = side(a, c, x, y);
+                    let id = r.ids[i];
+                    match s.signum() {
+                        -1 => assert_eq!(id, upper, "id at ({x}, {y})"),
+                        1 => assert_eq!(id, lower, "id at ({x}, {y})"),
+                        _ => assert!(id == upper || id == lower, "id {id} at ({x}, {y})"),
+                    }
+                    counted[id as usize] += 1;
+                }
+            }
+        }
+    }
+    // Each triangle covers about half its quad (24x16 / 2 = 192, 24x20 / 2 = 240).
+    for (t, (&n, expected)) in counted.iter().zip([192, 192, 240, 240]).enumerate() {
+        assert!(n.abs_diff(expected) <= 24, "triangle {t} covers {n} pixels");
+    }
+
+    // Spot checks at centres clearly inside each triangle.
+    for (x, y, id) in [(24, 6, 0), (6, 18, 1), (56, 26, 2), (38, 42, 3)] {
+        assert_eq!(r.ids[idx(x, y)], id, "id at ({x}, {y})");
+    }
+
+    // Colours: quad B has no vertex colours, so it is white; triangle 1 is (red, blue, white)
+    // and triangle 0 is (red, green, blue), smoothly interpolated.
+    assert_eq!(r.image.at(50, 30), WHITE);
+    let bary = |p: (f64, f64), v: [(f64, f64); 3]| -> [f64; 3] {
+        let area = |a: (f64, f64), b: (f64, f64), c: (f64, f64)| {
+            (b.0 - a.0) * (c.1 - a.1) - (c.0 - a.0) * (b.1 - a.1)
+        };
+        let total = area(v[0], v[1], v[2]);
+        [
+            area(p, v[1], v[2]) / total,
+            area(v[0], p, v[2]) / total,
+            area(v[0], v[1], p) / total,
+        ]
+    };
+    let w = bary((24.5, 6.5), [(4.0, 4.0), (28.0, 4.0), (28.0, 20.0)]);
+    let expected = [255.0 * w[0], 255.0 * w[1], 255.0 * w[2]];
+    let got = r.image.at(24, 6);
+    for c in 0..3 {
+        assert!(
+            (f64::from(got[c]) - expected[c]).abs() <= 1.0,
+            "channel {c} at (24, 6): got {got:?}, expected about {expected:?}"
+        );
+    }
+    assert_eq!(got[3], 255);
+}
+
+#[test]
+fn npy_files_load_in_numpy() {
+    let has_numpy = Command::new("python3")
+        .args(["-c", "import numpy"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !has_numpy {
+        eprintln!("skipping npy_files_load_in_numpy: python3 with numpy is not available");
+        return;
+    }
+    let dir = TempDir::new("numpy");
+    render_obj(&dir, QUADS, &[]);
+    let script = "\
+import numpy as np
+i = np.load('i.npy'); d = np.load('d.npy'); o = np.load('o.npy')
+for name, a in (('ids', i), ('depth', d), ('overdraw', o)):
+    print(name, a.shape, a.dtype.str)
+print('values', int(i[6, 24]), int(i[42, 38]), int(i[0, 0]), float(d[6, 24]), float(d[0, 0]), \
+int(o.sum()), int((i >= 0).sum()))
+";
+    let out = Command::new("python3")
+        .args(["-c", script])
+        .current_dir(&dir.0)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "python failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(lines[0], "ids (48, 64) <i4");
+    assert_eq!(lines[1], "depth (48, 64) <f4");
+    assert_eq!(lines[2], "overdraw (48, 64) <u4");
+    // Row-major (H, W) indexing: [y, x]. Quads cover 24*16 + 24*20 = 864 pixels, once each.
+    assert_eq!(lines[3], "values 0 3 -1 0.25 1.0 864 864");
+}
+
+/// A deterministic 64-bit LCG (Knuth's MMIX constants).
+struct Lcg(u64);
+
+impl Lcg {
+    fn next(&mut self) -> u64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        self.0 >> 11
+    }
+
+    /// Uniform in `[0, n)`.
+    fn below(&mut self, n: u64) -> u64 {
+        self.next() % n
+    }
+}
+
+#[test]
+fn scanline_and_edge_algorithms_write_identical_files() {
+    // ~200 triangles, partly off-screen, coordinates on a 1/8-pixel grid so that many vertices
+    // and edges pass exactly through pixel centres (the tie cases), plus a shared-edge fan.
+    let mut rng = Lcg(0x5eed_1234_abcd_0001);
+    let mut obj = String::new();
+    let coord = |rng: &mut Lcg, extent: u64| (rng.below((extent + 40) * 8) as f64) / 8.0 - 20.0;
+    for _ in 0..200 {
+        for _ in 0..3 {
+            let (x, y) = (coord(&mut rng, W as u64), coord(&mut rng, H as u64));
+            let z = 0.1 + rng.below(900) as f64 / 1000.0;
+            let (r, g, b) = (rng.below(256), rng.below(256), rng.below(256));
+            let (r, g, b) = (r as f64 / 255.0, g as f64 / 255.0, b as f64 / 255.0);
+            writeln!(obj, "v {x} {y} {z} {r:.6} {g:.6} {b:.6}").unwrap();
+        }
+        obj.push_str("f -3 -2 -1\n");
+    }
+    // A fan of 12 around (32.5, 24.5), nearer than the soup (z >= 0.1): every pixel near the
+    // centre is owned exactly once.
+    writeln!(obj, "v 32.5 24.5 0.05").unwrap();
+    for k in 0..12 {
+        let a = std::f64::consts::TAU * f64::from(k) / 12.0;
+        writeln!(
+            obj,
+            "v {:.3} {:.3} 0.05",
+            32.5 + 15.0 * a.cos(),
+            24.5 + 15.0 * a.sin()
+        )
+        .unwrap();
+    }
+    let hub = 601;
+    for k in 0..12 {
+        writeln!(obj, "f {hub} {} {}", hub + 1 + k, hub + 1 + (k + 1) % 12).unwrap();
+    }
+
+    let mut outputs = Vec::new();
+    for algorithm in ["edge", "scanline"] {
+        let dir = TempDir::new(&format!("alg-{algorithm}"));
+        let r = render_obj(&dir, &obj, &["--algorithm", algorithm]);
+        let files: Vec<Vec<u8>> = ["i.npy", "d.npy", "o.npy", "c.png"]
+            .iter()
+            .map(|f| fs::read(dir.path(f)).unwrap())
+            .collect();
+        // Not a trivial picture: many triangles visible, the fan's hub owned once.
+        let mut visible: Vec<i32> = r.ids.iter().copied().filter(|&i| i >= 0).collect();
+        visible.sort_unstable();
+        visible.dedup();
+        assert!(
+            visible.len() > 50,
+            "only {} triangles visible",
+            visible.len()
+        );
+        assert!(r.overdraw.iter().any(|&o| o > 3), "soup should overlap");
+        assert!(
+            (200..212).contains(&r.ids[idx(32, 24)]),
+            "the fan is in front at its hub"
+        );
+        outputs.push((files, r.stderr));
+    }
+    let (edge, scan) = (&outputs[0].0, &outputs[1].0);
+    for (k, name) in ["ids", "depth", "overdraw", "colour png"]
+        .iter()
+        .enumerate()
+    {
+        assert!(
+            edge[k] == scan[k],
+            "{name} differs between edge and scanline"
+        );
+    }
+    // Same statistics line (rasterized / degenerate / fragments) on stderr too.
+    let stats = |s: &str| {
+        s.lines()
+            .find(|l| l.contains("fragments"))
+            .unwrap_or("")
+            .to_string()
+    };
+    assert_eq!(stats(&outputs[0].1), stats(&outputs[1].1));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Depth test, culling, flat shading
+// ---------------------------------------------------------------------------------------------
+
+/// Two overlapping triangles, both covering pixel (20, 20): first at depth `z0`, then `z1`.
+fn overlapping(z0: f32, z1: f32) -> String {
+    format!(
+        "v 4 4 {z0} 1 0 0\nv 40 4 {z0} 1 0 0\nv 4 40 {z0} 1 0 0\nf 1 2 3\n\
+         v 10 10 {z1} 0 0 1\nv 44 10 {z1} 0 0 1\nv 10 44 {z1} 0 0 1\nf 4 5 6\n"
+    )
+}
+
+#[test]
+fn depth_test_always_lets_the_last_triangle_win_and_less_the_nearest() {
+    const RED: [u8; 4] = [255, 0, 0, 255];
+    const BLUE: [u8; 4] = [0, 0, 255, 255];
+    let p = idx(20, 20);
+    let dir = TempDir::new("depth");
+    // Nearer triangle first.
+    let obj = overlapping(0.2, 0.6);
+    let less = render_obj(&dir, &obj, &["--depth-test", "less"]);
+    assert_eq!(
+        (less.ids[p], less.depth[p], less.image.at(20, 20)),
+        (0, 0.2, RED)
+    );
+    assert_eq!(
+        less.overdraw[p], 2,
+        "both fragments are counted before the depth test"
+    );
+    let always = render_obj(&dir, &obj, &["--depth-test", "always"]);
+    assert_eq!(
+        (always.ids[p], always.depth[p], always.image.at(20, 20)),
+        (1, 0.6, BLUE)
+    );
+    assert_eq!(always.overdraw[p], 2);
+    // Nearer triangle last: both tests keep it.
+    let obj = overlapping(0.6, 0.2);
+    for test in ["less", "always", "less-equal"] {
+        let r = render_obj(&dir, &obj, &["--depth-test", test]);
+        assert_eq!((r.ids[p], r.depth[p]), (1, 0.2), "--depth-test {test}");
+    }
+    // Equal depths: `less` keeps the first, `less-equal` and `always` the last.
+    let obj = overlapping(0.4, 0.4);
+    for (test, id) in [("less", 0), ("less-equal", 1), ("always", 1)] {
+        let r = render_obj(&dir, &obj, &["--depth-test", test]);
+        assert_eq!(r.ids[p], id, "--depth-test {test} at equal depth");
+    }
+    // Pixels covered by one triangle only are unaffected by the choice.
+    assert_eq!(less.ids[idx(6, 6)], 0);
+    assert_eq!(always.ids[idx(6, 6)], 0);
+    assert_eq!(less.ids[idx(40, 12)], 1);
+}
+
+#[test]
+fn cull_removes_the_triangles_of_the_named_screen_winding() {
+    // Triangle 0 goes (2,2) -> (22,2) -> (2,22): right, then down-left: clockwise on a y-down
+    // image. Triangle 1 goes (30,2) -> (30,22) -> (50,2): down, then up-right: counter-clockwise.
+    let obj = "v 2 2 0.5\nv 22 2 0.5\nv 2 22 0.5\nf 1 2 3\n\
+               v 30 2 0.5\nv 30 22 0.5\nv 50 2 0.5\nf 4 5 6\n";
+    let (in_cw, in_ccw) = (idx(6, 6), idx(34, 6));
+    let dir = TempDir::new("cull");
+    for (mode, cw_id, ccw_id) in [("none", 0, 1), ("cw", -1, 1), ("ccw", 0, -1)] {
+        let r = render_obj(&dir, obj, &["--cull", mode]);
+        assert_eq!(
+            (r.ids[in_cw], r.ids[in_ccw]),
+            (cw_id, ccw_id),
+            "--cull {mode}"
+        );
+        // A culled triangle produces no fragments at all.
+        let culled = r.overdraw.iter().filter(|&&o| o > 0).count();
+        let drawn = r.ids.iter().filter(|&&i| i >= 0).count();
+        assert_eq!(
+            culled, drawn,
+            "--cull {mode}: overdraw only where something was drawn"
+        );
+        let expected_culled = if mode == "none" {
+            "0 culled"
+        } else {
+            "1 culled"
+        };
+        assert!(
+            r.stderr.contains(expected_culled),
+            "--cull {mode}: {}",
+            r.stderr
+        );
+    }
+}
+
+#[test]
+fn flat_shading_uses_the_rounded_average_colour() {
+    // Vertex colours given as k / 255, so each converts back to exactly k.
+    let colors: [[u32; 3]; 3] = [[255, 0, 200], [255, 0, 17], [254, 1, 1]];
+    let mut obj = String::new();
+    for ((x, y), c) in [(4, 4), (60, 10), (12, 44)].iter().zip(colors) {
+        let [r, g, b] = c.map(|k| f64::from(k) / 255.0);
+        writeln!(obj, "v {x} {y} 0.5 {r:.9} {g:.9} {b:.9}").unwrap();
+    }
+    obj.push_str("f 1 2 3\n");
+    let expected: [u8; 3] = std::array::from_fn(|ch| {
+        let sum: u32 = colors.iter().map(|c| c[ch]).sum();
+        ((2 * sum + 3) / 6) as u8
+    });
+    // Sums 764, 1, 218: averages 254.67, 0.33, 72.67 round to 255, 0, 73.
+    assert_eq!(expected, [255, 0, 73]);
+    let dir = TempDir::new("flat");
+    let r = render_obj(&dir, &obj, &["--shading", "flat"]);
+    let mut covered = 0;
+    for y in 0..H {
+        for x in 0..W {
+            if r.ids[idx(x, y)] == 0 {
+                covered += 1;
+                let c = r.image.at(x, y);
+                assert_eq!(
+                    c,
+                    [expected[0], expected[1], expected[2], 255],
+                    "at ({x}, {y})"
+                );
+            }
+        }
+    }
+    assert!(covered > 500, "the triangle covers {covered} pixels");
+    // Smooth shading of the same triangle is not one colour.
+    let smooth = render_obj(&dir, &obj, &["--shading", "smooth"]);
+    assert!(smooth.image.distinct_colors() > 10);
+    assert_eq!(smooth.ids, r.ids, "shading does not change coverage");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Errors and odd input
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn malformed_obj_names_the_file_and_line() {
+    let dir = TempDir::new("malformed");
+    let obj = dir.write(
+        "broken.obj",
+        "# header\nv 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n",
+    );
+    let err = run_err(
+        &dir.0,
+        [
+            OsStr::new("render"),
+            obj.as_os_str(),
+            OsStr::new("-o"),
+            OsStr::new("out.png"),
+        ],
+    );
+    assert!(err.contains("broken.obj"), "{err}");
+    assert!(err.contains(":3:"), "{err}");
+    assert!(err.contains("`x`"), "{err}");
+    assert!(
+        !dir.path("out.png").exists(),
+        "no image is written on error"
+    );
+}
+
+#[test]
+fn face_index_past_the_end_is_an_error() {
+    let dir = TempDir::new("past-end");
+    let obj = dir.write(
+        "short.obj",
+        "v 0 0 0\nv 10 0 0\nv 0 10 0\nf 1 2 3\nf 1 2 4\n",
+    );
+    let err = run_err(
+        &dir.0,
+        [
+            OsStr::new("render"),
+            obj.as_os_str(),
+            OsStr::new("-o"),
+            OsStr::new("out.png"),
+        ],
+    );
+    assert!(err.contains("short.obj:5:"), "{err}");
+    assert!(err.contains("index 4"), "{err}");
+    assert!(!dir.path("out.png").exists());
+}
+
+#[test]
+fn unsupported_sizes_are_rejected() {
+    let dir = TempDir::new("sizes");
+    for size in ["0x10", "10x0", "20000x10", "10x16385"] {
+        let err = run_err(&dir.0, ["render", "--size", size, "-o", "out.png"]);
+        assert!(err.contains(size), "--size {size}: {err}");
+        assert!(
+            err.contains("16384"),
+            "--size {size} should state the limit: {err}"
+        );
+    }
+    for size in ["abc", "64", "64x", "x48", "-5x10", "64x48x2"] {
+        // `--size=VALUE` so that "-5x10" is a value, not a flag.
+        let arg = format!("--size={size}");
+        let err = run_err(&dir.0, ["render", &arg, "-o", "out.png"]);
+        assert!(err.contains("size"), "--size {size}: {err}");
+    }
+    assert!(!dir.path("out.png").exists());
+    // The limit itself is accepted (one row keeps it cheap).
+    run_ok(&dir.0, ["render", "--size", "16384x1", "-o", "wide.png"]);
+    let img = read_png(&dir.path("wide.png"));
+    assert_eq!((img.width, img.height), (16384, 1));
+}
+
+#[test]
+fn vertex_outside_the_fixed_point_range_is_an_error() {
+    let dir = TempDir::new("range");
+    let obj = dir.write("far.obj", "v 0 0 0\nv 40000 0 0\nv 0 10 0\nf 1 2 3\n");
+    let err = run_err(
+        &dir.0,
+        [
+            OsStr::new("render"),
+            obj.as_os_str(),
+            OsStr::new("-o"),
+            OsStr::new("out.png"),
+        ],
+    );
+    assert!(err.contains("40000"), "{err}");
+    assert!(
+        err.contains("32768"),
+        "the message should state the range: {err}"
+    );
+    assert!(!dir.path("out.png").exists());
+    // Just inside the range is fine.
+    let obj = dir.write("near.obj", "v -32768 0 0\nv 32767 0 0\nv 0 10 0\nf 1 2 3\n");
+    run_ok(
+        &dir.0,
+        [
+            OsStr::new("render"),
+            obj.as_os_str(),
+            OsStr::new("--size"),
+            OsStr::new("8x8"),
+        ],
+    );
+}
+
+#[test]
+fn missing_file_is_an_error() {
+    let dir = TempDir::new("missing");
+    let err = run_err(&dir.0, ["render", "no-such-mesh.obj", "-o", "out.png"]);
+    assert!(err.contains("no-such-mesh.obj"), "{err}");
+    let err = run_err(&dir.0, ["render", "mesh.stl", "-o", "out.png"]);
+    assert!(err.contains("mesh.stl"), "{err}");
+    assert!(!dir.path("out.png").exists());
+}
+
+#[test]
+fn nan_vertex_drops_its_triangle_with_a_warning() {
+    let obj = "v nan 5 0.5\nv 20 5 0.5\nv 5 20 0.5\nf 1 2 3\n\
+               v 30 30 0.5\nv 60 30 0.5\nv 30 45 0.5\nf 4 5 6\n";
+    let dir = TempDir::new("nan");
+    let r = render_obj(&dir, obj, &[]);
+    assert!(r.stderr.contains("warning"), "{}", r.stderr);
+    assert!(r.stderr.contains("dropped 1 triangle"), "{}", r.stderr);
+    assert!(
+        r.ids.iter().all(|&i| i == -1 || i == 1),
+        "triangle 0 must not be drawn"
+    );
+    assert_eq!(r.ids[idx(35, 33)], 1, "the finite triangle is still drawn");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Built-in scenes
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn render_without_a_file_draws_the_default_scene() {
+    let dir = TempDir::new("default");
+    // Everything at its default: writes trirast.png in the working directory, 512x512.
+    run_ok(&dir.0, ["render"]);
+    let img = read_png(&dir.path("trirast.png"));
+    assert_eq!((img.width, img.height), (512, 512));
+    assert!(
+        img.distinct_colors() > 100,
+        "a colour wheel has many colours"
+    );
+    assert_eq!(img.at(0, 0), BLACK, "the corner is background");
+    assert_ne!(img.at(256, 256), BLACK, "the centre is drawn");
+    // A non-square size still shows a picture.
+    run_ok(&dir.0, ["render", "--size", "96x40", "-o", "small.png"]);
+    let img = read_png(&dir.path("small.png"));
+    assert_eq!((img.width, img.height), (96, 40));
+    assert!(img.distinct_colors() > 10);
+}
+
+#[test]
+fn demos_write_pngs() {
+    let dir = TempDir::new("demo");
+    for which in ["flat", "smooth", "soup"] {
+        let name = format!("{which}.png");
+        run_ok(&dir.0, ["demo", which, "-o", &name, "--size", "128x96"]);
+        let img = read_png(&dir.path(&name));
+        assert_eq!((img.width, img.height), (128, 96), "demo {which}");
+        assert!(img.distinct_colors() > 2, "demo {which} is not blank");
+    }
+    // Both algorithms draw the same demo.
+    run_ok(
+        &dir.0,
+        [
+            "demo",
+            "soup",
+            "-o",
+            "edge.png",
+            "--size",
+            "128x96",
+            "--algorithm",
+            "edge",
+        ],
+    );
+    run_ok(
+        &dir.0,
+        [
+            "demo",
+            "soup",
+            "-o",
+            "scan.png",
+            "--size",
+            "128x96",
+            "--algorithm",
+            "scanline",
+        ],
+    );
+    assert!(read_png(&dir.path("edge.png")).rgba == read_png(&dir.path("scan.png")).rgba);
+    // With no arguments at all: the smooth demo into demo.png at 512x512.
+    run_ok(&dir.0, ["demo"]);
+    let img = read_png(&dir.path("demo.png"));
+    assert_eq!((img.width, img.height), (512, 512));
+}

@@ -1,0 +1,328 @@
+//! Coverage properties: watertight tilings, the two rasterizers agreeing with each other and
+//! with an independent oracle, the fill rule's unit cases, symmetry, and the range extremes.
+
+mod common;
+
+use common::*;
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+use trirast::raster::{self, Algorithm};
+use trirast::{CullMode, PixelRect, RenderOptions, Target, TriangleSetup, Vertex};
+
+/// Tilings of rectangles (inside the image, overlapping it, and reaching thousands of pixels
+/// outside) cover every pixel centre of the half-open rectangle exactly once and nothing else.
+#[test]
+fn random_tilings_are_watertight() {
+    let mut rng = SmallRng::seed_from_u64(0x7117);
+    let (w, h) = (72u32, 56u32);
+    let mut total = 0;
+    let mut round = 0u64;
+    while total < 120_000 {
+        round += 1;
+        let rect = match round % 4 {
+            // Inside the image, edges on arbitrary sub-pixel positions.
+            0 => {
+                let x0 = coord(&mut rng, 0, 20);
+                let y0 = coord(&mut rng, 0, 20);
+                [x0, y0, x0 + coord(&mut rng, 10, 50), y0 + coord(&mut rng, 10, 35)]
+            }
+            // Edges exactly on pixel centres.
+            1 => [centre(3), centre(2), centre(60), centre(50)],
+            // Overlapping the image borders.
+            2 => [-coord(&mut rng, 1, 30), -coord(&mut rng, 1, 30), coord(&mut rng, 40, 100),
+                  coord(&mut rng, 40, 90)],
+            // Reaching far outside.
+            _ => [-256 * 5000, -256 * 3000, 256 * 9000, 256 * 7000],
+        };
+        let n = rng.random_range(500..3000);
+        let tris = random_tiling(&mut rng, rect, n);
+        total += tris.len();
+        // Agreement on every tiling (cheap at this size).
+        let count = count_coverage(&tris, w, h, true);
+        for py in 0..h as i64 {
+            for px in 0..w as i64 {
+                let (x, y) = (centre(px), centre(py));
+                let inside = (rect[0]..rect[2]).contains(&x) && (rect[1]..rect[3]).contains(&y);
+                let got = count[(py * w as i64 + px) as usize];
+                assert_eq!(
+                    got,
+                    u32::from(inside),
+                    "round {round}: pixel ({px}, {py}) covered {got} times; rect {rect:?}"
+                );
+            }
+        }
+    }
+    assert!(total >= 100_000);
+}
+
+/// The same property through the public draw call: the overdraw buffer is exactly 1 inside.
+#[test]
+fn tiling_overdraw_through_draw() {
+    let mut rng = SmallRng::seed_from_u64(42);
+    let rect = [centre(4) + 77, centre(3) - 31, centre(90) + 5, centre(61)];
+    let tris = random_tiling(&mut rng, rect, 4000);
+    let to_vertex = |p: P| Vertex::new(p[0] as f32 / 256.0, p[1] as f32 / 256.0, 0.5, [9; 4]);
+    let triangles: Vec<[Vertex; 3]> = tris.iter().map(|t| t.map(to_vertex)).collect();
+    for algorithm in [Algorithm::EdgeFunctions, Algorithm::Scanline] {
+        let mut target = Target::new(100, 70).unwrap().with_overdraw().with_ids();
+        let stats =
+            trirast::draw(&mut target, &triangles, &RenderOptions::default().with_algorithm(algorithm))
+                .unwrap();
+        assert_eq!(stats.rasterized, triangles.len());
+        let overdraw = target.overdraw.as_ref().unwrap();
+        for py in 0..70 {
+            for px in 0..100 {
+                let (x, y) = (centre(px), centre(py));
+                let inside = (rect[0]..rect[2]).contains(&x) && (rect[1]..rect[3]).contains(&y);
+                assert_eq!(overdraw[(py * 100 + px) as usize], u32::from(inside), "({px}, {py})");
+            }
+        }
+        assert_eq!(stats.fragments, overdraw.iter().map(|&o| u64::from(o)).sum::<u64>());
+    }
+}
+
+/// Edge functions, scanline walking and the independent 128-bit oracle agree on 150,000 random
+/// triangles of every kind, including degenerate and near-degenerate ones.
+#[test]
+fn rasterizers_agree_with_each_other_and_the_oracle() {
+    let mut rng = SmallRng::seed_from_u64(0xC0FFEE);
+    let size = 40i64;
+    let clip = PixelRect::of_target(size as u32, size as u32);
+    for n in 0..150_000 {
+        let v = random_triangle(&mut rng, size);
+        let Some(s) = setup(v) else {
+            assert_eq!(area2(v), 0, "setup rejected a non-degenerate triangle {v:?}");
+            continue;
+        };
+        let spans = agreed_spans(&s, &clip);
+        // Brute force over the image, every 8th triangle (the oracle is slow).
+        if n % 8 == 0 {
+            let mut covered = vec![false; (size * size) as usize];
+            for sp in &spans {
+                for x in sp.x_start..sp.x_end {
+                    covered[(sp.y as i64 * size + x as i64) as usize] = true;
+                }
+            }
+            for py in 0..size {
+                for px in 0..size {
+                    let want = oracle_covers(v, [centre(px), centre(py)]);
+                    assert_eq!(covered[(py * size + px) as usize], want, "{v:?} at ({px}, {py})");
+                }
+            }
+        }
+    }
+}
+
+/// Scissor rectangles clip both rasterizers identically.
+#[test]
+fn scissor_clips_identically() {
+    let mut rng = SmallRng::seed_from_u64(5);
+    for _ in 0..5_000 {
+        let v = random_triangle(&mut rng, 32);
+        let Some(s) = setup(v) else { continue };
+        let x0 = rng.random_range(-3..30);
+        let y0 = rng.random_range(-3..30);
+        let clip = PixelRect { x0, y0, x1: x0 + rng.random_range(0..20), y1: y0 + rng.random_range(0..20) };
+        for sp in agreed_spans(&s, &clip) {
+            assert!(sp.y >= clip.y0 && sp.y <= clip.y1 && sp.x_start >= clip.x0 && sp.x_end <= clip.x1 + 1);
+            for x in sp.x_start..sp.x_end {
+                assert!(s.covers(x, sp.y));
+            }
+        }
+    }
+}
+
+fn covers_px(v: [[f32; 2]; 3], px: i32, py: i32) -> bool {
+    let t = v.map(|[x, y]| Vertex::new(x, y, 0.5, [255; 4]));
+    let s = TriangleSetup::new(&t, CullMode::None).unwrap();
+    let reference = s.covers(px, py);
+    for alg in [Algorithm::EdgeFunctions, Algorithm::Scanline] {
+        let spans = raster::spans(alg, &s, &PixelRect { x0: -20, y0: -20, x1: 40, y1: 40 });
+        let by_spans = spans.iter().any(|sp| sp.y == py && (sp.x_start..sp.x_end).contains(&px));
+        assert_eq!(by_spans, reference, "{alg:?} on {v:?} at ({px}, {py})");
+    }
+    // The opposite winding decides the same.
+    let r = [v[0], v[2], v[1]].map(|[x, y]| Vertex::new(x, y, 0.5, [255; 4]));
+    assert_eq!(TriangleSetup::new(&r, CullMode::None).unwrap().covers(px, py), reference);
+    reference
+}
+
+#[test]
+fn fill_rule_unit_cases() {
+    // Pixel (4, 2) has its centre at (4.5, 2.5).
+    // Top edge: horizontal at y = 2.5, third vertex below.
+    assert!(covers_px([[0.0, 2.5], [9.0, 2.5], [4.0, 7.0]], 4, 2), "top edge is in");
+    // Bottom edge: horizontal at y = 2.5, third vertex above.
+    assert!(!covers_px([[0.0, 2.5], [9.0, 2.5], [4.0, -3.0]], 4, 2), "bottom edge is out");
+    // Left edge: vertical at x = 4.5, triangle to its right.
+    assert!(covers_px([[4.5, -2.0], [4.5, 8.0], [9.0, 3.0]], 4, 2), "left edge is in");
+    // Right edge: vertical at x = 4.5, triangle to its left.
+    assert!(!covers_px([[4.5, -2.0], [4.5, 8.0], [0.0, 3.0]], 4, 2), "right edge is out");
+    // Sloped left and right edges through (4.5, 2.5): the line from (2.5, -1.5) to (6.5, 6.5).
+    assert!(covers_px([[2.5, -1.5], [6.5, 6.5], [9.0, -1.5]], 4, 2), "sloped left edge is in");
+    assert!(!covers_px([[2.5, -1.5], [6.5, 6.5], [0.0, 6.5]], 4, 2), "sloped right edge is out");
+    // A sample exactly at a vertex: in iff both edges meeting there own it.
+    assert!(covers_px([[4.5, 2.5], [9.0, 2.5], [4.5, 7.0]], 4, 2), "top-left corner is in");
+    assert!(!covers_px([[4.5, 2.5], [0.0, 2.5], [4.5, 7.0]], 4, 2), "top-right corner is out");
+    assert!(!covers_px([[4.5, 2.5], [9.0, 2.5], [4.5, -3.0]], 4, 2), "bottom-left corner is out");
+}
+
+/// Around a vertex on a pixel centre, a closed fan of triangles covers that centre exactly once,
+/// whatever the number and angles of the triangles.
+#[test]
+fn fan_vertex_is_covered_exactly_once() {
+    let mut rng = SmallRng::seed_from_u64(99);
+    for _ in 0..3000 {
+        let c = [centre(10), centre(10)];
+        let k = rng.random_range(3..12);
+        let mut angles: Vec<f64> = (0..k).map(|_| rng.random_range(0.0..std::f64::consts::TAU)).collect();
+        angles.sort_by(f64::total_cmp);
+        let ring: Vec<P> = angles
+            .iter()
+            .map(|a| {
+                let r = rng.random_range(1.0..8.0) * 256.0;
+                // Some ring points land exactly on the axes through the centre.
+                let (dx, dy) = (r * a.cos(), r * a.sin());
+                let mut q = |d: f64| if rng.random_range(0..4) == 0 { (d / 256.0).round() as i64 * 256 } else { d as i64 };
+                [c[0] + q(dx), c[1] + q(dy)]
+            })
+            .collect();
+        let tris: Vec<[P; 3]> = (0..k).map(|i| [c, ring[i], ring[(i + 1) % k]]).collect();
+        // Only closed fans whose triangles all keep one orientation tile a neighbourhood.
+        let sign = area2(tris[0]).signum();
+        if sign == 0 || tris.iter().any(|t| area2(*t).signum() != sign) {
+            continue;
+        }
+        let n = tris.iter().filter_map(|t| setup(*t)).filter(|s| s.covers(10, 10)).count();
+        assert_eq!(n, 1, "fan {tris:?}");
+    }
+}
+
+/// Exact translations by whole pixels translate coverage; exact 90-degree rotations about a
+/// pixel centre rotate it whenever no pixel centre lies exactly on an edge (ties are
+/// orientation-dependent by design).
+#[test]
+fn symmetry_under_translation_and_rotation() {
+    let mut rng = SmallRng::seed_from_u64(1234);
+    let size = 48i64;
+    let clip = PixelRect::of_target(size as u32, size as u32);
+    let pixels = |v: [P; 3]| -> Vec<(i64, i64)> {
+        let Some(s) = setup(v) else { return Vec::new() };
+        let mut out: Vec<(i64, i64)> = agreed_spans(&s, &clip)
+            .iter()
+            .flat_map(|sp| (sp.x_start..sp.x_end).map(move |x| (x as i64, sp.y as i64)))
+            .collect();
+        out.sort();
+        out
+    };
+    let mut rotated_checked = 0;
+    for _ in 0..4000 {
+        // Keep triangles within the middle of the image so transforms stay inside the clip.
+        let v: [P; 3] = std::array::from_fn(|_| [coord(&mut rng, 14, 34), coord(&mut rng, 14, 34)]);
+        let base = pixels(v);
+        let (tx, ty) = (rng.random_range(-10..10), rng.random_range(-10..10));
+        let moved = pixels(v.map(|[x, y]| [x + 256 * tx, y + 256 * ty]));
+        let expect: Vec<_> = base.iter().map(|&(x, y)| (x + tx, y + ty)).collect();
+        assert_eq!(moved, expect, "translation of {v:?}");
+
+        let Some(s) = setup(v) else { continue };
+        let on_edge = (0..size).any(|py| {
+            (0..size).any(|px| {
+                let (x, y) = (centre(px), centre(py));
+                s.edges.iter().any(|e| e.eval(x, y) - trirast::FillRule::bias(e.a, e.b) == 0)
+            })
+        });
+        if on_edge {
+            continue;
+        }
+        // Rotate by 90 degrees about the centre of pixel (24, 24): (x, y) -> (c - (y - c), ...).
+        let c = centre(24);
+        let rot = v.map(|[x, y]| [c - (y - c), c + (x - c)]);
+        let mut expect: Vec<_> = base.iter().map(|&(x, y)| (24 - (y - 24), 24 + (x - 24))).collect();
+        expect.sort();
+        assert_eq!(pixels(rot), expect, "rotation of {v:?}");
+        rotated_checked += 1;
+    }
+    assert!(rotated_checked > 1000, "too few tie-free triangles: {rotated_checked}");
+}
+
+/// Vertices at the very ends of the fixed-point range rasterize without overflow and agree
+/// with the 128-bit oracle, on the widest and tallest targets supported.
+#[test]
+fn range_extremes_do_not_overflow() {
+    let lo = -(1i64 << 23);
+    let hi = (1i64 << 23) - 1;
+    let big: [[P; 3]; 4] = [
+        [[lo, lo], [hi, lo], [lo, hi]],
+        [[hi, hi], [lo, hi], [hi, lo]],
+        [[lo, lo], [hi, hi], [lo, hi]],
+        [[lo, hi], [hi, lo + 1], [hi, hi]],
+    ];
+    for (w, h) in [(16384u32, 4u32), (4, 16384)] {
+        let clip = PixelRect::of_target(w, h);
+        for v in big {
+            let s = setup(v).unwrap();
+            let spans = agreed_spans(&s, &clip);
+            // Check rows at both ends of the target against the oracle.
+            for sp in spans.iter().filter(|sp| sp.y < 2 || sp.y as u32 >= h - 2) {
+                for x in [sp.x_start, sp.x_end - 1] {
+                    assert!(oracle_covers(v, [centre(x as i64), centre(sp.y as i64)]));
+                }
+                if sp.x_start > 0 {
+                    assert!(!oracle_covers(v, [centre(sp.x_start as i64 - 1), centre(sp.y as i64)]));
+                }
+                if (sp.x_end as u32) < w {
+                    assert!(!oracle_covers(v, [centre(sp.x_end as i64), centre(sp.y as i64)]));
+                }
+            }
+        }
+    }
+    // Through the public API, with float vertices at the extremes: the range-filling square,
+    // split along either diagonal, covers every pixel of the widest and tallest targets once.
+    let v = |x: f32, y: f32| Vertex::new(x, y, 0.25, [1, 2, 3, 255]);
+    let (l, h) = (-32768.0, 32767.996);
+    let splits = [
+        [[v(l, l), v(h, l), v(h, h)], [v(l, l), v(h, h), v(l, h)]],
+        [[v(l, l), v(h, l), v(l, h)], [v(h, l), v(h, h), v(l, h)]],
+    ];
+    for (w, ht) in [(16384u32, 2u32), (2, 16384)] {
+        for quad in splits {
+            let mut target = Target::new(w, ht).unwrap().with_overdraw();
+            trirast::draw(&mut target, &quad, &RenderOptions::default()).unwrap();
+            assert!(target.overdraw.as_ref().unwrap().iter().all(|&o| o == 1));
+            assert!(target.depth.iter().all(|&z| z == 0.25));
+        }
+    }
+}
+
+#[test]
+fn beyond_the_range_is_a_clear_error() {
+    let v = |x: f32, y: f32| Vertex::new(x, y, 0.5, [255; 4]);
+    let mut target = Target::new(8, 8).unwrap();
+    for bad in [32768.0, -32768.5, 1e9] {
+        let err = trirast::draw(&mut target, &[[v(0.0, 0.0), v(bad, 0.0), v(0.0, 5.0)]], &RenderOptions::default())
+            .unwrap_err();
+        let msg = err.to_string();
+        assert!(msg.contains("outside the supported window range"), "{msg}");
+        assert!(msg.contains("vertex 1"), "{msg}");
+    }
+    assert!(Target::new(16385, 1).is_err());
+    assert!(Target::new(0, 1).is_err());
+    assert!(Target::new(16384, 16384).is_ok() || cfg!(target_pointer_width = "32"));
+}
+
+#[test]
+fn non_finite_vertices_are_dropped_and_counted() {
+    let v = |x: f32, y: f32| Vertex::new(x, y, 0.5, [255; 4]);
+    let mut target = Target::new(8, 8).unwrap().with_overdraw();
+    let tris = [
+        [v(0.0, 0.0), v(f32::NAN, 0.0), v(0.0, 5.0)],
+        [v(0.0, 0.0), v(8.0, f32::INFINITY), v(0.0, 5.0)],
+        [v(0.0, 0.0), v(8.0, 0.0), v(0.0, 8.0)],
+    ];
+    let stats = trirast::draw(&mut target, &tris, &RenderOptions::default()).unwrap();
+    assert_eq!(stats.non_finite, 2);
+    assert_eq!(stats.rasterized, 1);
+    let drawn: u32 = target.overdraw.unwrap().iter().sum();
+    assert_eq!(u64::from(drawn), stats.fragments);
+}
