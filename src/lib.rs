@@ -26,6 +26,7 @@ pub mod error;
 pub mod fixed;
 pub mod mesh;
 pub mod output;
+pub mod polygon;
 pub mod raster;
 pub mod render;
 pub mod scene;

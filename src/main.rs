@@ -183,7 +183,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     }
     let (triangles, default_shading) = match (&args.file, args.projection) {
         (Some(path), ProjectionArg::Window) => {
-            let mesh = trirast::mesh::load(path)?;
+            let mesh = trirast::mesh::obj::read(path)?;
             (trirast::mesh::window_triangles(&mesh), Shading::Smooth)
         }
         (None, _) => {

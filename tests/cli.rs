@@ -723,6 +723,22 @@ fn face_index_past_the_end_is_an_error() {
     assert!(err.contains("short.obj:5:"), "{err}");
     assert!(err.contains("index 4"), "{err}");
     assert!(!dir.path("out.png").exists());
+    // The largest index that fits in 32 bits once overflowed while formatting this message.
+    let obj = dir.write(
+        "huge.obj",
+        "v 0 0 0\nv 10 0 0\nv 0 10 0\nf 1 2 4294967296\n",
+    );
+    let err = run_err(
+        &dir.0,
+        [
+            OsStr::new("render"),
+            obj.as_os_str(),
+            OsStr::new("-o"),
+            OsStr::new("out.png"),
+        ],
+    );
+    assert!(err.contains("huge.obj:4:"), "{err}");
+    assert!(err.contains("index 4294967296"), "{err}");
 }
 
 #[test]

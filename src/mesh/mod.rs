@@ -1,25 +1,67 @@
-//! Mesh input: file readers, and the window-space view of a mesh.
+//! Mesh input: file readers, the [`Mesh`] they produce, and the window-space view of an OBJ.
 //!
-//! Readers report errors as [`Error::Parse`] naming the file and the 1-based line.
+//! Readers report errors as [`Error::Parse`] naming the file and the 1-based line (or, for
+//! binary files, the byte offset).
 
 pub mod obj;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::error::Error;
 use crate::setup::Vertex;
 
 pub use obj::{Corner, ObjMesh};
 
-/// Reads a mesh file, choosing the reader by extension (currently `.obj`).
-pub fn load(path: &Path) -> Result<ObjMesh, Error> {
+/// A surface material: a diffuse colour, optionally modulated by a texture.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    /// Name from the material library (empty when unnamed).
+    pub name: String,
+    /// Diffuse colour (`Kd`), sRGB-encoded components in [0, 1].
+    pub diffuse: [f32; 3],
+    /// Diffuse texture (`map_Kd`), resolved relative to the material file.
+    pub diffuse_texture: Option<PathBuf>,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Self { name: String::new(), diffuse: [0.8, 0.8, 0.8], diffuse_texture: None }
+    }
+}
+
+/// An indexed triangle mesh with optional per-vertex attributes, as the 3D pipeline takes it.
+/// Triangles keep the file's winding (counter-clockwise front) and order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions (model space).
+    pub positions: Vec<[f32; 3]>,
+    /// Per-vertex normals, when the file has them.
+    pub normals: Option<Vec<[f32; 3]>>,
+    /// Per-vertex texture coordinates (u right, v up), when the file has them.
+    pub texcoords: Option<Vec<[f32; 2]>>,
+    /// Per-vertex RGBA colours in [0, 1] (sRGB-encoded), when the file has them.
+    pub colors: Option<Vec<[f32; 4]>>,
+    /// Triangles as indices into the vertex arrays.
+    pub triangles: Vec<[u32; 3]>,
+    /// Material index of each triangle (same length as `triangles`), when materials exist.
+    pub triangle_materials: Option<Vec<u32>>,
+    /// Materials referred to by `triangle_materials`.
+    pub materials: Vec<Material>,
+    /// Faces in the file before triangulation.
+    pub polygon_count: usize,
+    /// Problems that did not stop loading (a missing texture, say), for the user to see.
+    pub warnings: Vec<String>,
+}
+
+/// Reads a mesh file for the 3D pipeline, choosing the reader by extension.
+pub fn load(path: &Path) -> Result<Mesh, Error> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
-        Some("obj") => obj::read(path),
+        Some("obj") => obj::read_mesh(path),
         _ => Err(Error::Parse {
             path: path.to_path_buf(),
             line: 0,
-            message: "unsupported mesh format: expected a .obj file".into(),
+            message: "unsupported mesh format: expected .obj, .ply or .stl".into(),
         }),
     }
 }

@@ -6,8 +6,10 @@
 //! whose corners are `v`, `v/vt`, `v//vn` or `v/vt/vn`, with negative (relative) indices.
 //! Other statements (`o`, `g`, `s`, `usemtl`, `mtllib`, `l`, `p`, ...) are skipped.
 
+use std::collections::HashMap;
 use std::path::Path;
 
+use super::Mesh;
 use crate::error::Error;
 
 /// One face corner: indices (0-based) into the mesh's arrays.
@@ -69,6 +71,56 @@ pub fn read(path: &Path) -> Result<ObjMesh, Error> {
         line,
         message,
     })
+}
+
+/// Reads an OBJ file as an indexed [`Mesh`]: corners with the same (v, vt, vn) share a vertex,
+/// faces are triangulated by [`crate::polygon::triangulate_face`] in file order.
+pub fn read_mesh(path: &Path) -> Result<Mesh, Error> {
+    Ok(to_mesh(&read(path)?))
+}
+
+/// Converts parsed OBJ data to an indexed [`Mesh`].
+#[must_use]
+pub fn to_mesh(obj: &ObjMesh) -> Mesh {
+    let has_uv = obj.corners.iter().any(|c| c.texcoord.is_some());
+    let has_normal = obj.corners.iter().any(|c| c.normal.is_some());
+    let has_color = obj.colors.iter().any(Option::is_some);
+    let mut mesh = Mesh { polygon_count: obj.face_count(), ..Mesh::default() };
+    let (mut normals, mut texcoords, mut colors) = (Vec::new(), Vec::new(), Vec::new());
+    let mut index: HashMap<(u32, Option<u32>, Option<u32>), u32> = HashMap::new();
+    let mut face_vertices = Vec::new();
+    let mut face_points = Vec::new();
+    for face in obj.faces() {
+        face_vertices.clear();
+        face_points.clear();
+        for c in face {
+            let next = mesh.positions.len() as u32;
+            let v = *index.entry((c.position, c.texcoord, c.normal)).or_insert_with(|| {
+                let p = c.position as usize;
+                mesh.positions.push(obj.positions[p]);
+                if has_uv {
+                    texcoords.push(c.texcoord.map_or([0.0; 2], |t| obj.texcoords[t as usize]));
+                }
+                if has_normal {
+                    normals.push(c.normal.map_or([0.0; 3], |n| obj.normals[n as usize]));
+                }
+                if has_color {
+                    let [r, g, b] = obj.colors[p].unwrap_or([1.0; 3]);
+                    colors.push([r, g, b, 1.0]);
+                }
+                next
+            });
+            face_vertices.push(v);
+            face_points.push(obj.positions[c.position as usize]);
+        }
+        for t in crate::polygon::triangulate_face(&face_points) {
+            mesh.triangles.push(t.map(|k| face_vertices[k]));
+        }
+    }
+    mesh.normals = has_normal.then_some(normals);
+    mesh.texcoords = has_uv.then_some(texcoords);
+    mesh.colors = has_color.then_some(colors);
+    mesh
 }
 
 /// Parses OBJ text; an error is `(line, message)`.

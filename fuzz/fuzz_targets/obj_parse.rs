@@ -1,0 +1,31 @@
+//! Fuzzes the OBJ reader: `parse` must never panic, an error must name a real line, and a mesh
+//! it accepts must be safe to turn into triangles and draw.
+//!
+//! Run with a nightly toolchain: `cargo +nightly fuzz run obj_parse` (from the crate root).
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use trirast::mesh::{obj, window_triangles};
+use trirast::{RenderOptions, Target};
+
+fuzz_target!(|data: &[u8]| {
+    let lines = data.iter().filter(|&&b| b == b'\n').count() + 1;
+    match obj::parse(data) {
+        Err((line, message)) => {
+            assert!((1..=lines).contains(&line), "error line {line} of {lines}: {message}");
+            assert!(!message.is_empty());
+        }
+        Ok(mesh) => {
+            for c in &mesh.corners {
+                assert!((c.position as usize) < mesh.positions.len());
+                assert!(c.texcoord.is_none_or(|t| (t as usize) < mesh.texcoords.len()));
+                assert!(c.normal.is_none_or(|n| (n as usize) < mesh.normals.len()));
+            }
+            let triangles = window_triangles(&mesh);
+            assert_eq!(triangles.len(), mesh.triangle_count());
+            // Drawing may refuse out-of-range vertices, but must not panic.
+            let mut target = Target::new(16, 16).unwrap().with_ids().with_overdraw();
+            let _ = trirast::draw(&mut target, &triangles, &RenderOptions::default());
+        }
+    }
+});
