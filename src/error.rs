@@ -29,6 +29,16 @@ pub enum Error {
         /// The offending y.
         y: f32,
     },
+    /// A triangle refers to a vertex that does not exist.
+    #[error("triangle {triangle} has indices {indices:?} but there are only {vertices} vertices")]
+    IndexOutOfRange {
+        /// Triangle index.
+        triangle: usize,
+        /// Its vertex indices.
+        indices: [u32; 3],
+        /// Number of vertices.
+        vertices: usize,
+    },
     /// A malformed input file.
     #[error("{}:{line}: {message}", path.display())]
     Parse {

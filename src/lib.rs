@@ -22,10 +22,14 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod camera;
+pub mod clip;
+pub mod color;
 pub mod error;
 pub mod fixed;
 pub mod mesh;
 pub mod output;
+pub mod pipeline;
 pub mod polygon;
 pub mod raster;
 pub mod render;
@@ -33,6 +37,7 @@ pub mod scene;
 pub mod setup;
 pub mod shade;
 pub mod target;
+pub mod varyings;
 
 pub use error::Error;
 pub use raster::{Algorithm, Span};

@@ -169,7 +169,7 @@ impl TriangleShader {
     #[inline]
     #[must_use]
     pub fn depth_at(&self, e1: f64, e2: f64) -> f32 {
-        (self.depth.eval(e1, e2) as f32).clamp(0.0, 1.0)
+        depth_at(&self.depth, e1, e2)
     }
 
     /// Colour at barycentric numerators `(e1, e2)`.
@@ -191,24 +191,61 @@ impl TriangleShader {
         depth_test: DepthTest,
         target: &mut Target,
     ) {
-        let y = fixed::pixel_centre(span.y);
-        let row = target.index(0, span.y);
-        for px in span.x_start..span.x_end {
-            let i = row + px as usize;
-            if let Some(o) = &mut target.overdraw {
-                o[i] += 1;
-            }
-            let (e1, e2) = setup.barycentric_numerators(fixed::pixel_centre(px), y);
-            let (e1, e2) = (e1 as f64, e2 as f64);
-            let z = self.depth_at(e1, e2);
-            if !depth_test.passes(z, target.depth[i]) {
-                continue;
-            }
-            target.depth[i] = z;
-            target.color[i] = self.color_at(e1, e2);
-            if let Some(ids) = &mut target.ids {
-                ids[i] = self.id;
-            }
+        shade_span(target, setup, span, &self.depth, depth_test, self.id, |_, e1, e2, _| {
+            Some(FragmentOutput { color: self.color_at(e1, e2), normal: None })
+        });
+    }
+}
+
+/// What a fragment writes once it has passed the depth test.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FragmentOutput {
+    /// Colour, RGBA8.
+    pub color: [u8; 4],
+    /// Normal for the target's normal buffer, if it has one.
+    pub normal: Option<[f32; 3]>,
+}
+
+/// Depth from a depth plane, as stored: evaluated in `f64`, rounded to `f32`, clamped to [0, 1].
+#[inline]
+#[must_use]
+pub fn depth_at(plane: &PlaneEquation, e1: f64, e2: f64) -> f32 {
+    (plane.eval(e1, e2) as f32).clamp(0.0, 1.0)
+}
+
+/// The one fragment loop every pipeline shares: for each pixel of `span`, count overdraw,
+/// interpolate depth, test it, and only then ask `fragment(px, e1, e2, z)` for the output
+/// (`None` discards it: nothing is written). Writes depth, colour, id and normal.
+pub fn shade_span(
+    target: &mut Target,
+    setup: &TriangleSetup,
+    span: Span,
+    depth: &PlaneEquation,
+    depth_test: DepthTest,
+    id: i32,
+    mut fragment: impl FnMut(i32, f64, f64, f32) -> Option<FragmentOutput>,
+) {
+    let y = fixed::pixel_centre(span.y);
+    let row = target.index(0, span.y);
+    for px in span.x_start..span.x_end {
+        let i = row + px as usize;
+        if let Some(o) = &mut target.overdraw {
+            o[i] += 1;
+        }
+        let (e1, e2) = setup.barycentric_numerators(fixed::pixel_centre(px), y);
+        let (e1, e2) = (e1 as f64, e2 as f64);
+        let z = depth_at(depth, e1, e2);
+        if !depth_test.passes(z, target.depth[i]) {
+            continue;
+        }
+        let Some(out) = fragment(px, e1, e2, z) else { continue };
+        target.depth[i] = z;
+        target.color[i] = out.color;
+        if let Some(ids) = &mut target.ids {
+            ids[i] = id;
+        }
+        if let (Some(normals), Some(n)) = (&mut target.normals, out.normal) {
+            normals[i] = n;
         }
     }
 }

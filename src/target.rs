@@ -18,6 +18,8 @@ pub struct Target {
     pub ids: Option<Vec<i32>>,
     /// Fragments generated per pixel, counted before the depth test.
     pub overdraw: Option<Vec<u32>>,
+    /// Normal of the last written fragment (zero where none), when a pipeline provides one.
+    pub normals: Option<Vec<[f32; 3]>>,
 }
 
 /// The colour a new target is cleared to: opaque black.
@@ -38,6 +40,7 @@ impl Target {
             depth: vec![1.0; n],
             ids: None,
             overdraw: None,
+            normals: None,
         })
     }
 
@@ -55,7 +58,14 @@ impl Target {
         self
     }
 
-    /// Clears colour to `color`, depth to 1.0, ids to -1 and overdraw to 0.
+    /// Adds a normal buffer, cleared to zero.
+    #[must_use]
+    pub fn with_normals(mut self) -> Self {
+        self.normals = Some(vec![[0.0; 3]; self.pixel_count()]);
+        self
+    }
+
+    /// Clears colour to `color`, depth to 1.0, ids to -1, overdraw and normals to 0.
     pub fn clear(&mut self, color: [u8; 4]) {
         self.color.fill(color);
         self.depth.fill(1.0);
@@ -64,6 +74,9 @@ impl Target {
         }
         if let Some(o) = &mut self.overdraw {
             o.fill(0);
+        }
+        if let Some(n) = &mut self.normals {
+            n.fill([0.0; 3]);
         }
     }
 

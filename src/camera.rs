@@ -1,0 +1,184 @@
+//! Cameras: view and projection transforms into D3D/Vulkan clip space.
+//!
+//! Conventions: right-handed world and view space, the camera looks down -Z with +Y up;
+//! clip space has `-w <= x, y <= w` and `0 <= z <= w` (depth 0 at the near plane), and the
+//! viewport maps NDC y = +1 to image row 0. A triangle counter-clockwise in NDC (as seen by the
+//! camera) is front-facing.
+
+use glam::{Mat4, Vec3, Vec4};
+
+/// How the camera projects.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Projection {
+    /// Perspective with a vertical field of view (radians).
+    Perspective {
+        /// Vertical field of view in radians.
+        fov_y: f32,
+    },
+    /// Orthographic, showing `height` world units vertically.
+    Orthographic {
+        /// Visible height in world units.
+        height: f32,
+    },
+}
+
+/// A look-at camera with a projection and near/far planes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Eye position.
+    pub eye: Vec3,
+    /// Point looked at.
+    pub target: Vec3,
+    /// Up direction (need not be orthogonal to the view direction).
+    pub up: Vec3,
+    /// Projection.
+    pub projection: Projection,
+    /// Near plane distance (> 0).
+    pub near: f32,
+    /// Far plane distance (> near).
+    pub far: f32,
+}
+
+/// Default vertical field of view: 35 degrees, a mild "portrait lens" look.
+pub const DEFAULT_FOV_Y: f32 = 35.0 * std::f32::consts::PI / 180.0;
+
+impl Camera {
+    /// A camera that frames a sphere (`centre`, `radius`) so it fits the image whatever the
+    /// aspect ratio, seen from `azimuth` (around +Y, 0 = looking along -Z from +Z) and
+    /// `elevation` (radians, positive = from above).
+    #[must_use]
+    pub fn framing_sphere(
+        centre: Vec3,
+        radius: f32,
+        azimuth: f32,
+        elevation: f32,
+        aspect: f32,
+        projection: Projection,
+    ) -> Self {
+        let radius = if radius.is_finite() && radius > 0.0 { radius } else { 1.0 };
+        let dir = Vec3::new(
+            elevation.cos() * azimuth.sin(),
+            elevation.sin(),
+            elevation.cos() * azimuth.cos(),
+        );
+        // Distance at which the sphere fits the narrower field of view, with a small margin.
+        let margin = 1.08;
+        let (distance, projection) = match projection {
+            Projection::Perspective { fov_y } => {
+                let half_y = fov_y / 2.0;
+                let half_x = (half_y.tan() * aspect).atan();
+                let half = half_y.min(half_x);
+                (margin * radius / half.sin(), projection)
+            }
+            Projection::Orthographic { .. } => {
+                let height = 2.0 * margin * radius * (1.0f32).max(1.0 / aspect);
+                (3.0 * radius, Projection::Orthographic { height })
+            }
+        };
+        let up = if dir.y.abs() > 0.999 { Vec3::Z * -dir.y.signum() } else { Vec3::Y };
+        Self {
+            eye: centre + dir * distance,
+            target: centre,
+            up,
+            projection,
+            near: (distance - radius * 1.5).max(distance * 1e-3),
+            far: distance + radius * 1.5,
+        }
+    }
+
+    /// World to view transform.
+    #[must_use]
+    pub fn view(&self) -> Mat4 {
+        let f = (self.target - self.eye).normalize_or(Vec3::NEG_Z);
+        let s = f.cross(self.up).normalize_or(Vec3::X);
+        let u = s.cross(f);
+        Mat4::from_cols(
+            Vec4::new(s.x, u.x, -f.x, 0.0),
+            Vec4::new(s.y, u.y, -f.y, 0.0),
+            Vec4::new(s.z, u.z, -f.z, 0.0),
+            Vec4::new(-s.dot(self.eye), -u.dot(self.eye), f.dot(self.eye), 1.0),
+        )
+    }
+
+    /// View to clip transform for an image of the given aspect (width / height).
+    #[must_use]
+    pub fn projection(&self, aspect: f32) -> Mat4 {
+        let (n, f) = (self.near, self.far);
+        match self.projection {
+            Projection::Perspective { fov_y } => {
+                let sy = 1.0 / (fov_y / 2.0).tan();
+                let sx = sy / aspect;
+                // z_clip = (far * (-z_view) - far * near) / (far - near), w = -z_view.
+                let a = f / (n - f);
+                Mat4::from_cols(
+                    Vec4::new(sx, 0.0, 0.0, 0.0),
+                    Vec4::new(0.0, sy, 0.0, 0.0),
+                    Vec4::new(0.0, 0.0, a, -1.0),
+                    Vec4::new(0.0, 0.0, a * n, 0.0),
+                )
+            }
+            Projection::Orthographic { height } => {
+                let sy = 2.0 / height;
+                let sx = sy / aspect;
+                let a = 1.0 / (n - f);
+                Mat4::from_cols(
+                    Vec4::new(sx, 0.0, 0.0, 0.0),
+                    Vec4::new(0.0, sy, 0.0, 0.0),
+                    Vec4::new(0.0, 0.0, a, 0.0),
+                    Vec4::new(0.0, 0.0, a * n, 1.0),
+                )
+            }
+        }
+    }
+
+    /// World to clip transform.
+    #[must_use]
+    pub fn view_projection(&self, aspect: f32) -> Mat4 {
+        self.projection(aspect) * self.view()
+    }
+}
+
+/// The smallest sphere-ish bound of a point set: the bounding box's centre and the largest
+/// distance from it (within a factor of the optimum, and cheap). Non-finite points are ignored.
+#[must_use]
+pub fn bounding_sphere(points: &[[f32; 3]]) -> (Vec3, f32) {
+    let finite = points.iter().map(|&p| Vec3::from(p)).filter(|p| p.is_finite());
+    let (lo, hi) = finite.clone().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+        (lo.min(p), hi.max(p))
+    });
+    if !lo.is_finite() {
+        return (Vec3::ZERO, 1.0);
+    }
+    let centre = (lo + hi) * 0.5;
+    let radius = finite.map(|p| p.distance(centre)).fold(0.0f32, f32::max);
+    (centre, if radius > 0.0 { radius } else { 1.0 })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn near_maps_to_zero_and_far_to_one() {
+        for projection in [Projection::Perspective { fov_y: 0.8 }, Projection::Orthographic { height: 2.0 }] {
+            let cam = Camera {
+                eye: Vec3::new(1.0, 2.0, 3.0),
+                target: Vec3::new(1.0, 2.0, -7.0),
+                up: Vec3::Y,
+                projection,
+                near: 0.5,
+                far: 20.0,
+            };
+            let m = cam.view_projection(1.5);
+            let near = m * Vec4::new(1.0, 2.0, 2.5, 1.0);
+            let far = m * Vec4::new(1.0, 2.0, -17.0, 1.0);
+            assert!((near.z / near.w).abs() < 1e-6);
+            assert!((far.z / far.w - 1.0).abs() < 1e-5);
+            // Up in the world is up in NDC.
+            let up = m * Vec4::new(1.0, 2.5, -2.0, 1.0);
+            assert!(up.y / up.w > 0.0);
+            let right = m * Vec4::new(1.5, 2.0, -2.0, 1.0);
+            assert!(right.x / right.w > 0.0);
+        }
+    }
+}
