@@ -57,6 +57,17 @@ pub enum Error {
         /// The underlying error.
         source: std::io::Error,
     },
+    /// Options that do not fit together.
+    #[error("{0}")]
+    Usage(String),
+    /// Decoding an input image failed.
+    #[error("{}: cannot decode image: {message}", path.display())]
+    Decode {
+        /// The file.
+        path: PathBuf,
+        /// What the decoder said.
+        message: String,
+    },
     /// Encoding an output image failed.
     #[error("{}: {message}", path.display())]
     Encode {

@@ -4,7 +4,14 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
+use glam::Vec3;
+use indicatif::{ProgressBar, ProgressStyle};
+use trirast::camera::{self, Camera, Projection};
+use trirast::mesh::Mesh;
+use trirast::model::{self, Lighting, MaterialTextures, ModelOptions};
+use trirast::pipeline::FaceCull;
 use trirast::scene::{self, Demo};
+use trirast::texture::{Filter, Wrap};
 use trirast::{Algorithm, CullMode, DepthTest, Error, RenderOptions, Shading, Target, Vertex};
 
 #[derive(Parser)]
@@ -16,9 +23,14 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render a mesh file, or the built-in default scene when no file is given.
-    Render(RenderArgs),
-    /// Draw one of the lectures' demonstrations.
+    /// Render a mesh (.obj, .ply, .stl), or the built-in default scene when no file is given.
+    Render(Box<RenderArgs>),
+    /// Print a mesh's vertex, triangle and polygon counts, bounds and attributes.
+    Info {
+        /// Mesh file.
+        file: PathBuf,
+    },
+    /// Draw one of the lectures' 2D demonstrations.
     Demo {
         /// Which demonstration.
         #[arg(value_enum, default_value_t = DemoArg::Smooth)]
@@ -37,15 +49,16 @@ enum Command {
 
 #[derive(clap::Args)]
 struct RenderArgs {
-    /// Mesh file (.obj). Without one, the built-in default scene is drawn.
+    /// Mesh file. Without one, a built-in scene is drawn.
     file: Option<PathBuf>,
-    /// How vertex positions map to the image. `window`: x, y are pixels (y down), z is depth.
-    #[arg(long, value_enum, default_value_t = ProjectionArg::Window)]
+    /// `perspective` and `orthographic` view the model through a camera; `window` takes x, y
+    /// as pixels (y down) and z as depth.
+    #[arg(long, value_enum, default_value_t = ProjectionArg::Perspective)]
     projection: ProjectionArg,
     /// Image size, WIDTHxHEIGHT.
-    #[arg(long, default_value = "512x512", value_parser = parse_size)]
+    #[arg(long, default_value = "800x600", value_parser = parse_size)]
     size: (u32, u32),
-    /// Output colour PNG.
+    /// Output colour PNG (with --turntable, frames are named OUTPUT_000.png, ...).
     #[arg(short, long, default_value = "trirast.png")]
     output: PathBuf,
     /// Also write the depth buffer as a float32 .npy of shape (H, W).
@@ -57,22 +70,56 @@ struct RenderArgs {
     /// Also write fragments per pixel, counted before the depth test (uint32 .npy).
     #[arg(long, value_name = "FILE")]
     overdraw: Option<PathBuf>,
-    /// Colour interpolation (default: smooth).
+    /// Also write world-space unit normals (float32 .npy of shape (H, W, 3); 3D only).
+    #[arg(long, value_name = "FILE")]
+    normals: Option<PathBuf>,
+    /// Shading. Window projection: flat, smooth (default), perspective. 3D: unlit, flat,
+    /// gouraud (= smooth), phong (default).
     #[arg(long, value_enum)]
     shading: Option<ShadingArg>,
     /// Coverage algorithm; both give identical pixels.
     #[arg(long, value_enum, default_value_t = AlgorithmArg::Edge)]
     algorithm: AlgorithmArg,
-    /// Discard triangles of this on-screen winding (y down).
-    #[arg(long, value_enum, default_value_t = CullArg::None)]
-    cull: CullArg,
+    /// Culling. Window: none (default), cw, ccw (on-screen winding). 3D: back (default),
+    /// front, none; counter-clockwise faces are front faces.
+    #[arg(long, value_enum)]
+    cull: Option<CullArg>,
     /// Depth comparison; `always` disables the test, so the last triangle drawn wins.
     #[arg(long, value_enum, default_value_t = DepthTestArg::Less)]
     depth_test: DepthTestArg,
+    /// Orbit the camera: AZIMUTH,ELEVATION in degrees around the model's bounding sphere.
+    #[arg(long, value_name = "AZ,EL", value_parser = parse_vec2, allow_hyphen_values = true)]
+    view: Option<[f32; 2]>,
+    /// Explicit eye position X,Y,Z (overrides the automatic framing; needs --target).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "target")]
+    eye: Option<[f32; 3]>,
+    /// Point the camera looks at, X,Y,Z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "eye")]
+    target: Option<[f32; 3]>,
+    /// Camera up direction X,Y,Z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, default_value = "0,1,0")]
+    up: [f32; 3],
+    /// Vertical field of view in degrees (perspective).
+    #[arg(long, default_value_t = 35.0)]
+    fov: f32,
+    /// Texture filtering.
+    #[arg(long, value_enum, default_value_t = FilterArg::Bilinear)]
+    filter: FilterArg,
+    /// Texture wrapping.
+    #[arg(long, value_enum, default_value_t = WrapArg::Repeat)]
+    wrap: WrapArg,
+    /// Background colour as R,G,B (0-255).
+    #[arg(long, value_parser = parse_rgb)]
+    background: Option<[u8; 3]>,
+    /// Render N frames orbiting the model (3D only).
+    #[arg(long, value_name = "N")]
+    turntable: Option<u32>,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum ProjectionArg {
+    Perspective,
+    Orthographic,
     Window,
 }
 
@@ -83,11 +130,14 @@ enum DemoArg {
     Soup,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum ShadingArg {
     Flat,
     Smooth,
     Perspective,
+    Unlit,
+    Gouraud,
+    Phong,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -96,11 +146,13 @@ enum AlgorithmArg {
     Scanline,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum CullArg {
     None,
     Cw,
     Ccw,
+    Back,
+    Front,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -108,6 +160,18 @@ enum DepthTestArg {
     Less,
     LessEqual,
     Always,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum FilterArg {
+    Nearest,
+    Bilinear,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum WrapArg {
+    Repeat,
+    Clamp,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -118,31 +182,42 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((side(w)?, side(h)?))
 }
 
+fn parse_floats<const N: usize>(s: &str) -> Result<[f32; N], String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != N {
+        return Err(format!("expected {N} comma-separated numbers, found `{s}`"));
+    }
+    let mut out = [0.0; N];
+    for (o, p) in out.iter_mut().zip(parts) {
+        *o = p.trim().parse::<f32>().map_err(|_| format!("`{p}` is not a number"))?;
+        if !o.is_finite() {
+            return Err(format!("`{p}` is not a finite number"));
+        }
+    }
+    Ok(out)
+}
+
+fn parse_vec2(s: &str) -> Result<[f32; 2], String> {
+    parse_floats::<2>(s)
+}
+
+fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+    parse_floats::<3>(s)
+}
+
+fn parse_rgb(s: &str) -> Result<[u8; 3], String> {
+    let f = parse_floats::<3>(s)?;
+    if f.iter().any(|&c| !(0.0..=255.0).contains(&c)) {
+        return Err(format!("colour components must be 0-255, found `{s}`"));
+    }
+    Ok(f.map(|c| c as u8))
+}
+
 impl From<AlgorithmArg> for Algorithm {
     fn from(a: AlgorithmArg) -> Self {
         match a {
             AlgorithmArg::Edge => Algorithm::EdgeFunctions,
             AlgorithmArg::Scanline => Algorithm::Scanline,
-        }
-    }
-}
-
-impl From<ShadingArg> for Shading {
-    fn from(s: ShadingArg) -> Self {
-        match s {
-            ShadingArg::Flat => Shading::Flat,
-            ShadingArg::Smooth => Shading::Smooth,
-            ShadingArg::Perspective => Shading::Perspective,
-        }
-    }
-}
-
-impl From<CullArg> for CullMode {
-    fn from(c: CullArg) -> Self {
-        match c {
-            CullArg::None => CullMode::None,
-            CullArg::Cw => CullMode::Clockwise,
-            CullArg::Ccw => CullMode::CounterClockwise,
         }
     }
 }
@@ -157,10 +232,16 @@ impl From<DepthTestArg> for DepthTest {
     }
 }
 
+/// A command-line mistake that clap cannot see (a value that does not fit the projection).
+fn usage(message: String) -> Error {
+    Error::Usage(message)
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render(&args),
+        Command::Info { file } => info(&file),
         Command::Demo { which, output, size, algorithm } => demo(which, &output, size, algorithm),
     };
     match result {
@@ -181,33 +262,218 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     if args.overdraw.is_some() {
         target = target.with_overdraw();
     }
-    let (triangles, default_shading) = match (&args.file, args.projection) {
-        (Some(path), ProjectionArg::Window) => {
+    if args.normals.is_some() {
+        target = target.with_normals();
+    }
+    if args.projection == ProjectionArg::Window {
+        render_window(args, &mut target)?;
+        return write_outputs(args, &target, None);
+    }
+    let mesh = match &args.file {
+        Some(path) => trirast::mesh::load(path)?,
+        None => scene::default_model(),
+    };
+    for w in &mesh.warnings {
+        eprintln!("trirast: warning: {w}");
+    }
+    let textures = MaterialTextures::load(&mesh);
+    for w in &textures.warnings {
+        eprintln!("trirast: warning: {w}");
+    }
+    let options = model_options(args)?;
+    let background = args.background.unwrap_or([38, 42, 52]);
+    let clear = [background[0], background[1], background[2], 255];
+    let (centre, radius) = camera::bounding_sphere(&mesh.positions);
+    let [az, el] = args.view.unwrap_or([30.0, 20.0]);
+    let camera_at = |azimuth: f32| -> Camera {
+        let projection = match args.projection {
+            ProjectionArg::Orthographic => Projection::Orthographic { height: 2.0 * radius },
+            _ => Projection::Perspective { fov_y: args.fov.clamp(1.0, 170.0).to_radians() },
+        };
+        let mut cam = Camera::framing_sphere(
+            centre,
+            radius,
+            azimuth.to_radians(),
+            el.to_radians(),
+            width as f32 / height as f32,
+            projection,
+        );
+        if let (Some(eye), Some(look)) = (args.eye, args.target) {
+            let (eye, look) = (Vec3::from(eye), Vec3::from(look));
+            let distance = eye.distance(centre);
+            cam.eye = eye;
+            cam.target = look;
+            cam.up = Vec3::from(args.up);
+            cam.near = (distance - radius * 1.5).max(radius * 1e-3);
+            cam.far = distance + radius * 1.5;
+        }
+        cam
+    };
+    match args.turntable {
+        None => {
+            target.clear(clear);
+            let stats = model::render_mesh(&mut target, &mesh, &camera_at(az), &options, &textures)?;
+            report(&stats);
+            write_outputs(args, &target, None)
+        }
+        Some(0) => Err(usage("--turntable needs at least 1 frame".into())),
+        Some(frames) => {
+            let bar = ProgressBar::new(u64::from(frames)).with_style(
+                ProgressStyle::with_template("{bar:40} {pos}/{len} frames, {eta} left")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            for k in 0..frames {
+                target.clear(clear);
+                let azimuth = az + 360.0 * k as f32 / frames as f32;
+                model::render_mesh(&mut target, &mesh, &camera_at(azimuth), &options, &textures)?;
+                write_outputs(args, &target, Some(k))?;
+                bar.inc(1);
+            }
+            bar.finish();
+            Ok(())
+        }
+    }
+}
+
+fn model_options(args: &RenderArgs) -> Result<ModelOptions, Error> {
+    let mut options = ModelOptions::default();
+    options.lighting = match args.shading {
+        None | Some(ShadingArg::Phong) => Lighting::Phong,
+        Some(ShadingArg::Unlit) => Lighting::Unlit,
+        Some(ShadingArg::Flat) => Lighting::Flat,
+        Some(ShadingArg::Gouraud | ShadingArg::Smooth) => Lighting::Gouraud,
+        Some(ShadingArg::Perspective) => {
+            return Err(usage(
+                "--shading perspective is for --projection window; 3D varyings are always \
+                 perspective-correct"
+                    .into(),
+            ));
+        }
+    };
+    options.cull = match args.cull {
+        None | Some(CullArg::Back) => FaceCull::Back,
+        Some(CullArg::Front) => FaceCull::Front,
+        Some(CullArg::None) => FaceCull::None,
+        Some(CullArg::Cw | CullArg::Ccw) => {
+            return Err(usage("--cull cw|ccw is for --projection window; use back|front|none".into()));
+        }
+    };
+    options.depth_test = args.depth_test.into();
+    options.filter = match args.filter {
+        FilterArg::Nearest => Filter::Nearest,
+        FilterArg::Bilinear => Filter::Bilinear,
+    };
+    options.wrap = match args.wrap {
+        WrapArg::Repeat => Wrap::Repeat,
+        WrapArg::Clamp => Wrap::Clamp,
+    };
+    Ok(options)
+}
+
+fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
+    let (width, height) = args.size;
+    let (triangles, default_shading) = match &args.file {
+        Some(path) => {
             let mesh = trirast::mesh::obj::read(path)?;
             (trirast::mesh::window_triangles(&mesh), Shading::Smooth)
         }
-        (None, _) => {
+        None => {
             let s = scene::default_scene(width, height);
             (s.triangles, s.shading)
         }
     };
+    let shading = match args.shading {
+        None => default_shading,
+        Some(ShadingArg::Flat) => Shading::Flat,
+        Some(ShadingArg::Smooth | ShadingArg::Gouraud) => Shading::Smooth,
+        Some(ShadingArg::Perspective) => Shading::Perspective,
+        Some(ShadingArg::Unlit | ShadingArg::Phong) => {
+            return Err(usage(
+                "--projection window shades vertex colours: use flat, smooth or perspective".into(),
+            ));
+        }
+    };
+    let cull = match args.cull {
+        None | Some(CullArg::None) => CullMode::None,
+        Some(CullArg::Cw) => CullMode::Clockwise,
+        Some(CullArg::Ccw) => CullMode::CounterClockwise,
+        Some(CullArg::Back | CullArg::Front) => {
+            return Err(usage(
+                "--projection window has no camera to face: use --cull none, cw or ccw".into(),
+            ));
+        }
+    };
+    if args.normals.is_some() {
+        return Err(usage("--normals needs a 3D projection".into()));
+    }
+    if let Some([r, g, b]) = args.background {
+        target.clear([r, g, b, 255]);
+    }
     let options = RenderOptions::default()
         .with_algorithm(args.algorithm.into())
-        .with_shading(args.shading.map_or(default_shading, Shading::from))
-        .with_cull(args.cull.into())
+        .with_shading(shading)
+        .with_cull(cull)
         .with_depth_test(args.depth_test.into());
-    draw_and_report(&mut target, &triangles, &options)?;
-    trirast::output::write_png(&args.output, &target)?;
+    draw_and_report(target, &triangles, &options)
+}
+
+/// `out.png` -> `out_007.png`.
+fn frame_path(output: &Path, k: u32) -> PathBuf {
+    let stem = output.file_stem().and_then(|s| s.to_str()).unwrap_or("frame");
+    let ext = output.extension().and_then(|s| s.to_str()).unwrap_or("png");
+    output.with_file_name(format!("{stem}_{k:03}.{ext}"))
+}
+
+/// Writes the PNG and the requested buffers; a turntable `frame` numbers every file name.
+fn write_outputs(args: &RenderArgs, target: &Target, frame: Option<u32>) -> Result<(), Error> {
+    let (width, height) = (target.width(), target.height());
+    let named = |p: &PathBuf| frame.map_or_else(|| p.clone(), |k| frame_path(p, k));
+    let png = named(&args.output);
+    trirast::output::write_png(&png, target)?;
     if let Some(p) = &args.depth {
-        trirast::output::write_npy(p, &target.depth, width, height)?;
+        trirast::output::write_npy(&named(p), &target.depth, width, height)?;
     }
     if let (Some(p), Some(ids)) = (&args.ids, &target.ids) {
-        trirast::output::write_npy(p, ids, width, height)?;
+        trirast::output::write_npy(&named(p), ids, width, height)?;
     }
     if let (Some(p), Some(o)) = (&args.overdraw, &target.overdraw) {
-        trirast::output::write_npy(p, o, width, height)?;
+        trirast::output::write_npy(&named(p), o, width, height)?;
     }
-    eprintln!("wrote {}", args.output.display());
+    if let (Some(p), Some(n)) = (&args.normals, &target.normals) {
+        let shape = [u64::from(height), u64::from(width), 3];
+        trirast::output::write_npy_shaped(&named(p), n.as_flattened(), &shape)?;
+    }
+    if frame.is_none() {
+        eprintln!("wrote {}", png.display());
+    }
+    Ok(())
+}
+
+fn info(path: &Path) -> Result<(), Error> {
+    let mesh: Mesh = trirast::mesh::load(path)?;
+    let finite = mesh.positions.iter().filter(|p| p.iter().all(|c| c.is_finite()));
+    let (lo, hi) = finite.fold(([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]), |(lo, hi), p| {
+        (std::array::from_fn(|k| lo[k].min(p[k])), std::array::from_fn(|k| hi[k].max(p[k])))
+    });
+    let (centre, radius) = camera::bounding_sphere(&mesh.positions);
+    println!("file:       {}", path.display());
+    println!("vertices:   {}", mesh.positions.len());
+    println!("triangles:  {}", mesh.triangles.len());
+    println!("polygons:   {}", mesh.polygon_count);
+    println!("bounds:     min {lo:?} max {hi:?}");
+    println!("sphere:     centre {:?} radius {radius}", centre.to_array());
+    let yes = |b: bool| if b { "yes" } else { "no" };
+    println!("normals:    {}", yes(mesh.normals.is_some()));
+    println!("texcoords:  {}", yes(mesh.texcoords.is_some()));
+    println!("colours:    {}", yes(mesh.colors.is_some()));
+    println!("materials:  {}", mesh.materials.len());
+    for m in &mesh.materials {
+        let texture = m.diffuse_texture.as_ref().map(|t| t.display().to_string());
+        println!("  {:?}: diffuse {:?}, texture {}", m.name, m.diffuse, texture.unwrap_or("none".into()));
+    }
+    for w in &mesh.warnings {
+        println!("warning:    {w}");
+    }
     Ok(())
 }
 
@@ -232,6 +498,11 @@ fn draw_and_report(
     options: &RenderOptions,
 ) -> Result<(), Error> {
     let stats = trirast::draw(target, triangles, options)?;
+    report(&stats);
+    Ok(())
+}
+
+fn report(stats: &trirast::DrawStats) {
     if stats.non_finite > 0 {
         eprintln!(
             "trirast: warning: dropped {} triangle(s) with NaN or infinite coordinates",
@@ -239,8 +510,7 @@ fn draw_and_report(
         );
     }
     eprintln!(
-        "{} triangles: {} rasterized, {} culled, {} degenerate; {} fragments",
+        "{} triangles: {} rasterized, {} culled or clipped away, {} degenerate; {} fragments",
         stats.submitted, stats.rasterized, stats.culled, stats.degenerate, stats.fragments
     );
-    Ok(())
 }

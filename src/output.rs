@@ -30,13 +30,25 @@ pub fn write_npy<T>(path: &Path, data: &[T], width: u32, height: u32) -> Result<
 where
     T: npyz::Serialize + npyz::AutoSerialize,
 {
+    write_npy_shaped(path, data, &[u64::from(height), u64::from(width)])
+}
+
+/// Writes `data` (row-major) as a little-endian `.npy` array of the given shape.
+///
+/// # Panics
+/// If the shape's element count differs from `data.len()`.
+pub fn write_npy_shaped<T>(path: &Path, data: &[T], shape: &[u64]) -> Result<(), Error>
+where
+    T: npyz::Serialize + npyz::AutoSerialize,
+{
+    assert_eq!(shape.iter().product::<u64>(), data.len() as u64, "npy shape and data disagree");
     let io = |e| Error::io(path, e);
     let file = File::create(path).map_err(io)?;
     let mut buf = BufWriter::new(file);
     {
         let mut writer = npyz::WriteOptions::new()
             .default_dtype()
-            .shape(&[u64::from(height), u64::from(width)])
+            .shape(shape)
             .writer(&mut buf)
             .begin_nd()
             .map_err(io)?;

@@ -155,3 +155,52 @@ pub fn default_scene(width: u32, height: u32) -> Scene {
     triangles.push([v(0.92, 0.85, 0.2, dark), v(0.3, 0.65, 0.8, light), v(0.8, 0.4, 0.2, dark)]);
     Scene { triangles, shading: Shading::Smooth }
 }
+
+/// The 3D model `trirast render` draws when given no file: a trefoil knot tube, its colour
+/// running through the hues along the knot, with normals and counter-clockwise outward faces.
+#[must_use]
+pub fn default_model() -> crate::mesh::Mesh {
+    use glam::Vec3;
+    let (segments, sides) = (300usize, 28usize);
+    let curve = |t: f32| {
+        Vec3::new(t.sin() + 2.0 * (2.0 * t).sin(), t.cos() - 2.0 * (2.0 * t).cos(), -(3.0 * t).sin())
+    };
+    let tau = std::f32::consts::TAU;
+    let mut mesh = crate::mesh::Mesh::default();
+    let (mut normals, mut colors) = (Vec::new(), Vec::new());
+    for i in 0..segments {
+        let t = tau * i as f32 / segments as f32;
+        let dt = tau / segments as f32 * 0.5;
+        let (p, tangent) = (curve(t), (curve(t + dt) - curve(t - dt)).normalize());
+        let side = tangent.cross(Vec3::Z).normalize_or(Vec3::X);
+        let up = side.cross(tangent);
+        let hue = |offset: f32| 0.5 + 0.5 * (tau * (t / tau * 2.0 + offset)).cos();
+        let color = [hue(0.0), hue(-1.0 / 3.0), hue(-2.0 / 3.0), 1.0];
+        for j in 0..sides {
+            let a = tau * j as f32 / sides as f32;
+            let n = side * a.cos() + up * a.sin();
+            mesh.positions.push((p + n * 0.45).to_array());
+            normals.push(n.to_array());
+            colors.push(color);
+        }
+    }
+    let index = |i: usize, j: usize| ((i % segments) * sides + j % sides) as u32;
+    for i in 0..segments {
+        for j in 0..sides {
+            let (a, b, c, d) = (index(i, j), index(i + 1, j), index(i + 1, j + 1), index(i, j + 1));
+            mesh.triangles.push([a, b, c]);
+            mesh.triangles.push([a, c, d]);
+        }
+    }
+    // Choose the winding that makes faces counter-clockwise seen from outside.
+    let [a, b, c] = mesh.triangles[0].map(|k| Vec3::from(mesh.positions[k as usize]));
+    if (b - a).cross(c - a).dot(Vec3::from(normals[mesh.triangles[0][0] as usize])) < 0.0 {
+        for t in &mut mesh.triangles {
+            t.swap(1, 2);
+        }
+    }
+    mesh.polygon_count = mesh.triangles.len() / 2;
+    mesh.normals = Some(normals);
+    mesh.colors = Some(colors);
+    mesh
+}

@@ -1,0 +1,279 @@
+//! Rendering a [`Mesh`] with built-in shaders: unlit, flat, Gouraud and Phong lighting, vertex
+//! colours, materials and textures. This is what `trirast render MODEL` runs; it is written
+//! against the public [`crate::pipeline`] API like any user program.
+
+use std::path::PathBuf;
+
+use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
+
+use crate::camera::Camera;
+use crate::color::srgb_decode;
+use crate::error::Error;
+use crate::mesh::Mesh;
+use crate::pipeline::{FaceCull, Fragment, FragmentShader, Pipeline};
+use crate::render::DrawStats;
+use crate::shade::DepthTest;
+use crate::target::Target;
+use crate::texture::{Filter, Texture, Wrap};
+
+/// Lighting models.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Lighting {
+    /// Surface colour only (vertex colours, material, texture): no light.
+    Unlit,
+    /// One normal per face.
+    Flat,
+    /// Lighting evaluated per vertex and interpolated.
+    Gouraud,
+    /// Normals interpolated, lighting evaluated per pixel.
+    #[default]
+    Phong,
+}
+
+/// One directional light plus ambient, in view space (so it moves with the camera).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    /// Direction towards the light, view space (normalised on use).
+    pub direction: Vec3,
+    /// Diffuse intensity.
+    pub diffuse: f32,
+    /// Ambient intensity.
+    pub ambient: f32,
+    /// Specular intensity (Blinn-Phong) for Gouraud and Phong.
+    pub specular: f32,
+    /// Specular exponent.
+    pub shininess: f32,
+}
+
+impl Default for Light {
+    /// A head light from slightly above and to the left of the camera.
+    fn default() -> Self {
+        Self {
+            direction: Vec3::new(-0.35, 0.45, 1.0),
+            diffuse: 0.85,
+            ambient: 0.15,
+            specular: 0.2,
+            shininess: 32.0,
+        }
+    }
+}
+
+impl Light {
+    /// Light reflected towards the viewer from a surface with normal `n` (view space, unit)
+    /// seen along `view` (unit, from the surface to the eye): `(diffuse + ambient, specular)`.
+    #[must_use]
+    pub fn shade(&self, n: Vec3, view: Vec3) -> (f32, f32) {
+        let l = self.direction.normalize_or(Vec3::Z);
+        let diffuse = self.ambient + self.diffuse * n.dot(l).max(0.0);
+        let h = (l + view).normalize_or(Vec3::Z);
+        let spec = if n.dot(l) > 0.0 { self.specular * n.dot(h).max(0.0).powf(self.shininess) } else { 0.0 };
+        (diffuse, spec)
+    }
+}
+
+/// How to render a mesh. `ModelOptions::default()` gives Phong lighting with the head light,
+/// back faces culled, bilinear repeat textures.
+#[derive(Clone, Debug, Default, PartialEq)]
+#[non_exhaustive]
+pub struct ModelOptions {
+    /// Lighting model.
+    pub lighting: Lighting,
+    /// The light.
+    pub light: Light,
+    /// Faces to discard.
+    pub cull: FaceCull,
+    /// Depth comparison.
+    pub depth_test: DepthTest,
+    /// Texture filtering.
+    pub filter: Filter,
+    /// Texture wrapping.
+    pub wrap: Wrap,
+}
+
+/// Textures of a mesh's materials, loaded once; a texture that cannot be read becomes a warning
+/// and the material's plain colour.
+#[derive(Clone, Debug, Default)]
+pub struct MaterialTextures {
+    textures: Vec<Option<Texture>>,
+    /// Problems met while loading.
+    pub warnings: Vec<String>,
+}
+
+impl MaterialTextures {
+    /// Loads the diffuse textures of `mesh`'s materials.
+    #[must_use]
+    pub fn load(mesh: &Mesh) -> Self {
+        let mut warnings = Vec::new();
+        let textures = mesh
+            .materials
+            .iter()
+            .map(|m| {
+                let path: &PathBuf = m.diffuse_texture.as_ref()?;
+                match Texture::load(path) {
+                    Ok(t) => Some(t),
+                    Err(e) => {
+                        warnings.push(format!("texture not used, plain colour instead: {e}"));
+                        None
+                    }
+                }
+            })
+            .collect();
+        Self { textures, warnings }
+    }
+}
+
+/// Area-weighted vertex normals (the sum of the adjacent faces' cross products): large faces
+/// count more, and slivers, whose normals are least reliable, count least.
+#[must_use]
+pub fn vertex_normals(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Vec<[f32; 3]> {
+    let mut sum = vec![Vec3::ZERO; positions.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|i| Vec3::from(positions[i as usize]));
+        let n = (b - a).cross(c - a);
+        if n.is_finite() {
+            for &i in t {
+                sum[i as usize] += n;
+            }
+        }
+    }
+    sum.into_iter().map(|n| n.normalize_or_zero().to_array()).collect()
+}
+
+/// Per-vertex data the model shaders read, resolved once.
+struct Surface<'a> {
+    mesh: &'a Mesh,
+    normals: Vec<[f32; 3]>,
+    textures: &'a MaterialTextures,
+    /// Linear RGBA per vertex (white when the mesh has no colours).
+    colors: Option<Vec<Vec4>>,
+    /// View-space face normals (flat lighting).
+    face_normals: Vec<Vec3>,
+}
+
+/// Varyings of the model shaders: view-space normal, texture coordinate, linear colour (for
+/// Gouraud: already lit), view-space position.
+type ModelVaryings = (Vec3, Vec2, Vec4, Vec3);
+
+struct ModelFragment<'a> {
+    surface: &'a Surface<'a>,
+    options: &'a ModelOptions,
+    view_to_world: Mat3,
+}
+
+impl ModelFragment<'_> {
+    fn albedo(&self, f: &Fragment<ModelVaryings>) -> Vec4 {
+        let (_, uv, color, _) = f.varyings;
+        let mesh = self.surface.mesh;
+        let material = mesh.triangle_materials.as_ref().map(|m| m[f.primitive as usize] as usize);
+        let mut albedo = color;
+        if let Some(k) = material {
+            if let Some(m) = mesh.materials.get(k) {
+                let texture = self.surface.textures.textures.get(k).and_then(Option::as_ref);
+                let base = match texture {
+                    Some(t) if mesh.texcoords.is_some() => {
+                        t.sample(uv, self.options.filter, self.options.wrap)
+                    }
+                    _ => Vec3::from(m.diffuse.map(srgb_decode)).extend(1.0),
+                };
+                albedo *= base;
+            }
+        }
+        albedo
+    }
+
+    fn normal_at(&self, f: &Fragment<ModelVaryings>) -> Vec3 {
+        let n = match self.options.lighting {
+            Lighting::Flat => self.surface.face_normals[f.primitive as usize],
+            _ => f.varyings.0.normalize_or_zero(),
+        };
+        // Two-sided: a back face seen through a hole is lit as its visible side.
+        if f.front_facing { n } else { -n }
+    }
+}
+
+impl FragmentShader<ModelVaryings> for ModelFragment<'_> {
+    fn shade(&self, f: &Fragment<ModelVaryings>) -> Option<Vec4> {
+        let albedo = self.albedo(f);
+        let lit = match self.options.lighting {
+            Lighting::Unlit | Lighting::Gouraud => albedo,
+            Lighting::Flat | Lighting::Phong => {
+                let view = (-f.varyings.3).normalize_or(Vec3::Z);
+                let (d, s) = self.options.light.shade(self.normal_at(f), view);
+                (albedo.truncate() * d + Vec3::splat(s)).extend(albedo.w)
+            }
+        };
+        Some(lit)
+    }
+
+    fn normal(&self, f: &Fragment<ModelVaryings>) -> Option<Vec3> {
+        Some((self.view_to_world * self.normal_at(f)).normalize_or_zero())
+    }
+}
+
+/// Renders `mesh` seen by `camera` into `target` (which the caller clears).
+pub fn render_mesh(
+    target: &mut Target,
+    mesh: &Mesh,
+    camera: &Camera,
+    options: &ModelOptions,
+    textures: &MaterialTextures,
+) -> Result<DrawStats, Error> {
+    let aspect = target.width() as f32 / target.height() as f32;
+    let view = camera.view();
+    let view_proj = camera.projection(aspect) * view;
+    let normal_matrix = Mat3::from_mat4(view).inverse().transpose();
+    let normals = match &mesh.normals {
+        Some(n) => n.clone(),
+        None => vertex_normals(&mesh.positions, &mesh.triangles),
+    };
+    let colors = mesh
+        .colors
+        .as_ref()
+        .map(|c| c.iter().map(|&[r, g, b, a]| Vec4::new(srgb_decode(r), srgb_decode(g), srgb_decode(b), a)).collect());
+    let face_normals = face_normals(mesh, &view);
+    let surface = Surface { mesh, normals, textures, colors, face_normals };
+
+    let light = options.light;
+    let lighting = options.lighting;
+    // A mesh with neither colours nor materials gets a light clay colour, not pure white,
+    // so highlights stay visible.
+    let base_albedo = if mesh.colors.is_none() && mesh.materials.is_empty() {
+        Vec4::new(0.62, 0.6, 0.56, 1.0)
+    } else {
+        Vec4::ONE
+    };
+    let vertex = |&i: &u32| -> (Vec4, ModelVaryings) {
+        let i = i as usize;
+        let p = Vec3::from(mesh.positions[i]).extend(1.0);
+        let view_pos = (view * p).truncate();
+        let n = (normal_matrix * Vec3::from(surface.normals[i])).normalize_or_zero();
+        let uv = mesh.texcoords.as_ref().map_or(Vec2::ZERO, |t| Vec2::from(t[i]));
+        let mut color = surface.colors.as_ref().map_or(base_albedo, |c| c[i]);
+        if lighting == Lighting::Gouraud {
+            // Per-vertex lighting; texture and material still modulate per pixel.
+            let (d, s) = light.shade(n, (-view_pos).normalize_or(Vec3::Z));
+            color = (color.truncate() * d + Vec3::splat(s)).extend(color.w);
+        }
+        (view_proj * p, (n, uv, color, view_pos))
+    };
+    let fragment = ModelFragment {
+        surface: &surface,
+        options,
+        view_to_world: Mat3::from_mat4(view).transpose(),
+    };
+    let indices: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+    Pipeline::default()
+        .with_cull(options.cull)
+        .with_depth_test(options.depth_test)
+        .draw(target, &vertex, &fragment, &indices, &mesh.triangles)
+}
+
+fn face_normals(mesh: &Mesh, view: &Mat4) -> Vec<Vec3> {
+    mesh.triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| view.transform_point3(Vec3::from(mesh.positions[i as usize])));
+            (b - a).cross(c - a).normalize_or_zero()
+        })
+        .collect()
+}
