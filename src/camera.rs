@@ -143,9 +143,9 @@ impl Camera {
 #[must_use]
 pub fn bounding_sphere(points: &[[f32; 3]]) -> (Vec3, f32) {
     let finite = points.iter().map(|&p| Vec3::from(p)).filter(|p| p.is_finite());
-    let (lo, hi) = finite.clone().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
-        (lo.min(p), hi.max(p))
-    });
+    let (lo, hi) = finite
+        .clone()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
     if !lo.is_finite() {
         return (Vec3::ZERO, 1.0);
     }
@@ -160,7 +160,9 @@ mod tests {
 
     #[test]
     fn near_maps_to_zero_and_far_to_one() {
-        for projection in [Projection::Perspective { fov_y: 0.8 }, Projection::Orthographic { height: 2.0 }] {
+        for projection in
+            [Projection::Perspective { fov_y: 0.8 }, Projection::Orthographic { height: 2.0 }]
+        {
             let cam = Camera {
                 eye: Vec3::new(1.0, 2.0, 3.0),
                 target: Vec3::new(1.0, 2.0, -7.0),

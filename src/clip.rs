@@ -46,13 +46,13 @@ impl ClipVolume {
         let gy = 2.0 * GUARD_BAND_PIXELS / height as f32 - 1.0;
         Self {
             planes: [
-                Vec4::new(0.0, 0.0, 1.0, 0.0),   // near: z >= 0
-                Vec4::new(0.0, 0.0, -1.0, 1.0),  // far: z <= w
-                Vec4::new(0.0, 0.0, 0.0, 1.0),   // w >= MIN_W (offset below)
-                Vec4::new(1.0, 0.0, 0.0, gx),    // x >= -gx w
-                Vec4::new(-1.0, 0.0, 0.0, gx),   // x <= gx w
-                Vec4::new(0.0, 1.0, 0.0, gy),    // y >= -gy w
-                Vec4::new(0.0, -1.0, 0.0, gy),   // y <= gy w
+                Vec4::new(0.0, 0.0, 1.0, 0.0),  // near: z >= 0
+                Vec4::new(0.0, 0.0, -1.0, 1.0), // far: z <= w
+                Vec4::new(0.0, 0.0, 0.0, 1.0),  // w >= MIN_W (offset below)
+                Vec4::new(1.0, 0.0, 0.0, gx),   // x >= -gx w
+                Vec4::new(-1.0, 0.0, 0.0, gx),  // x <= gx w
+                Vec4::new(0.0, 1.0, 0.0, gy),   // y >= -gy w
+                Vec4::new(0.0, -1.0, 0.0, gy),  // y <= gy w
             ],
         }
     }
@@ -92,7 +92,8 @@ impl ClipVolume {
                 }
                 if a_in != b_in {
                     // From the inside end, so shared edges give identical vertices.
-                    let (inside, outside, di, d_o) = if a_in { (a, b, da, db) } else { (b, a, db, da) };
+                    let (inside, outside, di, d_o) =
+                        if a_in { (a, b, da, db) } else { (b, a, db, da) };
                     let t = di / (di - d_o);
                     next.push(ClipVertex {
                         position: inside.position + (outside.position - inside.position) * t,

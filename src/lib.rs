@@ -28,6 +28,7 @@ pub mod color;
 pub mod error;
 pub mod fixed;
 pub mod mesh;
+pub mod model;
 pub mod output;
 pub mod pipeline;
 pub mod polygon;
@@ -37,6 +38,7 @@ pub mod scene;
 pub mod setup;
 pub mod shade;
 pub mod target;
+pub mod texture;
 pub mod varyings;
 
 pub use error::Error;

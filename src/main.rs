@@ -111,6 +111,10 @@ struct RenderArgs {
     /// Background colour as R,G,B (0-255).
     #[arg(long, value_parser = parse_rgb)]
     background: Option<[u8; 3]>,
+    /// A diffuse texture (PNG or JPEG) for a mesh with texture coordinates, replacing its
+    /// materials.
+    #[arg(long, value_name = "IMAGE")]
+    texture: Option<PathBuf>,
     /// Render N frames orbiting the model (3D only).
     #[arg(long, value_name = "N")]
     turntable: Option<u32>,
@@ -269,10 +273,21 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         render_window(args, &mut target)?;
         return write_outputs(args, &target, None);
     }
-    let mesh = match &args.file {
+    let mut mesh = match &args.file {
         Some(path) => trirast::mesh::load(path)?,
         None => scene::default_model(),
     };
+    if let Some(texture) = &args.texture {
+        if mesh.texcoords.is_none() {
+            eprintln!("trirast: warning: the mesh has no texture coordinates; --texture ignored");
+        }
+        mesh.materials = vec![trirast::mesh::Material {
+            name: "texture".into(),
+            diffuse: [1.0; 3],
+            diffuse_texture: Some(texture.clone()),
+        }];
+        mesh.triangle_materials = Some(vec![0; mesh.triangles.len()]);
+    }
     for w in &mesh.warnings {
         eprintln!("trirast: warning: {w}");
     }
@@ -312,7 +327,8 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     match args.turntable {
         None => {
             target.clear(clear);
-            let stats = model::render_mesh(&mut target, &mesh, &camera_at(az), &options, &textures)?;
+            let stats =
+                model::render_mesh(&mut target, &mesh, &camera_at(az), &options, &textures)?;
             report(&stats);
             write_outputs(args, &target, None)
         }
@@ -355,7 +371,9 @@ fn model_options(args: &RenderArgs) -> Result<ModelOptions, Error> {
         Some(CullArg::Front) => FaceCull::Front,
         Some(CullArg::None) => FaceCull::None,
         Some(CullArg::Cw | CullArg::Ccw) => {
-            return Err(usage("--cull cw|ccw is for --projection window; use back|front|none".into()));
+            return Err(usage(
+                "--cull cw|ccw is for --projection window; use back|front|none".into(),
+            ));
         }
     };
     options.depth_test = args.depth_test.into();
@@ -469,7 +487,12 @@ fn info(path: &Path) -> Result<(), Error> {
     println!("materials:  {}", mesh.materials.len());
     for m in &mesh.materials {
         let texture = m.diffuse_texture.as_ref().map(|t| t.display().to_string());
-        println!("  {:?}: diffuse {:?}, texture {}", m.name, m.diffuse, texture.unwrap_or("none".into()));
+        println!(
+            "  {:?}: diffuse {:?}, texture {}",
+            m.name,
+            m.diffuse,
+            texture.unwrap_or("none".into())
+        );
     }
     for w in &mesh.warnings {
         println!("warning:    {w}");
@@ -477,7 +500,12 @@ fn info(path: &Path) -> Result<(), Error> {
     Ok(())
 }
 
-fn demo(which: DemoArg, output: &Path, size: (u32, u32), algorithm: AlgorithmArg) -> Result<(), Error> {
+fn demo(
+    which: DemoArg,
+    output: &Path,
+    size: (u32, u32),
+    algorithm: AlgorithmArg,
+) -> Result<(), Error> {
     let which = match which {
         DemoArg::Flat => Demo::Flat,
         DemoArg::Smooth => Demo::Smooth,

@@ -66,7 +66,11 @@ impl Light {
         let l = self.direction.normalize_or(Vec3::Z);
         let diffuse = self.ambient + self.diffuse * n.dot(l).max(0.0);
         let h = (l + view).normalize_or(Vec3::Z);
-        let spec = if n.dot(l) > 0.0 { self.specular * n.dot(h).max(0.0).powf(self.shininess) } else { 0.0 };
+        let spec = if n.dot(l) > 0.0 {
+            self.specular * n.dot(h).max(0.0).powf(self.shininess)
+        } else {
+            0.0
+        };
         (diffuse, spec)
     }
 }
@@ -123,20 +127,30 @@ impl MaterialTextures {
 }
 
 /// Area-weighted vertex normals (the sum of the adjacent faces' cross products): large faces
-/// count more, and slivers, whose normals are least reliable, count least.
+/// count more, and slivers, whose normals are least reliable, count least. Vertices at the
+/// same position share one normal, so seams in texture coordinates (which split vertices)
+/// do not show as creases.
 #[must_use]
 pub fn vertex_normals(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Vec<[f32; 3]> {
-    let mut sum = vec![Vec3::ZERO; positions.len()];
+    let mut slot_of = std::collections::HashMap::new();
+    let slots: Vec<usize> = positions
+        .iter()
+        .map(|p| {
+            let next = slot_of.len();
+            *slot_of.entry(p.map(f32::to_bits)).or_insert(next)
+        })
+        .collect();
+    let mut sum = vec![Vec3::ZERO; slot_of.len()];
     for t in triangles {
         let [a, b, c] = t.map(|i| Vec3::from(positions[i as usize]));
         let n = (b - a).cross(c - a);
         if n.is_finite() {
             for &i in t {
-                sum[i as usize] += n;
+                sum[slots[i as usize]] += n;
             }
         }
     }
-    sum.into_iter().map(|n| n.normalize_or_zero().to_array()).collect()
+    slots.iter().map(|&s| sum[s].normalize_or_zero().to_array()).collect()
 }
 
 /// Per-vertex data the model shaders read, resolved once.
@@ -166,17 +180,15 @@ impl ModelFragment<'_> {
         let mesh = self.surface.mesh;
         let material = mesh.triangle_materials.as_ref().map(|m| m[f.primitive as usize] as usize);
         let mut albedo = color;
-        if let Some(k) = material {
-            if let Some(m) = mesh.materials.get(k) {
-                let texture = self.surface.textures.textures.get(k).and_then(Option::as_ref);
-                let base = match texture {
-                    Some(t) if mesh.texcoords.is_some() => {
-                        t.sample(uv, self.options.filter, self.options.wrap)
-                    }
-                    _ => Vec3::from(m.diffuse.map(srgb_decode)).extend(1.0),
-                };
-                albedo *= base;
-            }
+        if let Some((k, m)) = material.and_then(|k| Some((k, mesh.materials.get(k)?))) {
+            let texture = self.surface.textures.textures.get(k).and_then(Option::as_ref);
+            let base = match texture {
+                Some(t) if mesh.texcoords.is_some() => {
+                    t.sample(uv, self.options.filter, self.options.wrap)
+                }
+                _ => Vec3::from(m.diffuse.map(srgb_decode)).extend(1.0),
+            };
+            albedo *= base;
         }
         albedo
     }
@@ -219,18 +231,23 @@ pub fn render_mesh(
     textures: &MaterialTextures,
 ) -> Result<DrawStats, Error> {
     let aspect = target.width() as f32 / target.height() as f32;
-    let view = camera.view();
+    // Work relative to the point looked at: a model far from the origin (scans in survey
+    // coordinates, say) keeps its f32 precision, since p - origin is exact for nearby values.
+    let origin = camera.target;
+    let local_camera = Camera { eye: camera.eye - origin, target: Vec3::ZERO, ..*camera };
+    let view = local_camera.view();
     let view_proj = camera.projection(aspect) * view;
     let normal_matrix = Mat3::from_mat4(view).inverse().transpose();
     let normals = match &mesh.normals {
         Some(n) => n.clone(),
         None => vertex_normals(&mesh.positions, &mesh.triangles),
     };
-    let colors = mesh
-        .colors
-        .as_ref()
-        .map(|c| c.iter().map(|&[r, g, b, a]| Vec4::new(srgb_decode(r), srgb_decode(g), srgb_decode(b), a)).collect());
-    let face_normals = face_normals(mesh, &view);
+    let colors = mesh.colors.as_ref().map(|c| {
+        c.iter()
+            .map(|&[r, g, b, a]| Vec4::new(srgb_decode(r), srgb_decode(g), srgb_decode(b), a))
+            .collect()
+    });
+    let face_normals = face_normals(mesh, &view, origin);
     let surface = Surface { mesh, normals, textures, colors, face_normals };
 
     let light = options.light;
@@ -244,7 +261,7 @@ pub fn render_mesh(
     };
     let vertex = |&i: &u32| -> (Vec4, ModelVaryings) {
         let i = i as usize;
-        let p = Vec3::from(mesh.positions[i]).extend(1.0);
+        let p = (Vec3::from(mesh.positions[i]) - origin).extend(1.0);
         let view_pos = (view * p).truncate();
         let n = (normal_matrix * Vec3::from(surface.normals[i])).normalize_or_zero();
         let uv = mesh.texcoords.as_ref().map_or(Vec2::ZERO, |t| Vec2::from(t[i]));
@@ -262,17 +279,21 @@ pub fn render_mesh(
         view_to_world: Mat3::from_mat4(view).transpose(),
     };
     let indices: Vec<u32> = (0..mesh.positions.len() as u32).collect();
-    Pipeline::default()
-        .with_cull(options.cull)
-        .with_depth_test(options.depth_test)
-        .draw(target, &vertex, &fragment, &indices, &mesh.triangles)
+    Pipeline::default().with_cull(options.cull).with_depth_test(options.depth_test).draw(
+        target,
+        &vertex,
+        &fragment,
+        &indices,
+        &mesh.triangles,
+    )
 }
 
-fn face_normals(mesh: &Mesh, view: &Mat4) -> Vec<Vec3> {
+fn face_normals(mesh: &Mesh, view: &Mat4, origin: Vec3) -> Vec<Vec3> {
     mesh.triangles
         .iter()
         .map(|t| {
-            let [a, b, c] = t.map(|i| view.transform_point3(Vec3::from(mesh.positions[i as usize])));
+            let [a, b, c] =
+                t.map(|i| view.transform_point3(Vec3::from(mesh.positions[i as usize]) - origin));
             (b - a).cross(c - a).normalize_or_zero()
         })
         .collect()

@@ -15,10 +15,8 @@ pub fn write_png(path: &Path, target: &Target) -> Result<(), Error> {
     let mut encoder = png::Encoder::new(BufWriter::new(file), target.width(), target.height());
     encoder.set_color(png::ColorType::Rgba);
     encoder.set_depth(png::BitDepth::Eight);
-    let encode_err = |e: png::EncodingError| Error::Encode {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    };
+    let encode_err =
+        |e: png::EncodingError| Error::Encode { path: path.to_path_buf(), message: e.to_string() };
     let mut writer = encoder.write_header().map_err(encode_err)?;
     writer.write_image_data(target.color.as_flattened()).map_err(encode_err)?;
     writer.finish().map_err(encode_err)

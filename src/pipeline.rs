@@ -151,10 +151,16 @@ impl Pipeline {
         VS: VertexShader<I>,
         FS: FragmentShader<VS::Varyings>,
     {
-        if let Some((t, &bad)) =
-            triangles.iter().enumerate().find(|(_, t)| t.iter().any(|&i| i as usize >= vertices.len()))
+        if let Some((t, &bad)) = triangles
+            .iter()
+            .enumerate()
+            .find(|(_, t)| t.iter().any(|&i| i as usize >= vertices.len()))
         {
-            return Err(Error::IndexOutOfRange { triangle: t, indices: bad, vertices: vertices.len() });
+            return Err(Error::IndexOutOfRange {
+                triangle: t,
+                indices: bad,
+                vertices: vertices.len(),
+            });
         }
         let shaded: Vec<ClipVertex<VS::Varyings>> = vertices
             .par_iter()
@@ -263,11 +269,7 @@ impl Pipeline {
 fn perspective_weights(l1: f64, l2: f64, q: [f64; 3]) -> [f32; 3] {
     let w = [(1.0 - l1 - l2) * q[0], l1 * q[1], l2 * q[2]];
     let sum = w[0] + w[1] + w[2];
-    if sum > 0.0 {
-        w.map(|x| (x / sum) as f32)
-    } else {
-        [1.0 / 3.0; 3]
-    }
+    if sum > 0.0 { w.map(|x| (x / sum) as f32) } else { [1.0 / 3.0; 3] }
 }
 
 /// Maps clip space to window space: NDC [-1, 1]^2 x [0, 1] to pixels, row 0 at the top.

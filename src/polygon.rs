@@ -1,9 +1,402 @@
 //! Polygon triangulation: faces of meshes, and exact filling of 2D polygons.
+//!
+//! Every entry point turns a polygon into triangles over its own vertices that tile it (disjoint
+//! interiors, union the polygon) and are all wound like the polygon, so culling and normals
+//! see one consistent face:
+//! - strictly convex polygons without holes get the lectures' fan `(v0, vi, vi+1)`, which is
+//!   cheap and exact;
+//! - anything else goes to [earcut](https://github.com/georust/earcut), a maintained port of
+//!   mapbox/earcut (ear clipping with hole bridging).
+//!
+//! [`fill_polygon`] is the exact 2D fill. It snaps the vertices to the rasterizer's 1/256-pixel
+//! grid *first* and triangulates the snapped integers with exact predicates, so the triangles
+//! tile the snapped polygon exactly. The top-left rule is watertight for any tiling (a sample on
+//! an edge or vertex belongs to the one triangle containing the sample nudged right by `ε` and
+//! down by `ε²`), hence: a pixel is lit iff its centre is inside the snapped polygon, a centre
+//! exactly on the polygon's boundary is lit iff that nudged point is inside (the top-left rule
+//! applied to the polygon), and no pixel is lit twice.
+
+use crate::error::Error;
+use crate::fixed;
+use crate::render::{DrawStats, RenderOptions, draw};
+use crate::setup::Vertex;
+use crate::shade::{DepthTest, Shading};
+use crate::target::Target;
+use earcut::Earcut;
+use earcut::int::EarcutI32;
+
+/// Half the side of the square [`EarcutI32`] accepts: coordinates must lie in `[-2^19, 2^19]`.
+const EARCUT_I32_HALF_RANGE: i64 = 1 << 19;
 
 /// Triangulates one planar face given its corner positions in order; returns triangles as
 /// indices into `points`, keeping the face's winding.
+///
+/// The face is projected onto the coordinate plane its Newell normal is most aligned with (so
+/// the projection is as little foreshortened as possible), keeping the orientation: every
+/// output triangle's normal points the same way as the face's Newell normal. A strictly convex
+/// face gives exactly the fan `(0, i, i + 1)`; other faces are triangulated by earcut.
+///
+/// Degenerate input never panics: fewer than 3 points give nothing; a zero or non-finite normal
+/// (collinear or repeated points, NaN, infinity) gives the fan, whose triangles the rasterizer
+/// then drops and counts as degenerate or non-finite.
 #[must_use]
 pub fn triangulate_face(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
-    // Convex faces: the lectures' fan (v0, vi, vi+1).
-    (1..points.len().saturating_sub(1)).map(|i| [0, i, i + 1]).collect()
+    let n = points.len();
+    if n <= 3 {
+        return fan(n);
+    }
+    let normal = newell_normal(points);
+    if !normal.iter().all(|c| c.is_finite()) || normal == [0.0; 3] {
+        return fan(n);
+    }
+    let k = (0..3).max_by(|&a, &b| normal[a].abs().total_cmp(&normal[b].abs())).unwrap_or(2);
+    // Axes (k+1, k+2) keep the orientation: the projected signed area is `normal[k] / 2`.
+    let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+    let ring: Vec<[f64; 2]> = points.iter().map(|p| [f64::from(p[u]), f64::from(p[v])]).collect();
+    if is_strictly_convex(&ring) {
+        return fan(n);
+    }
+    let tris = earcut_f64(&ring, &[], normal[k] > 0.0);
+    // Earcut gives up on some self-intersecting faces; a fan still draws something sensible.
+    if tris.is_empty() { fan(n) } else { tris }
+}
+
+/// Triangulates a 2D polygon with holes: `rings[0]` is the outer boundary, the other rings are
+/// holes; the result indexes the concatenation of all rings.
+///
+/// Triangles are wound like the outer ring. Rings must not cross or touch each other (holes
+/// strictly inside the outer ring, pairwise disjoint), and each must be simple; for other input
+/// the result is whatever earcut makes of it. Non-finite coordinates give no triangles, holes
+/// with fewer than 3 points are ignored. For an exact triangulation of pixel coordinates, see
+/// [`triangulate_snapped`].
+#[must_use]
+pub fn triangulate_polygon(rings: &[Vec<[f64; 2]>]) -> Vec<[usize; 3]> {
+    let Some(outer) = rings.first() else {
+        return Vec::new();
+    };
+    if rings.iter().flatten().any(|p| !(p[0].is_finite() && p[1].is_finite())) {
+        return Vec::new();
+    }
+    let area = shoelace(outer);
+    if area == 0.0 || !area.is_finite() {
+        return Vec::new();
+    }
+    if rings.iter().skip(1).all(|h| h.len() < 3) && is_strictly_convex(outer) {
+        return fan(outer.len());
+    }
+    let (data, holes, map) = flatten(rings, |ring| ring.len() >= 3);
+    let tris = earcut_f64(&data, &holes, area > 0.0);
+    tris.into_iter().map(|t| t.map(|i| map[i])).collect()
+}
+
+/// Triangulates a polygon with holes given in snapped fixed-point coordinates (1/256 pixel, as
+/// [`fixed::snap`] makes them): the triangulation [`fill_polygon`] draws.
+///
+/// Same conventions as [`triangulate_polygon`], but every predicate is exact: coordinates are
+/// integers of magnitude at most 2^23, so earcut's orientation tests are exact (in `i64` through
+/// earcut's integer variant when the polygon spans at most 2^20 units, i.e. 4096 pixels, and in
+/// `f64`, where such products are still exact, beyond that). Holes of zero area are ignored:
+/// they remove nothing.
+#[must_use]
+pub fn triangulate_snapped(rings: &[Vec<[i32; 2]>]) -> Vec<[usize; 3]> {
+    let Some(outer) = rings.first() else {
+        return Vec::new();
+    };
+    let area = shoelace_exact(outer);
+    if area == 0 {
+        return Vec::new();
+    }
+    let keep = |ring: &Vec<[i32; 2]>| shoelace_exact(ring) != 0;
+    let as_f64 = |ring: &[[i32; 2]]| -> Vec<[f64; 2]> {
+        ring.iter().map(|p| [f64::from(p[0]), f64::from(p[1])]).collect()
+    };
+    if !rings.iter().skip(1).any(keep) && is_strictly_convex(&as_f64(outer)) {
+        return fan(outer.len());
+    }
+    let (data, holes, map) = flatten(rings, keep);
+    let (mut lo, mut hi) = ([i64::MAX; 2], [i64::MIN; 2]);
+    for p in &data {
+        for k in 0..2 {
+            lo[k] = lo[k].min(i64::from(p[k]));
+            hi[k] = hi[k].max(i64::from(p[k]));
+        }
+    }
+    let mut flat = Vec::new();
+    if (0..2).all(|k| hi[k] - lo[k] <= 2 * EARCUT_I32_HALF_RANGE) {
+        // Translate into EarcutI32's square; translation changes no predicate.
+        let shift = [lo[0] + EARCUT_I32_HALF_RANGE, lo[1] + EARCUT_I32_HALF_RANGE];
+        let moved = data
+            .iter()
+            .map(|p| [(i64::from(p[0]) - shift[0]) as i32, (i64::from(p[1]) - shift[1]) as i32]);
+        EarcutI32::new().earcut(moved, &holes, &mut flat);
+    } else {
+        // |coordinate| <= 2^23: differences, their products and sums are exact in f64.
+        Earcut::new().earcut(as_f64(&data), &holes, &mut flat);
+    }
+    let signed = |t: [usize; 3]| -> i128 {
+        let [a, b, c] = t.map(|i| data[i].map(i128::from));
+        (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
+    };
+    let tris = orient(&flat, area > 0, |t| signed(t).signum() as f64);
+    tris.into_iter().map(|t| t.map(|i| map[i])).collect()
+}
+
+/// Fills a 2D polygon with holes (`rings[0]` outer, the rest holes; window coordinates in
+/// pixels, y down) with a flat `color`, painting over what is there (no depth test).
+///
+/// Exact: a pixel is lit iff its centre lies inside the polygon whose vertices are snapped to
+/// the 1/256-pixel grid, centres exactly on its boundary follow the top-left rule, and no pixel
+/// is lit twice (see the module docs for why). The rings must form a valid polygon (simple
+/// rings, holes strictly inside the outer ring and disjoint from each other, after snapping);
+/// other input is drawn as earcut triangulates it, without panicking.
+///
+/// Errors: a finite vertex outside [-32768, 32768) pixels gives
+/// [`Error::CoordinateOutOfRange`], with `triangle` the ring and `vertex` the index in the
+/// ring. A NaN or infinite vertex makes the polygon undefined: nothing is drawn and the stats
+/// report `non_finite: 1`.
+pub fn fill_polygon(
+    target: &mut Target,
+    rings: &[Vec<[f32; 2]>],
+    color: [u8; 4],
+) -> Result<DrawStats, Error> {
+    let options =
+        RenderOptions::default().with_shading(Shading::Flat).with_depth_test(DepthTest::Always);
+    fill_polygon_with(target, rings, color, &options)
+}
+
+/// [`fill_polygon`] with explicit render options (depth test, cull mode, scissor, algorithm):
+/// the triangles are drawn at depth 0, wound like the outer ring, so a cull mode keeps or
+/// discards the polygon as a whole.
+pub fn fill_polygon_with(
+    target: &mut Target,
+    rings: &[Vec<[f32; 2]>],
+    color: [u8; 4],
+    options: &RenderOptions,
+) -> Result<DrawStats, Error> {
+    let mut snapped = Vec::with_capacity(rings.len());
+    let mut non_finite = false;
+    for (r, ring) in rings.iter().enumerate() {
+        let mut s = Vec::with_capacity(ring.len());
+        for (i, &[x, y]) in ring.iter().enumerate() {
+            if !(x.is_finite() && y.is_finite()) {
+                non_finite = true;
+                continue;
+            }
+            let (Some(sx), Some(sy)) = (fixed::snap(x), fixed::snap(y)) else {
+                return Err(Error::CoordinateOutOfRange { triangle: r, vertex: i, x, y });
+            };
+            s.push([sx, sy]);
+        }
+        snapped.push(s);
+    }
+    if non_finite {
+        return Ok(DrawStats { non_finite: 1, ..DrawStats::default() });
+    }
+    let tris = triangulate_snapped(&snapped);
+    // The original coordinates snap to exactly the integers that were triangulated.
+    let all: Vec<[f32; 2]> = rings.iter().flatten().copied().collect();
+    let triangles: Vec<[Vertex; 3]> =
+        tris.iter().map(|t| t.map(|i| Vertex::new(all[i][0], all[i][1], 0.0, color))).collect();
+    draw(target, &triangles, options)
+}
+
+/// The fan `(0, i, i + 1)` over `n` corners: the triangulation of a convex polygon.
+fn fan(n: usize) -> Vec<[usize; 3]> {
+    (1..n.saturating_sub(1)).map(|i| [0, i, i + 1]).collect()
+}
+
+/// Newell's normal, twice the vector area: exact direction for planar polygons, a least-squares
+/// fit for nearly planar ones, and robust to collinear corners (unlike one cross product).
+fn newell_normal(points: &[[f32; 3]]) -> [f64; 3] {
+    // Relative to the first corner, for precision far from the origin.
+    let o = points[0].map(f64::from);
+    let rel = |p: &[f32; 3]| [0, 1, 2].map(|k| f64::from(p[k]) - o[k]);
+    let mut n = [0.0; 3];
+    let mut prev = rel(&points[points.len() - 1]);
+    for p in points {
+        let cur = rel(p);
+        for (k, nk) in n.iter_mut().enumerate() {
+            let (a, b) = ((k + 1) % 3, (k + 2) % 3);
+            *nk += (prev[a] - cur[a]) * (prev[b] + cur[b]);
+        }
+        prev = cur;
+    }
+    n
+}
+
+/// Twice the signed area of a ring (positive counter-clockwise with y up).
+fn shoelace(ring: &[[f64; 2]]) -> f64 {
+    let Some(&last) = ring.last() else { return 0.0 };
+    let mut prev = last;
+    let mut sum = 0.0;
+    for &p in ring {
+        sum += prev[0] * p[1] - p[0] * prev[1];
+        prev = p;
+    }
+    sum
+}
+
+/// [`shoelace`] in exact integer arithmetic.
+fn shoelace_exact(ring: &[[i32; 2]]) -> i128 {
+    let Some(&last) = ring.last() else { return 0 };
+    let mut prev = last.map(i128::from);
+    let mut sum = 0;
+    for p in ring {
+        let p = p.map(i128::from);
+        sum += prev[0] * p[1] - p[0] * prev[1];
+        prev = p;
+    }
+    sum
+}
+
+/// True iff the ring is a strictly convex polygon: every turn strictly the same way, and the
+/// edge directions go round exactly once (which rules out star polygons such as the pentagram,
+/// whose turns also all agree). Exact when the products of coordinate differences are exact.
+fn is_strictly_convex(ring: &[[f64; 2]]) -> bool {
+    let n = ring.len();
+    if n < 3 {
+        return false;
+    }
+    let edge = |i: usize| {
+        let (a, b) = (ring[i], ring[(i + 1) % n]);
+        [b[0] - a[0], b[1] - a[1]]
+    };
+    let mut turn_sign = 0.0;
+    let mut prev = edge(n - 1);
+    for i in 0..n {
+        let e = edge(i);
+        let cross = prev[0] * e[1] - prev[1] * e[0];
+        if cross == 0.0 || cross.is_nan() {
+            return false;
+        }
+        if turn_sign == 0.0 {
+            turn_sign = cross.signum();
+        } else if cross.signum() != turn_sign {
+            return false;
+        }
+        prev = e;
+    }
+    // With all turns in (0, pi) one way, each full revolution of the edge direction changes
+    // the sign of dx exactly twice (cyclically); more changes mean more revolutions.
+    let signs: Vec<bool> =
+        (0..n).map(|i| edge(i)[0]).filter(|&dx| dx != 0.0).map(|dx| dx > 0.0).collect();
+    let changes = (0..signs.len()).filter(|&i| signs[i] != signs[(i + 1) % signs.len()]).count();
+    changes == 2
+}
+
+/// Concatenates the rings that pass `keep` (the first ring always), returning the points,
+/// earcut's hole start indices, and the map back to indices in the concatenation of all rings.
+fn flatten<T: Copy>(
+    rings: &[Vec<T>],
+    keep: impl Fn(&Vec<T>) -> bool,
+) -> (Vec<T>, Vec<usize>, Vec<usize>) {
+    let (mut data, mut holes, mut map) = (Vec::new(), Vec::new(), Vec::new());
+    let mut start = 0;
+    for (r, ring) in rings.iter().enumerate() {
+        if r == 0 || keep(ring) {
+            if r > 0 {
+                holes.push(data.len());
+            }
+            data.extend_from_slice(ring);
+            map.extend(start..start + ring.len());
+        }
+        start += ring.len();
+    }
+    (data, holes, map)
+}
+
+/// Runs earcut in `f64` and winds the triangles counter-clockwise (y up) iff `ccw`.
+fn earcut_f64(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Vec<[usize; 3]> {
+    let mut flat = Vec::new();
+    Earcut::new().earcut(data.iter().copied(), holes, &mut flat);
+    orient(&flat, ccw, |[a, b, c]| {
+        let (a, b, c) = (data[a], data[b], data[c]);
+        (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
+    })
+}
+
+/// Groups earcut's flat index list into triangles and reverses them all if their winding
+/// (earcut emits one winding whatever the input's) is not the requested one. The winding is
+/// judged by the summed signed area, so slivers with noisy signs cannot mislead it.
+fn orient(
+    flat: &[usize],
+    positive: bool,
+    signed_area: impl Fn([usize; 3]) -> f64,
+) -> Vec<[usize; 3]> {
+    let tris: Vec<[usize; 3]> = flat.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+    let total: f64 = tris.iter().map(|&t| signed_area(t)).sum();
+    if (total > 0.0) == positive {
+        tris
+    } else {
+        tris.into_iter().map(|[a, b, c]| [a, c, b]).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn convexity() {
+        let square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        assert!(is_strictly_convex(&square));
+        let mut cw = square;
+        cw.reverse();
+        assert!(is_strictly_convex(&cw));
+        // A collinear corner is not strictly convex.
+        assert!(!is_strictly_convex(&[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [1.0, 1.0]]));
+        // The pentagram turns the same way at every corner but winds twice.
+        let star: Vec<[f64; 2]> = (0..5)
+            .map(|i| {
+                let a = f64::from(i * 2) * std::f64::consts::TAU / 5.0;
+                [a.cos(), a.sin()]
+            })
+            .collect();
+        assert!(!is_strictly_convex(&star));
+        let dart = [[0.0, 0.0], [4.0, 0.0], [2.0, 1.0], [2.0, 4.0]];
+        assert!(!is_strictly_convex(&dart));
+    }
+
+    #[test]
+    fn concave_face_keeps_winding() {
+        // An L in the plane x = 1, counter-clockwise seen from +x.
+        let l: Vec<[f32; 3]> =
+            [[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [1.0, 1.0], [1.0, 2.0], [0.0, 2.0]]
+                .iter()
+                .map(|&[y, z]| [1.0, y, z])
+                .collect();
+        for face in [l.clone(), l.iter().rev().copied().collect()] {
+            let n = newell_normal(&face);
+            let tris = triangulate_face(&face);
+            assert_eq!(tris.len(), 4);
+            for t in tris {
+                let [a, b, c] = t.map(|i| face[i].map(f64::from));
+                let nx = (b[1] - a[1]) * (c[2] - a[2]) - (b[2] - a[2]) * (c[1] - a[1]);
+                assert!(nx * n[0] > 0.0, "{t:?} flips the winding");
+            }
+        }
+    }
+
+    #[test]
+    fn degenerate_faces_do_not_panic() {
+        assert!(triangulate_face(&[]).is_empty());
+        assert!(triangulate_face(&[[0.0; 3], [1.0; 3]]).is_empty());
+        assert_eq!(triangulate_face(&[[0.0; 3], [1.0; 3], [2.0; 3]]), vec![[0, 1, 2]]);
+        let line = [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [2.0, 2.0, 2.0], [3.0, 3.0, 3.0]];
+        assert_eq!(triangulate_face(&line), fan(4));
+        let nan = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [f32::NAN, 1.0, 0.0], [0.0, 1.0, 0.0]];
+        assert_eq!(triangulate_face(&nan), fan(4));
+        let inf = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [f32::INFINITY, 1.0, 0.0], [0.0, 1.0, 0.0]];
+        assert_eq!(triangulate_face(&inf), fan(4));
+    }
+
+    #[test]
+    fn holes_are_indexed_in_the_concatenation() {
+        let outer = vec![[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]];
+        let tiny = vec![[1.0, 1.0], [2.0, 2.0]];
+        let hole = vec![[4.0, 4.0], [4.0, 6.0], [6.0, 6.0], [6.0, 4.0]];
+        let tris = triangulate_polygon(&[outer, tiny, hole]);
+        assert_eq!(tris.len(), 8);
+        assert!(tris.iter().flatten().all(|&i| i != 4 && i != 5 && i < 10));
+    }
 }

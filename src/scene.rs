@@ -163,7 +163,11 @@ pub fn default_model() -> crate::mesh::Mesh {
     use glam::Vec3;
     let (segments, sides) = (300usize, 28usize);
     let curve = |t: f32| {
-        Vec3::new(t.sin() + 2.0 * (2.0 * t).sin(), t.cos() - 2.0 * (2.0 * t).cos(), -(3.0 * t).sin())
+        Vec3::new(
+            t.sin() + 2.0 * (2.0 * t).sin(),
+            t.cos() - 2.0 * (2.0 * t).cos(),
+            -(3.0 * t).sin(),
+        )
     };
     let tau = std::f32::consts::TAU;
     let mut mesh = crate::mesh::Mesh::default();

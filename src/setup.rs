@@ -169,9 +169,9 @@ pub struct TriangleSetup {
 impl TriangleSetup {
     /// Snaps and sets up a triangle; see [`Rejection`] for the ways it can produce nothing.
     pub fn new(v: &[Vertex; 3], cull: CullMode) -> Result<Self, Rejection> {
-        let finite = v.iter().all(|p| {
-            p.x.is_finite() && p.y.is_finite() && p.z.is_finite() && p.inv_w.is_finite()
-        });
+        let finite = v
+            .iter()
+            .all(|p| p.x.is_finite() && p.y.is_finite() && p.z.is_finite() && p.inv_w.is_finite());
         if !finite {
             return Err(Rejection::NonFinite);
         }
@@ -260,10 +260,10 @@ mod tests {
 
     #[test]
     fn both_windings_cover_the_same_pixels() {
-        let cw = TriangleSetup::new(&tri([[1.0, 1.0], [9.0, 2.0], [3.0, 8.0]]), CullMode::None)
-            .unwrap();
-        let ccw = TriangleSetup::new(&tri([[1.0, 1.0], [3.0, 8.0], [9.0, 2.0]]), CullMode::None)
-            .unwrap();
+        let cw =
+            TriangleSetup::new(&tri([[1.0, 1.0], [9.0, 2.0], [3.0, 8.0]]), CullMode::None).unwrap();
+        let ccw =
+            TriangleSetup::new(&tri([[1.0, 1.0], [3.0, 8.0], [9.0, 2.0]]), CullMode::None).unwrap();
         assert!(cw.clockwise && !ccw.clockwise);
         for y in 0..10 {
             for x in 0..10 {

@@ -14,10 +14,10 @@
 //! Depth is interpolated linearly in screen space and clamped to [0, 1]. Colours are
 //! interpolated in 0..=255 units and rounded half to even.
 
+use crate::fixed;
 use crate::raster::Span;
 use crate::setup::{TriangleSetup, Vertex};
 use crate::target::Target;
-use crate::fixed;
 
 /// How a triangle's colour varies across it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -95,10 +95,7 @@ impl PerspectivePlane {
     #[must_use]
     pub fn new(a: [f64; 3], inv_w: [f64; 3], setup: &TriangleSetup) -> Self {
         let over_w = [a[0] * inv_w[0], a[1] * inv_w[1], a[2] * inv_w[2]];
-        Self {
-            over_w: PlaneEquation::new(over_w, setup),
-            inv_w: PlaneEquation::new(inv_w, setup),
-        }
+        Self { over_w: PlaneEquation::new(over_w, setup), inv_w: PlaneEquation::new(inv_w, setup) }
     }
 
     /// The attribute at a sample with barycentric numerators `(e1, e2)`.

@@ -42,10 +42,8 @@ pub struct Texture {
 impl Texture {
     /// Reads a PNG or JPEG file (sRGB-encoded).
     pub fn load(path: &Path) -> Result<Self, Error> {
-        let img = image::open(path).map_err(|e| Error::Decode {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
+        let img = image::open(path)
+            .map_err(|e| Error::Decode { path: path.to_path_buf(), message: e.to_string() })?;
         let rgba = img.to_rgba8();
         Ok(Self::from_srgba8(rgba.width(), rgba.height(), rgba.as_raw()))
     }

@@ -29,8 +29,12 @@ fn random_tilings_are_watertight() {
             // Edges exactly on pixel centres.
             1 => [centre(3), centre(2), centre(60), centre(50)],
             // Overlapping the image borders.
-            2 => [-coord(&mut rng, 1, 30), -coord(&mut rng, 1, 30), coord(&mut rng, 40, 100),
-                  coord(&mut rng, 40, 90)],
+            2 => [
+                -coord(&mut rng, 1, 30),
+                -coord(&mut rng, 1, 30),
+                coord(&mut rng, 40, 100),
+                coord(&mut rng, 40, 90),
+            ],
             // Reaching far outside.
             _ => [-256 * 5000, -256 * 3000, 256 * 9000, 256 * 7000],
         };
@@ -65,9 +69,12 @@ fn tiling_overdraw_through_draw() {
     let triangles: Vec<[Vertex; 3]> = tris.iter().map(|t| t.map(to_vertex)).collect();
     for algorithm in [Algorithm::EdgeFunctions, Algorithm::Scanline] {
         let mut target = Target::new(100, 70).unwrap().with_overdraw().with_ids();
-        let stats =
-            trirast::draw(&mut target, &triangles, &RenderOptions::default().with_algorithm(algorithm))
-                .unwrap();
+        let stats = trirast::draw(
+            &mut target,
+            &triangles,
+            &RenderOptions::default().with_algorithm(algorithm),
+        )
+        .unwrap();
         assert_eq!(stats.rasterized, triangles.len());
         let overdraw = target.overdraw.as_ref().unwrap();
         for py in 0..70 {
@@ -122,9 +129,19 @@ fn scissor_clips_identically() {
         let Some(s) = setup(v) else { continue };
         let x0 = rng.random_range(-3..30);
         let y0 = rng.random_range(-3..30);
-        let clip = PixelRect { x0, y0, x1: x0 + rng.random_range(0..20), y1: y0 + rng.random_range(0..20) };
+        let clip = PixelRect {
+            x0,
+            y0,
+            x1: x0 + rng.random_range(0..20),
+            y1: y0 + rng.random_range(0..20),
+        };
         for sp in agreed_spans(&s, &clip) {
-            assert!(sp.y >= clip.y0 && sp.y <= clip.y1 && sp.x_start >= clip.x0 && sp.x_end <= clip.x1 + 1);
+            assert!(
+                sp.y >= clip.y0
+                    && sp.y <= clip.y1
+                    && sp.x_start >= clip.x0
+                    && sp.x_end <= clip.x1 + 1
+            );
             for x in sp.x_start..sp.x_end {
                 assert!(s.covers(x, sp.y));
             }
@@ -175,7 +192,8 @@ fn fan_vertex_is_covered_exactly_once() {
     for _ in 0..3000 {
         let c = [centre(10), centre(10)];
         let k = rng.random_range(3..12);
-        let mut angles: Vec<f64> = (0..k).map(|_| rng.random_range(0.0..std::f64::consts::TAU)).collect();
+        let mut angles: Vec<f64> =
+            (0..k).map(|_| rng.random_range(0.0..std::f64::consts::TAU)).collect();
         angles.sort_by(f64::total_cmp);
         let ring: Vec<P> = angles
             .iter()
@@ -183,7 +201,13 @@ fn fan_vertex_is_covered_exactly_once() {
                 let r = rng.random_range(1.0..8.0) * 256.0;
                 // Some ring points land exactly on the axes through the centre.
                 let (dx, dy) = (r * a.cos(), r * a.sin());
-                let mut q = |d: f64| if rng.random_range(0..4) == 0 { (d / 256.0).round() as i64 * 256 } else { d as i64 };
+                let mut q = |d: f64| {
+                    if rng.random_range(0..4) == 0 {
+                        (d / 256.0).round() as i64 * 256
+                    } else {
+                        d as i64
+                    }
+                };
                 [c[0] + q(dx), c[1] + q(dy)]
             })
             .collect();
@@ -238,7 +262,8 @@ fn symmetry_under_translation_and_rotation() {
         // Rotate by 90 degrees about the centre of pixel (24, 24): (x, y) -> (c - (y - c), ...).
         let c = centre(24);
         let rot = v.map(|[x, y]| [c - (y - c), c + (x - c)]);
-        let mut expect: Vec<_> = base.iter().map(|&(x, y)| (24 - (y - 24), 24 + (x - 24))).collect();
+        let mut expect: Vec<_> =
+            base.iter().map(|&(x, y)| (24 - (y - 24), 24 + (x - 24))).collect();
         expect.sort();
         assert_eq!(pixels(rot), expect, "rotation of {v:?}");
         rotated_checked += 1;
@@ -269,7 +294,10 @@ fn range_extremes_do_not_overflow() {
                     assert!(oracle_covers(v, [centre(x as i64), centre(sp.y as i64)]));
                 }
                 if sp.x_start > 0 {
-                    assert!(!oracle_covers(v, [centre(sp.x_start as i64 - 1), centre(sp.y as i64)]));
+                    assert!(!oracle_covers(
+                        v,
+                        [centre(sp.x_start as i64 - 1), centre(sp.y as i64)]
+                    ));
                 }
                 if (sp.x_end as u32) < w {
                     assert!(!oracle_covers(v, [centre(sp.x_end as i64), centre(sp.y as i64)]));
@@ -300,8 +328,12 @@ fn beyond_the_range_is_a_clear_error() {
     let v = |x: f32, y: f32| Vertex::new(x, y, 0.5, [255; 4]);
     let mut target = Target::new(8, 8).unwrap();
     for bad in [32768.0, -32768.5, 1e9] {
-        let err = trirast::draw(&mut target, &[[v(0.0, 0.0), v(bad, 0.0), v(0.0, 5.0)]], &RenderOptions::default())
-            .unwrap_err();
+        let err = trirast::draw(
+            &mut target,
+            &[[v(0.0, 0.0), v(bad, 0.0), v(0.0, 5.0)]],
+            &RenderOptions::default(),
+        )
+        .unwrap_err();
         let msg = err.to_string();
         assert!(msg.contains("outside the supported window range"), "{msg}");
         assert!(msg.contains("vertex 1"), "{msg}");

@@ -204,7 +204,9 @@ fn perspective_correct_varyings_match_the_analytic_quad() {
             }
         }
     }
-    eprintln!("{checked} pixels: perspective error {worst:.2e}, screen-linear error {worst_linear:.2e}");
+    eprintln!(
+        "{checked} pixels: perspective error {worst:.2e}, screen-linear error {worst_linear:.2e}"
+    );
     assert!(checked > 5000);
     // Vertex snapping (at most 1/512 pixel) bounds the error well below this.
     assert!(worst < 5e-4, "perspective-correct u, v off by {worst}");
@@ -218,7 +220,12 @@ fn perspective_correct_varyings_match_the_analytic_quad() {
     for t in &mut tris_c {
         for p in t.iter_mut() {
             // Exact corner colours: u, v in {0, 1}.
-            p.color = [if p.color[0] > 0 { 255 } else { 0 }, if p.color[1] > 0 { 255 } else { 0 }, 0, 255];
+            p.color = [
+                if p.color[0] > 0 { 255 } else { 0 },
+                if p.color[1] > 0 { 255 } else { 0 },
+                0,
+                255,
+            ];
         }
     }
     let options = RenderOptions::default().with_shading(Shading::Perspective);

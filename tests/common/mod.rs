@@ -204,9 +204,9 @@ fn flip_edge(tris: &mut [[P; 3]], i: usize, k: usize) {
     let t = tris[i];
     let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
     // The neighbour has the edge reversed: b -> a.
-    let Some(j) = (0..tris.len()).find(|&j| {
-        j != i && (0..3).any(|m| tris[j][m] == b && tris[j][(m + 1) % 3] == a)
-    }) else {
+    let Some(j) = (0..tris.len())
+        .find(|&j| j != i && (0..3).any(|m| tris[j][m] == b && tris[j][(m + 1) % 3] == a))
+    else {
         return;
     };
     let m = (0..3).find(|&m| tris[j][m] == b).unwrap();

@@ -1,0 +1,414 @@
+//! The 3D pipeline: clipping against the analytic visible region, culling and winding,
+//! auto-framing, perspective-correct varyings through clipping, and textures.
+
+use glam::{DVec3, Vec2, Vec3, Vec4};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+use trirast::Target;
+use trirast::camera::{self, Camera, Projection};
+use trirast::pipeline::{FaceCull, Fragment, Pipeline};
+use trirast::texture::{Filter, Texture, Wrap};
+
+const W: u32 = 160;
+const H: u32 = 120;
+
+/// A camera at the origin looking down -Z.
+fn camera(near: f32) -> Camera {
+    Camera {
+        eye: Vec3::ZERO,
+        target: Vec3::NEG_Z,
+        up: Vec3::Y,
+        projection: Projection::Perspective { fov_y: 1.2 },
+        near,
+        far: 100.0,
+    }
+}
+
+/// Renders view-space triangles (no culling) and returns the id buffer and the u varying.
+fn render(cam: &Camera, tris: &[[Vec3; 3]], uvs: &[[f32; 3]]) -> (Vec<i32>, Vec<f32>) {
+    let mut target = Target::new(W, H).unwrap().with_ids();
+    let vp = cam.view_projection(W as f32 / H as f32);
+    let vertices: Vec<(Vec3, f32)> =
+        tris.iter().zip(uvs).flat_map(|(t, u)| (0..3).map(move |k| (t[k], u[k]))).collect();
+    let indices: Vec<[u32; 3]> =
+        (0..tris.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+    let u_buf = std::sync::Mutex::new(vec![f32::NAN; (W * H) as usize]);
+    let vs = |v: &(Vec3, f32)| (vp * v.0.extend(1.0), v.1);
+    let fs = |f: &Fragment<f32>| {
+        u_buf.lock().unwrap()[(f.y as u32 * W + f.x as u32) as usize] = f.varyings;
+        Some(Vec4::ONE)
+    };
+    Pipeline::default()
+        .with_cull(FaceCull::None)
+        .draw(&mut target, &vs, &fs, &vertices, &indices)
+        .unwrap();
+    (target.ids.unwrap(), u_buf.into_inner().unwrap())
+}
+
+/// Where the ray through pixel centre (px, py) meets the triangle's plane, in view space, as
+/// barycentrics (b1, b2) and the hit point; `None` when parallel.
+fn ray_hit(cam: &Camera, t: [Vec3; 3], px: u32, py: u32) -> Option<(f64, f64, DVec3)> {
+    let Projection::Perspective { fov_y } = cam.projection else { unreachable!() };
+    let tan = (f64::from(fov_y) / 2.0).tan();
+    let aspect = f64::from(W) / f64::from(H);
+    let ndc_x = (f64::from(px) + 0.5) / f64::from(W) * 2.0 - 1.0;
+    let ndc_y = 1.0 - (f64::from(py) + 0.5) / f64::from(H) * 2.0;
+    let d = DVec3::new(ndc_x * tan * aspect, ndc_y * tan, -1.0);
+    let [a, b, c] = t.map(|v| v.as_dvec3());
+    let (e1, e2) = (b - a, c - a);
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < 1e-12 {
+        return None;
+    }
+    let s = -a;
+    let b1 = s.dot(p) / det;
+    let q = s.cross(e1);
+    let b2 = d.dot(q) / det;
+    let t_ray = e2.dot(q) / det;
+    Some((b1, b2, d * t_ray))
+}
+
+/// The analytic verdict for a pixel: Some(true) clearly inside the visible part (in the
+/// triangle, in front of the near plane, by a margin), Some(false) clearly outside, None near
+/// a boundary.
+fn analytic(cam: &Camera, t: [Vec3; 3], px: u32, py: u32) -> Option<bool> {
+    let Some((b1, b2, hit)) = ray_hit(cam, t, px, py) else { return Some(false) };
+    let b0 = 1.0 - b1 - b2;
+    let margin = 2e-3;
+    let near = -f64::from(cam.near);
+    let depth_margin = (hit.z - near) / near.abs(); // > 0 means behind the near plane
+    let behind_eye = hit.z >= 0.0;
+    let worst = b0.min(b1).min(b2);
+    if behind_eye || worst < -margin || depth_margin > margin {
+        return Some(false);
+    }
+    if worst > margin && depth_margin < -margin {
+        return Some(true);
+    }
+    None
+}
+
+#[test]
+fn near_plane_clipping_renders_exactly_the_visible_part() {
+    let mut rng = SmallRng::seed_from_u64(11);
+    let mut checked = 0;
+    for _ in 0..40 {
+        let cam = camera(rng.random_range(0.1..1.0));
+        // Triangles reaching from in front of the camera to behind it, some with a vertex
+        // exactly on the camera plane (w = 0).
+        let mut t: [Vec3; 3] = std::array::from_fn(|_| {
+            Vec3::new(
+                rng.random_range(-3.0..3.0),
+                rng.random_range(-3.0..3.0),
+                rng.random_range(-6.0..1.5),
+            )
+        });
+        if rng.random() {
+            t[0].z = 0.0;
+        }
+        let (ids, _) = render(&cam, &[t], &[[0.0; 3]]);
+        for py in 0..H {
+            for px in 0..W {
+                let got = ids[(py * W + px) as usize] == 0;
+                if let Some(want) = analytic(&cam, t, px, py) {
+                    assert_eq!(got, want, "pixel ({px}, {py}) of {t:?}, near {}", cam.near);
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert!(checked > 40 * (W * H) as usize * 9 / 10);
+}
+
+#[test]
+fn a_triangle_behind_the_camera_renders_nothing() {
+    let cam = camera(0.5);
+    let t = [Vec3::new(-1.0, -1.0, 2.0), Vec3::new(1.0, -1.0, 2.0), Vec3::new(0.0, 1.0, 0.3)];
+    let (ids, _) = render(&cam, &[t], &[[0.0; 3]]);
+    assert!(ids.iter().all(|&i| i == -1));
+    // Also when it straddles the camera plane but stays in front of nothing visible.
+    let t = [Vec3::new(-1.0, -1.0, 2.0), Vec3::new(1.0, -1.0, -0.2), Vec3::new(0.0, 1.0, 0.0)];
+    let (ids, _) = render(&cam, &[t], &[[0.0; 3]]);
+    assert!(ids.iter().all(|&i| i == -1));
+}
+
+/// Varyings of a clipped triangle stay perspective-correct: u at every clearly-inside pixel
+/// equals the analytic barycentric interpolation of u on the 3D triangle.
+#[test]
+fn clipped_varyings_are_perspective_correct() {
+    let mut rng = SmallRng::seed_from_u64(12);
+    let mut worst = 0.0f64;
+    for _ in 0..30 {
+        let cam = camera(0.3);
+        let t: [Vec3; 3] = std::array::from_fn(|_| {
+            Vec3::new(
+                rng.random_range(-3.0..3.0),
+                rng.random_range(-3.0..3.0),
+                rng.random_range(-8.0..1.0),
+            )
+        });
+        let u = [0.0, 1.0, rng.random_range(0.0..1.0)];
+        let (ids, got) = render(&cam, &[t], &[u]);
+        for py in 0..H {
+            for px in 0..W {
+                if ids[(py * W + px) as usize] != 0 || analytic(&cam, t, px, py) != Some(true) {
+                    continue;
+                }
+                let (b1, b2, _) = ray_hit(&cam, t, px, py).unwrap();
+                let want =
+                    (1.0 - b1 - b2) * f64::from(u[0]) + b1 * f64::from(u[1]) + b2 * f64::from(u[2]);
+                worst = worst.max((f64::from(got[(py * W + px) as usize]) - want).abs());
+            }
+        }
+    }
+    assert!(worst < 2e-3, "worst varying error {worst}");
+}
+
+/// A triangle a million pixels wide gives the same pixels as the same triangle clipped to the
+/// screen beforehand (away from its edges by more than the snapping tolerance).
+#[test]
+fn huge_triangle_matches_the_preclipped_one() {
+    let ortho = |p: [f64; 2]| Vec4::new(p[0] as f32, p[1] as f32, 0.5, 1.0);
+    let huge = [[-12000.0, -0.83], [13000.0, -0.71], [0.07, 0.92]];
+    // Clip against the screen square [-1, 1]^2 in f64 (Sutherland-Hodgman).
+    let mut poly: Vec<[f64; 2]> = huge.to_vec();
+    for (axis, sign) in [(0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0)] {
+        let inside = |p: &[f64; 2]| sign * p[axis] <= 1.0;
+        let mut out = Vec::new();
+        for i in 0..poly.len() {
+            let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+            if inside(&a) {
+                out.push(a);
+            }
+            if inside(&a) != inside(&b) {
+                let t = (sign - a[axis]) / (b[axis] - a[axis]);
+                out.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+            }
+        }
+        poly = out;
+    }
+    let draw = |tris: &[[[f64; 2]; 3]]| {
+        let verts: Vec<Vec4> = tris.iter().flat_map(|t| t.map(ortho)).collect();
+        let idx: Vec<[u32; 3]> =
+            (0..tris.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        let mut target = Target::new(W, H).unwrap().with_overdraw();
+        let vs = |p: &Vec4| (*p, ());
+        let fs = |_: &Fragment<()>| Some(Vec4::ONE);
+        Pipeline::default()
+            .with_cull(FaceCull::None)
+            .draw(&mut target, &vs, &fs, &verts, &idx)
+            .unwrap();
+        target.overdraw.unwrap()
+    };
+    let a = draw(&[huge]);
+    let fan: Vec<[[f64; 2]; 3]> =
+        (1..poly.len() - 1).map(|k| [poly[0], poly[k], poly[k + 1]]).collect();
+    let b = draw(&fan);
+    // Distance in pixels from a pixel centre to the huge triangle's edges.
+    let to_px =
+        |p: [f64; 2]| [(p[0] + 1.0) * f64::from(W) / 2.0, (1.0 - p[1]) * f64::from(H) / 2.0];
+    let hp = huge.map(to_px);
+    let mut compared = 0;
+    for py in 0..H {
+        for px in 0..W {
+            let c = [f64::from(px) + 0.5, f64::from(py) + 0.5];
+            let near_edge = (0..3).any(|i| {
+                let (p, q) = (hp[i], hp[(i + 1) % 3]);
+                let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+                ((c[0] - p[0]) * dy - (c[1] - p[1]) * dx).abs() / dx.hypot(dy) < 0.02
+            });
+            let i = (py * W + px) as usize;
+            assert!(b[i] <= 1 && a[i] <= 1, "overdraw at ({px}, {py})");
+            if !near_edge {
+                assert_eq!(a[i], b[i], "pixel ({px}, {py})");
+                compared += 1;
+            }
+        }
+    }
+    assert!(a.iter().sum::<u32>() > 1000 && compared > (W * H) as usize * 9 / 10);
+}
+
+#[test]
+fn culling_follows_the_winding() {
+    let ccw = [Vec3::new(-1.0, -1.0, -3.0), Vec3::new(1.0, -1.0, -3.0), Vec3::new(0.0, 1.0, -3.0)];
+    let cw = [ccw[0], ccw[2], ccw[1]];
+    let cam = camera(0.5);
+    let vp = cam.view_projection(W as f32 / H as f32);
+    for (cull, want_ccw, want_cw) in [
+        (FaceCull::Back, true, false),
+        (FaceCull::Front, false, true),
+        (FaceCull::None, true, true),
+    ] {
+        for (tri, want, front) in [(ccw, want_ccw, true), (cw, want_cw, false)] {
+            let mut target = Target::new(W, H).unwrap().with_ids();
+            let vs = |v: &Vec3| (vp * v.extend(1.0), ());
+            let fs = |f: &Fragment<()>| {
+                assert_eq!(f.front_facing, front);
+                Some(Vec4::ONE)
+            };
+            let stats = Pipeline::default()
+                .with_cull(cull)
+                .draw(&mut target, &vs, &fs, &tri, &[[0, 1, 2]])
+                .unwrap();
+            let drawn = target.ids.unwrap().contains(&0);
+            assert_eq!(drawn, want, "{cull:?}, front {front}");
+            assert_eq!(stats.culled, usize::from(!want));
+        }
+    }
+}
+
+#[test]
+fn index_out_of_range_is_an_error() {
+    let mut target = Target::new(8, 8).unwrap();
+    let vs = |v: &Vec4| (*v, ());
+    let fs = |_: &Fragment<()>| Some(Vec4::ONE);
+    let err =
+        Pipeline::default().draw(&mut target, &vs, &fs, &[Vec4::ONE; 3], &[[0, 1, 3]]).unwrap_err();
+    assert!(err.to_string().contains("only 3 vertices"), "{err}");
+}
+
+/// Auto-framing puts every vertex inside the image, for any cloud, view and aspect ratio.
+#[test]
+fn auto_framing_keeps_every_vertex_in_view() {
+    let mut rng = SmallRng::seed_from_u64(21);
+    for _ in 0..300 {
+        let scale = 10f32.powf(rng.random_range(-3.0..4.0));
+        // Offsets up to 100 model sizes: beyond that f32 positions themselves lose the shape.
+        let offset = Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        ) * 100.0
+            * scale;
+        let stretch = Vec3::new(
+            rng.random_range(0.01..1.0),
+            rng.random_range(0.01..1.0),
+            rng.random_range(0.01..1.0),
+        );
+        let points: Vec<[f32; 3]> = (0..200)
+            .map(|_| {
+                let p = Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                (offset + p * stretch * scale).to_array()
+            })
+            .collect();
+        let (centre, radius) = camera::bounding_sphere(&points);
+        let aspect = rng.random_range(0.3..3.0);
+        let projection = if rng.random() {
+            Projection::Perspective { fov_y: rng.random_range(0.2..2.0) }
+        } else {
+            Projection::Orthographic { height: 1.0 }
+        };
+        let cam = Camera::framing_sphere(
+            centre,
+            radius,
+            rng.random_range(-3.2..3.2),
+            rng.random_range(-1.5..1.5),
+            aspect,
+            projection,
+        );
+        let m = cam.view_projection(aspect);
+        for p in &points {
+            let c = m * Vec3::from(*p).extend(1.0);
+            let ndc = c.truncate() / c.w;
+            assert!(c.w > 0.0);
+            assert!(ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0, "{ndc:?} with {projection:?}");
+            assert!((0.0..=1.0).contains(&ndc.z), "depth {}", ndc.z);
+        }
+    }
+}
+
+fn checker(n: u32) -> (Texture, Vec<[u8; 4]>) {
+    let texels: Vec<[u8; 4]> = (0..n * n)
+        .map(|i| if (i % n + i / n).is_multiple_of(2) { [230, 40, 30, 255] } else { [20, 60, 200, 255] })
+        .collect();
+    (Texture::from_srgba8(n, n, texels.as_flattened()), texels)
+}
+
+#[test]
+fn sampling_at_texel_centres_returns_texels() {
+    let mut rng = SmallRng::seed_from_u64(5);
+    let (w, h) = (7u32, 5u32);
+    let texels: Vec<[u8; 4]> =
+        (0..w * h).map(|_| [rng.random(), rng.random(), rng.random(), rng.random()]).collect();
+    let tex = Texture::from_srgba8(w, h, texels.as_flattened());
+    for j in 0..h {
+        for i in 0..w {
+            let uv = Vec2::new((i as f32 + 0.5) / w as f32, 1.0 - (j as f32 + 0.5) / h as f32);
+            let want = texels[(j * w + i) as usize];
+            for filter in [Filter::Nearest, Filter::Bilinear] {
+                for wrap in [Wrap::Repeat, Wrap::Clamp] {
+                    let s = tex.sample(uv, filter, wrap);
+                    let got = [
+                        trirast::color::linear_to_srgb8(s.x),
+                        trirast::color::linear_to_srgb8(s.y),
+                        trirast::color::linear_to_srgb8(s.z),
+                        trirast::color::unorm8(s.w),
+                    ];
+                    assert_eq!(got, want, "texel ({i}, {j}) {filter:?} {wrap:?}");
+                }
+            }
+            // Repeat: one period away samples the same texel.
+            let s = tex.sample(uv + Vec2::new(3.0, -2.0), Filter::Nearest, Wrap::Repeat);
+            assert_eq!(s, tex.sample(uv, Filter::Nearest, Wrap::Repeat));
+        }
+    }
+    // Clamp: far outside gives the edge texel.
+    let edge = tex.sample(Vec2::new(50.0, 0.5), Filter::Bilinear, Wrap::Clamp);
+    assert_eq!(edge, tex.texel(i64::from(w) - 1, i64::from(h / 2), Wrap::Clamp));
+}
+
+/// A checkerboard floor in perspective: every pixel whose analytic texture coordinate is away
+/// from a cell border shows exactly that cell's colour.
+#[test]
+fn perspective_checkerboard_matches_the_analytic_checker() {
+    let n = 8;
+    let (tex, texels) = checker(n);
+    let cam = camera(0.2);
+    let vp = cam.view_projection(W as f32 / H as f32);
+    // A floor quad receding from z = -1 to z = -20, u across, v along.
+    let corners = [
+        (Vec3::new(-2.0, -1.0, -1.0), Vec2::new(0.0, 0.0)),
+        (Vec3::new(2.0, -1.0, -1.0), Vec2::new(1.0, 0.0)),
+        (Vec3::new(2.0, -1.0, -20.0), Vec2::new(1.0, 1.0)),
+        (Vec3::new(-2.0, -1.0, -20.0), Vec2::new(0.0, 1.0)),
+    ];
+    let mut target = Target::new(W, H).unwrap().with_ids();
+    let vs = |v: &(Vec3, Vec2)| (vp * v.0.extend(1.0), v.1);
+    let fs = |f: &Fragment<Vec2>| Some(tex.sample(f.varyings, Filter::Nearest, Wrap::Repeat));
+    Pipeline::default()
+        .with_cull(FaceCull::None)
+        .draw(&mut target, &vs, &fs, &corners, &[[0, 1, 2], [0, 2, 3]])
+        .unwrap();
+    let tri = [corners[0].0, corners[1].0, corners[2].0];
+    let mut checked = 0;
+    for py in 0..H {
+        for px in 0..W {
+            let Some((_, _, hit)) = ray_hit(&cam, tri, px, py) else { continue };
+            let u = (hit.x + 2.0) / 4.0;
+            let v = (-1.0 - hit.z) / 19.0;
+            if hit.z >= 0.0 || !(0.0..1.0).contains(&u) || !(0.0..1.0).contains(&v) {
+                continue;
+            }
+            let (cu, cv) = (u * f64::from(n), v * f64::from(n));
+            let border = |c: f64| (c - c.round()).abs() < 0.03;
+            if border(cu) || border(cv) {
+                continue;
+            }
+            let (i, j) = (cu.floor() as u32, n - 1 - cv.floor() as u32);
+            let idx = target.index(px as i32, py as i32);
+            assert!(target.ids.as_ref().unwrap()[idx] >= 0, "floor pixel ({px}, {py}) not drawn");
+            assert_eq!(
+                target.color[idx],
+                texels[(j * n + i) as usize],
+                "pixel ({px}, {py}) u {u} v {v}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked > 3000, "{checked}");
+}

@@ -1,0 +1,641 @@
+//! Polygon properties: triangulations tile random simple polygons (convex and not, with and
+//! without holes) exactly, the 2D fill lights exactly the pixel centres inside the snapped
+//! polygon (each once), and mesh faces keep their winding.
+//!
+//! Polygons are generated on the 1/256-pixel grid (so snapping is the identity and the
+//! oracle sees exactly the vertices the rasterizer sees), often with vertices and axis-aligned
+//! edges on pixel centres. Centres exactly on the boundary are *not* skipped: the oracle decides
+//! them by the top-left convention, stated for a polygon as "the centre nudged right by `ε` and
+//! down by `ε²` is inside". Every generated polygon is checked valid with exact integer tests
+//! (simple rings, holes strictly inside the outer ring and disjoint), because earcut only
+//! promises a tiling for valid input.
+
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+use trirast::polygon::{
+    fill_polygon, fill_polygon_with, triangulate_face, triangulate_polygon, triangulate_snapped,
+};
+use trirast::{Algorithm, CullMode, Error, RenderOptions, Target};
+
+/// A fixed-point point, 1/256 pixel units.
+type P = [i64; 2];
+
+/// Target size for the fill tests: small, odd-sized, polygons overlap its borders.
+const W: u32 = 47;
+const H: u32 = 39;
+
+// ---------------------------------------------------------------------------------------------
+// Exact geometry.
+
+/// Twice the signed area of `abc` (the cross product `(b - a) x (c - a)`).
+fn cross(a: P, b: P, c: P) -> i128 {
+    let d = |p: P, q: P, k: usize| i128::from(q[k] - p[k]);
+    d(a, b, 0) * d(a, c, 1) - d(a, c, 0) * d(a, b, 1)
+}
+
+/// Twice the signed area of a ring.
+fn ring_area2(ring: &[P]) -> i128 {
+    (0..ring.len()).map(|i| cross([0, 0], ring[i], ring[(i + 1) % ring.len()])).sum()
+}
+
+/// Is `q`, collinear with segment `pr`, within its bounding box (so on the closed segment)?
+fn on_segment(p: P, q: P, r: P) -> bool {
+    q[0] >= p[0].min(r[0])
+        && q[0] <= p[0].max(r[0])
+        && q[1] >= p[1].min(r[1])
+        && q[1] <= p[1].max(r[1])
+}
+
+/// Do the closed segments `ab` and `cd` share any point?
+fn segments_touch(a: P, b: P, c: P, d: P) -> bool {
+    let (d1, d2) = (cross(a, b, c).signum(), cross(a, b, d).signum());
+    let (d3, d4) = (cross(c, d, a).signum(), cross(c, d, b).signum());
+    if d1 * d2 < 0 && d3 * d4 < 0 {
+        return true;
+    }
+    (d1 == 0 && on_segment(a, c, b))
+        || (d2 == 0 && on_segment(a, d, b))
+        || (d3 == 0 && on_segment(c, a, d))
+        || (d4 == 0 && on_segment(c, b, d))
+}
+
+/// Crossing parity of the ray from the nudged sample `s + (ε, ε²)` towards +x.
+///
+/// An edge crosses the horizontal line `y = s.y + ε²` iff exactly one end is strictly below
+/// `s.y` (integers), and it does so at `x = s.x + n / dy + O(ε²)` with
+/// `n = (a.x - s.x) dy + (s.y - a.y) dx`; that is right of `s.x + ε` iff `n / dy > 0` (when
+/// `n = 0`, the sample is on the edge and the crossing is `O(ε²)`, left of `s.x + ε`).
+fn crosses(a: P, b: P, s: P) -> bool {
+    if (a[1] > s[1]) == (b[1] > s[1]) {
+        return false;
+    }
+    let (dx, dy) = (i128::from(b[0] - a[0]), i128::from(b[1] - a[1]));
+    let n = i128::from(a[0] - s[0]) * dy + i128::from(s[1] - a[1]) * dx;
+    n.signum() * dy.signum() > 0
+}
+
+/// Is `s` exactly on the edge `ab`?
+fn on_edge(a: P, b: P, s: P) -> bool {
+    cross(a, b, s) == 0 && on_segment(a, s, b)
+}
+
+/// Point in polygon (even-odd over all rings) for the nudged sample: the top-left convention.
+fn inside(rings: &[Vec<P>], s: P) -> bool {
+    let mut odd = false;
+    for ring in rings {
+        for i in 0..ring.len() {
+            odd ^= crosses(ring[i], ring[(i + 1) % ring.len()], s);
+        }
+    }
+    odd
+}
+
+/// Exact validity: rings of >= 3 points, no zero-length edges, no ring touching itself except
+/// adjacent edges at their shared corner (without folding back), no two rings touching, every
+/// hole inside the outer ring and outside every other hole.
+fn is_valid(rings: &[Vec<P>]) -> bool {
+    let mut edges = Vec::new();
+    for (r, ring) in rings.iter().enumerate() {
+        let n = ring.len();
+        if n < 3 || ring_area2(ring) == 0 {
+            return false;
+        }
+        for i in 0..n {
+            let (a, b, c) = (ring[i], ring[(i + 1) % n], ring[(i + 2) % n]);
+            if a == b {
+                return false;
+            }
+            // Adjacent edges a->b, b->c: folding back onto a->b is an overlap.
+            let dot = (b[0] - a[0]) * (c[0] - b[0]) + (b[1] - a[1]) * (c[1] - b[1]);
+            if cross(a, b, c) == 0 && dot < 0 {
+                return false;
+            }
+            edges.push((r, i, n, a, b));
+        }
+    }
+    for (x, &(r1, i1, n1, a, b)) in edges.iter().enumerate() {
+        for &(r2, i2, _, c, d) in &edges[x + 1..] {
+            let adjacent = r1 == r2 && (i2 == i1 + 1 || (i1 == 0 && i2 == n1 - 1));
+            if !adjacent && segments_touch(a, b, c, d) {
+                return false;
+            }
+        }
+    }
+    // No crossings: one corner decides where a whole ring lies.
+    let holes = &rings[1..];
+    holes.iter().enumerate().all(|(i, h)| {
+        inside(&rings[..1], h[0])
+            && holes
+                .iter()
+                .enumerate()
+                .all(|(j, g)| i == j || !inside(std::slice::from_ref(g), h[0]))
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+// Random valid polygons on the 1/256 grid.
+
+/// Where vertices may lie: pixel centres, pixel corners, half pixels, or any 1/256 step.
+#[derive(Clone, Copy, Debug)]
+enum Grid {
+    Centres,
+    Corners,
+    Halves,
+    Any,
+}
+
+impl Grid {
+    fn random(rng: &mut SmallRng) -> Self {
+        [Self::Centres, Self::Corners, Self::Halves, Self::Any][rng.random_range(0..4)]
+    }
+
+    /// Rounds `v` pixels to the grid, in fixed point.
+    fn round(self, v: f64) -> i64 {
+        let (step, offset) = match self {
+            Self::Centres => (256, 128),
+            Self::Corners => (256, 0),
+            Self::Halves => (128, 0),
+            Self::Any => (1, 0),
+        };
+        (((v * 256.0) - offset as f64) / step as f64).round() as i64 * step + offset
+    }
+}
+
+/// A star-shaped ring around `c` (pixels): sorted random angles, radii in `[r0, r1]`.
+fn star(rng: &mut SmallRng, grid: Grid, c: [f64; 2], r0: f64, r1: f64, n: usize) -> Vec<P> {
+    let mut angles: Vec<f64> =
+        (0..n).map(|_| rng.random_range(0.0..std::f64::consts::TAU)).collect();
+    angles.sort_by(f64::total_cmp);
+    let mut ring: Vec<P> = angles
+        .iter()
+        .map(|a| {
+            let r = if r1 > r0 { rng.random_range(r0..=r1) } else { r0 };
+            [grid.round(c[0] + r * a.cos()), grid.round(c[1] + r * a.sin())]
+        })
+        .collect();
+    ring.dedup();
+    ring
+}
+
+/// A rectilinear comb: columns between random x breakpoints, each spanning a common band and
+/// reaching up and down by random amounts (teeth on both sides); then a random symmetry of the
+/// square and translation. Neighbouring columns always overlap in the band, so it is simple.
+fn comb(rng: &mut SmallRng, grid: Grid, origin: [f64; 2], scale: f64) -> Vec<P> {
+    let k = rng.random_range(2..12);
+    let mut xs = vec![0.0];
+    for _ in 0..k {
+        let w = rng.random_range(0.5..3.0) * scale;
+        xs.push(xs.last().unwrap() + w);
+    }
+    let band = rng.random_range(0.5..2.0) * scale;
+    let tops: Vec<f64> = (0..k).map(|_| -rng.random_range(0.0..4.0) * scale).collect();
+    let bottoms: Vec<f64> = (0..k).map(|_| band + rng.random_range(0.0..4.0) * scale).collect();
+    let mut pts = Vec::new();
+    for i in 0..k {
+        pts.push([xs[i], tops[i]]);
+        pts.push([xs[i + 1], tops[i]]);
+    }
+    for i in (0..k).rev() {
+        pts.push([xs[i + 1], bottoms[i]]);
+        pts.push([xs[i], bottoms[i]]);
+    }
+    let (transpose, fx, fy) = (rng.random::<bool>(), rng.random::<bool>(), rng.random::<bool>());
+    let mut ring: Vec<P> = pts
+        .iter()
+        .map(|&[x, y]| {
+            let (x, y) = if transpose { (y, x) } else { (x, y) };
+            let (x, y) = (if fx { -x } else { x }, if fy { -y } else { y });
+            [grid.round(origin[0] + x), grid.round(origin[1] + y)]
+        })
+        .collect();
+    ring.dedup();
+    while ring.len() > 1 && ring.first() == ring.last() {
+        ring.pop();
+    }
+    if rng.random() {
+        ring.reverse();
+    }
+    ring
+}
+
+/// The strictly convex hull (monotone chain, collinear points dropped) of random points.
+fn convex(rng: &mut SmallRng, grid: Grid, c: [f64; 2], r: f64) -> Vec<P> {
+    let n = rng.random_range(3..30);
+    let mut pts: Vec<P> = (0..n)
+        .map(|_| {
+            let (a, d) =
+                (rng.random_range(0.0..std::f64::consts::TAU), r * rng.random_range(0.3..1.0f64));
+            [grid.round(c[0] + d * a.cos()), grid.round(c[1] + d * a.sin())]
+        })
+        .collect();
+    pts.sort();
+    pts.dedup();
+    let mut hull: Vec<P> = Vec::new();
+    for pass in 0..2 {
+        let start = hull.len();
+        for &p in &pts {
+            while hull.len() >= start + 2
+                && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0
+            {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+        if pass == 0 {
+            pts.reverse();
+        }
+    }
+    if rng.random() {
+        hull.reverse();
+    }
+    hull
+}
+
+/// The kinds of outer boundary.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kind {
+    Convex,
+    Star,
+    Comb,
+    Huge,
+}
+
+/// A random valid outer ring of `kind`, mostly around the target.
+fn outer(rng: &mut SmallRng, kind: Kind) -> Vec<P> {
+    loop {
+        let grid = Grid::random(rng);
+        let c = [
+            rng.random_range(-8.0..f64::from(W) + 8.0),
+            rng.random_range(-8.0..f64::from(H) + 8.0),
+        ];
+        let r1 = rng.random_range(1.0..40.0);
+        let r0 = r1 * rng.random_range(0.05..1.0);
+        let n = rng.random_range(3..40);
+        let ring = match kind {
+            Kind::Convex => convex(rng, grid, c, r1),
+            Kind::Star => star(rng, grid, c, r0, r1, n),
+            Kind::Comb => {
+                let scale = rng.random_range(0.3..5.0);
+                comb(rng, grid, [c[0] - 20.0, c[1] - 10.0], scale)
+            }
+            // Spans far more than 4096 pixels: the f64 earcut path.
+            Kind::Huge => {
+                let r1 = r1 * 750.0;
+                star(rng, grid, c, r1 * 0.2, r1, n % 10 + 3)
+            }
+        };
+        if is_valid(std::slice::from_ref(&ring)) {
+            return ring;
+        }
+    }
+}
+
+/// A random valid polygon: an outer ring of `kind` with up to `max_holes` small star-shaped
+/// holes, placed where they are visible in the target when possible.
+fn polygon(rng: &mut SmallRng, kind: Kind, max_holes: usize) -> Vec<Vec<P>> {
+    let mut rings = vec![outer(rng, kind)];
+    let want = rng.random_range(0..=max_holes);
+    let (lo, hi) = bbox(&rings[0]);
+    let px = |v: i64| v as f64 / 256.0;
+    let range = |a: f64, b: f64, m: f64| {
+        let (a2, b2) = (a.max(-2.0), b.min(m + 2.0));
+        if a2 < b2 { (a2, b2) } else { (a, b) }
+    };
+    let (x0, x1) = range(px(lo[0]), px(hi[0]), f64::from(W));
+    let (y0, y1) = range(px(lo[1]), px(hi[1]), f64::from(H));
+    let mut attempts = 0;
+    while rings.len() <= want && attempts < 30 {
+        attempts += 1;
+        let c = [rng.random_range(x0..=x1), rng.random_range(y0..=y1)];
+        let r1 = rng.random_range(0.3..((x1 - x0).min(y1 - y0) / 3.0).max(0.5));
+        let (grid, r0, n) =
+            (Grid::random(rng), r1 * rng.random_range(0.2..1.0), rng.random_range(3..9));
+        let hole = star(rng, grid, c, r0, r1, n);
+        rings.push(hole);
+        if !is_valid(&rings) {
+            rings.pop();
+        }
+    }
+    rings
+}
+
+fn bbox(ring: &[P]) -> (P, P) {
+    let mut lo = [i64::MAX; 2];
+    let mut hi = [i64::MIN; 2];
+    for p in ring {
+        for k in 0..2 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Twice the polygon's area, exactly: outer minus holes.
+fn polygon_area2(rings: &[Vec<P>]) -> i128 {
+    ring_area2(&rings[0]).abs() - rings[1..].iter().map(|h| ring_area2(h).abs()).sum::<i128>()
+}
+
+fn concat(rings: &[Vec<P>]) -> Vec<P> {
+    rings.iter().flatten().copied().collect()
+}
+
+fn kind_of(i: usize) -> Kind {
+    [Kind::Convex, Kind::Star, Kind::Comb, Kind::Star, Kind::Comb, Kind::Huge][i % 6]
+}
+
+// ---------------------------------------------------------------------------------------------
+// (a) Triangles tile the polygon: total area equals the polygon's area.
+
+#[test]
+fn triangulations_add_up_to_the_polygon_area() {
+    let mut rng = SmallRng::seed_from_u64(0x5eed_a4ea);
+    let (mut with_holes, mut earcut_used) = (0, 0);
+    for i in 0..3000 {
+        let rings = polygon(&mut rng, kind_of(i), 4);
+        with_holes += usize::from(rings.len() > 1);
+        let pts = concat(&rings);
+        let expected = polygon_area2(&rings);
+        let outer_sign = ring_area2(&rings[0]).signum();
+
+        // Exact: the snapped triangulation, in integers. Every triangle wound like the outer
+        // ring and none empty, so the absolute areas cannot cancel: they tile.
+        let snapped: Vec<Vec<[i32; 2]>> =
+            rings.iter().map(|r| r.iter().map(|p| p.map(|v| v as i32)).collect()).collect();
+        let tris = triangulate_snapped(&snapped);
+        let mut total = 0;
+        for t in &tris {
+            let a = cross(pts[t[0]], pts[t[1]], pts[t[2]]);
+            assert_eq!(a.signum(), outer_sign, "triangle {t:?} flipped or empty in {rings:?}");
+            total += a.abs();
+        }
+        assert_eq!(total, expected, "exact area mismatch for {rings:?}");
+        earcut_used += usize::from(tris.iter().enumerate().any(|(j, t)| *t != [0, j + 1, j + 2]));
+
+        // Floating point: the same polygon in pixels through `triangulate_polygon`.
+        let float: Vec<Vec<[f64; 2]>> =
+            rings.iter().map(|r| r.iter().map(|p| p.map(|v| v as f64 / 256.0)).collect()).collect();
+        let fpts: Vec<[f64; 2]> = float.iter().flatten().copied().collect();
+        let mut ftotal = 0.0;
+        for t in triangulate_polygon(&float) {
+            let [a, b, c] = t.map(|k| fpts[k]);
+            let s = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+            assert_eq!(s.signum() as i128, outer_sign, "f64 triangle {t:?} flipped in {rings:?}");
+            ftotal += s.abs();
+        }
+        let fexpected = expected as f64 / 65536.0;
+        assert!(
+            (ftotal - fexpected).abs() <= 1e-9 * fexpected,
+            "f64 area {ftotal} != {fexpected} for {rings:?}"
+        );
+    }
+    assert!(with_holes > 1000, "only {with_holes} polygons with holes");
+    assert!(earcut_used > 1500, "only {earcut_used} polygons went through earcut");
+}
+
+// ---------------------------------------------------------------------------------------------
+// (b) The fill lights exactly the centres inside the polygon, each once.
+
+/// Fills `rings` and compares every pixel with the oracle; returns the number of pixel
+/// centres lying exactly on the boundary (decided by the top-left convention).
+fn check_fill(rings: &[Vec<P>], options: Option<&RenderOptions>) -> usize {
+    let mut target = Target::new(W, H).unwrap().with_overdraw();
+    let float: Vec<Vec<[f32; 2]>> =
+        rings.iter().map(|r| r.iter().map(|p| p.map(|v| v as f32 / 256.0)).collect()).collect();
+    let color = [10, 200, 30, 255];
+    let stats = match options {
+        Some(o) => fill_polygon_with(&mut target, &float, color, o),
+        None => fill_polygon(&mut target, &float, color),
+    }
+    .unwrap();
+    let overdraw = target.overdraw.as_ref().unwrap();
+    let mut ties = 0;
+    let mut lit = 0;
+    for py in 0..H as i64 {
+        let sy = py * 256 + 128;
+        // Only the edges crossing this row can matter (or contain its centres).
+        let row: Vec<Vec<P>> = rings
+            .iter()
+            .map(|r| {
+                let n = r.len();
+                (0..n)
+                    .filter(|&i| {
+                        let (a, b) = (r[i], r[(i + 1) % n]);
+                        a[1].min(b[1]) <= sy && a[1].max(b[1]) >= sy
+                    })
+                    .flat_map(|i| [r[i], r[(i + 1) % n]])
+                    .collect()
+            })
+            .collect();
+        for px in 0..W as i64 {
+            let s = [px * 256 + 128, sy];
+            // Pairs of points, each pair one edge.
+            let mut odd = false;
+            let mut on_boundary = false;
+            for pairs in &row {
+                for e in pairs.chunks_exact(2) {
+                    odd ^= crosses(e[0], e[1], s);
+                    on_boundary |= on_edge(e[0], e[1], s);
+                }
+            }
+            ties += usize::from(on_boundary);
+            let got = overdraw[target.index(px as i32, py as i32)];
+            assert!(got <= 1, "pixel ({px}, {py}) lit {got} times by {rings:?}");
+            assert_eq!(got == 1, odd, "pixel ({px}, {py}) (boundary: {on_boundary}) in {rings:?}");
+            if odd {
+                assert_eq!(target.color[target.index(px as i32, py as i32)], color);
+            }
+            lit += u64::from(got);
+        }
+    }
+    assert_eq!(stats.fragments, lit);
+    ties
+}
+
+#[test]
+fn fill_lights_exactly_the_centres_inside() {
+    let mut rng = SmallRng::seed_from_u64(0xf111);
+    let scanline = RenderOptions::default().with_algorithm(Algorithm::Scanline);
+    let mut ties = 0;
+    for i in 0..1500 {
+        let rings = polygon(&mut rng, kind_of(i), 4);
+        ties += check_fill(&rings, (i % 5 == 0).then_some(&scanline));
+    }
+    // The boundary cases are the point of the exercise: make sure there were plenty.
+    assert!(ties > 2000, "only {ties} centres on polygon boundaries");
+}
+
+#[test]
+fn fill_edge_cases() {
+    let mut target = Target::new(W, H).unwrap().with_overdraw();
+    let square = vec![[2.0, 2.0], [10.0, 2.0], [10.0, 10.0], [2.0, 10.0]];
+    // Clockwise on screen (y down): culled as a whole, or drawn as a whole.
+    let cull_cw = RenderOptions::default().with_cull(CullMode::Clockwise);
+    let s =
+        fill_polygon_with(&mut target, std::slice::from_ref(&square), [255; 4], &cull_cw).unwrap();
+    assert_eq!((s.culled, s.fragments), (2, 0));
+    let cull_ccw = RenderOptions::default().with_cull(CullMode::CounterClockwise);
+    let s =
+        fill_polygon_with(&mut target, std::slice::from_ref(&square), [255; 4], &cull_ccw).unwrap();
+    assert_eq!((s.culled, s.fragments), (0, 64));
+
+    let mut nan = square.clone();
+    nan[2][0] = f32::NAN;
+    let s = fill_polygon(&mut target, &[nan], [255; 4]).unwrap();
+    assert_eq!((s.non_finite, s.fragments), (1, 0));
+
+    let mut far = square.clone();
+    far[1][0] = 40000.0;
+    let err = fill_polygon(&mut target, &[square.clone(), far], [255; 4]).unwrap_err();
+    assert!(matches!(err, Error::CoordinateOutOfRange { triangle: 1, vertex: 1, .. }), "{err}");
+
+    // Nothing to fill: no rings, too few points, zero area after snapping.
+    for rings in [
+        vec![],
+        vec![vec![[1.0, 1.0], [5.0, 5.0]]],
+        vec![vec![[1.0, 1.0], [1.001, 9.0], [1.0, 20.0]]],
+    ] {
+        assert_eq!(fill_polygon(&mut target, &rings, [255; 4]).unwrap().fragments, 0);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// (c) Mesh faces: random 2D polygons embedded in 3D keep their winding and their area.
+
+/// An integer quaternion's rotation matrix scaled by its squared norm: a rotation times an
+/// integer, so an integer polygon embeds exactly (and stays exactly planar) in `f32`.
+fn scaled_rotation(rng: &mut SmallRng) -> [[i64; 3]; 3] {
+    loop {
+        let [a, b, c, d] = [(); 4].map(|_| rng.random_range(-6i64..=6));
+        if a * a + b * b + c * c + d * d == 0 {
+            continue;
+        }
+        return [
+            [a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)],
+            [2 * (b * c + a * d), a * a - b * b + c * c - d * d, 2 * (c * d - a * b)],
+            [2 * (b * d - a * c), 2 * (c * d + a * b), a * a - b * b - c * c + d * d],
+        ];
+    }
+}
+
+fn cross3(a: [i128; 3], b: [i128; 3]) -> [i128; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn sub3(a: [i128; 3], b: [i128; 3]) -> [i128; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// A random polygon without holes, centred on the origin, coordinates within 2^13.
+fn small_face_polygon(rng: &mut SmallRng, i: usize) -> Vec<P> {
+    let mut ring = loop {
+        let kind = [Kind::Convex, Kind::Star, Kind::Comb][i % 3];
+        let ring = outer(rng, kind);
+        let (lo, hi) = bbox(&ring);
+        if (0..2).all(|k| hi[k] - lo[k] < 1 << 13) {
+            break ring;
+        }
+    };
+    let (lo, hi) = bbox(&ring);
+    for p in &mut ring {
+        for k in 0..2 {
+            p[k] -= (lo[k] + hi[k]) / 2;
+        }
+    }
+    ring
+}
+
+#[test]
+fn faces_keep_their_winding_and_area() {
+    let mut rng = SmallRng::seed_from_u64(0xface);
+    let mut fans = 0;
+    for i in 0..3000 {
+        let ring = small_face_polygon(&mut rng, i);
+        let m = scaled_rotation(&mut rng);
+        let t: [i64; 3] = [(); 3].map(|_| rng.random_range(-(1 << 20)..(1 << 20)));
+        let p3: Vec<[i128; 3]> = ring
+            .iter()
+            .map(|&[x, y]| [0, 1, 2].map(|k| i128::from(m[k][0] * x + m[k][1] * y + t[k])))
+            .collect();
+        let face: Vec<[f32; 3]> = p3.iter().map(|p| p.map(|v| v as f32)).collect();
+        assert!(face.iter().zip(&p3).all(|(f, p)| (0..3).all(|k| f[k] as i128 == p[k])));
+        // Newell normal, exactly: twice the vector area.
+        let n = (0..p3.len()).fold([0i128; 3], |acc, j| {
+            let c = cross3(p3[j], p3[(j + 1) % p3.len()]);
+            [acc[0] + c[0], acc[1] + c[1], acc[2] + c[2]]
+        });
+        let tris = triangulate_face(&face);
+        // Each triangle's normal along the face's (it is parallel: the face is planar), and the
+        // vector areas sum to the face's exactly: so the triangles tile the face.
+        let mut sum = [0i128; 3];
+        for tri in &tris {
+            let [a, b, c] = tri.map(|k| p3[k]);
+            let tn = cross3(sub3(b, a), sub3(c, a));
+            let dot: i128 = (0..3).map(|k| tn[k] * n[k]).sum();
+            assert!(
+                dot > 0,
+                "triangle {tri:?} does not keep the winding of {ring:?} (rotation {m:?})"
+            );
+            for k in 0..3 {
+                sum[k] += tn[k];
+            }
+        }
+        assert_eq!(sum, n, "areas do not add up for {ring:?} (rotation {m:?})");
+        if i % 3 == 0 {
+            let fan: Vec<[usize; 3]> = (1..ring.len() - 1).map(|j| [0, j, j + 1]).collect();
+            assert_eq!(tris, fan, "convex face {ring:?} not fanned");
+            fans += 1;
+        }
+    }
+    assert!(fans >= 1000);
+}
+
+#[test]
+fn faces_under_float_rotations() {
+    // Rounded to f32, the faces are only nearly planar: the areas must still add up (no
+    // folded triangles) within rounding.
+    let mut rng = SmallRng::seed_from_u64(0xf10a7);
+    for i in 0..1500 {
+        let ring = small_face_polygon(&mut rng, i);
+        let q: [f64; 4] = [(); 4].map(|_| rng.random_range(-1.0..1.0));
+        let len = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let [a, b, c, d] = q.map(|v| v / len);
+        let m = [
+            [a * a + b * b - c * c - d * d, 2.0 * (b * c - a * d), 2.0 * (b * d + a * c)],
+            [2.0 * (b * c + a * d), a * a - b * b + c * c - d * d, 2.0 * (c * d - a * b)],
+            [2.0 * (b * d - a * c), 2.0 * (c * d + a * b), a * a - b * b - c * c + d * d],
+        ];
+        let face: Vec<[f32; 3]> = ring
+            .iter()
+            .map(|&[x, y]| {
+                let (x, y) = (x as f64 / 256.0, y as f64 / 256.0);
+                [0, 1, 2].map(|k| (m[k][0] * x + m[k][1] * y + 5.0) as f32)
+            })
+            .collect();
+        let p: Vec<[f64; 3]> = face.iter().map(|v| v.map(f64::from)).collect();
+        let fcross = |u: [f64; 3], v: [f64; 3]| {
+            [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+        };
+        let fsub = |u: [f64; 3], v: [f64; 3]| [u[0] - v[0], u[1] - v[1], u[2] - v[2]];
+        let norm = |u: [f64; 3]| u.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let n = (0..p.len()).fold([0.0; 3], |acc, j| {
+            let c = fcross(p[j], p[(j + 1) % p.len()]);
+            [acc[0] + c[0], acc[1] + c[1], acc[2] + c[2]]
+        });
+        let total: f64 = triangulate_face(&face)
+            .iter()
+            .map(|t| {
+                let tn = fcross(fsub(p[t[1]], p[t[0]]), fsub(p[t[2]], p[t[0]]));
+                let dot: f64 = (0..3).map(|k| tn[k] * n[k]).sum();
+                assert!(dot > -1e-5 * norm(n) * norm(n), "{t:?} flipped in {face:?}");
+                norm(tn)
+            })
+            .sum();
+        assert!(
+            (total - norm(n)).abs() <= 1e-4 * norm(n),
+            "area {total} != {} for {face:?}",
+            norm(n)
+        );
+    }
+}
