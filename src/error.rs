@@ -39,6 +39,12 @@ pub enum Error {
         /// Number of vertices.
         vertices: usize,
     },
+    /// A file whose extension names no format trirast reads.
+    #[error("{}: unsupported mesh format: expected .obj, .ply or .stl", path.display())]
+    UnsupportedFormat {
+        /// The file.
+        path: PathBuf,
+    },
     /// A malformed input file.
     #[error("{}:{line}: {message}", path.display())]
     Parse {

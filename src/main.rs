@@ -392,6 +392,13 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
     let (width, height) = args.size;
     let (triangles, default_shading) = match &args.file {
         Some(path) => {
+            let is_obj = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+            if !is_obj {
+                return Err(usage(format!(
+                    "{}: --projection window reads .obj files (`v x y z [r g b]`)",
+                    path.display()
+                )));
+            }
             let mesh = trirast::mesh::obj::read(path)?;
             (trirast::mesh::window_triangles(&mesh), Shading::Smooth)
         }

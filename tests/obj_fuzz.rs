@@ -6,7 +6,8 @@
 //! - `parse` never panics;
 //! - an error names a line between 1 and the number of lines + 1, with a message;
 //! - an accepted mesh is consistent (every corner index in range, faces of 3+ corners, arrays
-//!   of equal length), and `window_triangles` and `draw` on it do not panic.
+//!   of equal length), `obj::to_mesh` gives in-range indices, and `window_triangles` and `draw`
+//!   on it do not panic (and both rasterizers agree).
 //!
 //! `TRIRAST_FUZZ_ITERS` and `TRIRAST_FUZZ_SEED` override the iteration count and the seed for a
 //! longer local run; a failure prints the offending input as an escaped byte string.
@@ -104,6 +105,9 @@ const TOKENS: &[&[u8]] = &[
     b"\xc3\xa9",
     b"\xe2\x82",
     b"\0",
+    b"usemtl a\n",
+    b"usemtl b\n",
+    b"mtllib none.mtl\n",
 ];
 
 fn mutate(rng: &mut XorShift, input: &[u8]) -> Vec<u8> {
@@ -204,31 +208,30 @@ fn check_mesh(mesh: &ObjMesh, lines: usize) {
     assert_eq!(mesh.colors.len(), n, "one colour slot per position");
     assert!(mesh.w.iter().all(|&w| w != 0.0), "w = 0 must be rejected");
     assert_eq!(mesh.face_starts.first(), Some(&0));
-    assert_eq!(
-        mesh.face_starts.last().map(|&s| s as usize),
-        Some(mesh.corners.len())
-    );
-    assert!(
-        mesh.face_starts.windows(2).all(|w| w[1] >= w[0] + 3),
-        "faces have 3+ corners"
-    );
+    assert_eq!(mesh.face_starts.last().map(|&s| s as usize), Some(mesh.corners.len()));
+    assert!(mesh.face_starts.windows(2).all(|w| w[1] >= w[0] + 3), "faces have 3+ corners");
     assert_eq!(mesh.face_lines.len(), mesh.face_count());
-    assert!(
-        mesh.face_lines
-            .iter()
-            .all(|&l| (1..=lines).contains(&(l as usize)))
-    );
+    assert!(mesh.face_lines.iter().all(|&l| (1..=lines).contains(&(l as usize))));
     for c in &mesh.corners {
         assert!((c.position as usize) < n, "position {} of {n}", c.position);
         if let Some(t) = c.texcoord {
-            assert!(
-                (t as usize) < mesh.texcoords.len(),
-                "texcoord {t} out of range"
-            );
+            assert!((t as usize) < mesh.texcoords.len(), "texcoord {t} out of range");
         }
         if let Some(v) = c.normal {
             assert!((v as usize) < mesh.normals.len(), "normal {v} out of range");
         }
+    }
+    // The indexed mesh of the 3D pipeline: every triangle index and attribute array in range.
+    let indexed = obj::to_mesh(mesh);
+    let vertices = indexed.positions.len();
+    assert_eq!(indexed.polygon_count, mesh.face_count());
+    assert!(indexed.triangles.iter().flatten().all(|&i| (i as usize) < vertices));
+    assert!(indexed.normals.as_ref().is_none_or(|a| a.len() == vertices));
+    assert!(indexed.texcoords.as_ref().is_none_or(|a| a.len() == vertices));
+    assert!(indexed.colors.as_ref().is_none_or(|a| a.len() == vertices));
+    if let Some(m) = &indexed.triangle_materials {
+        assert_eq!(m.len(), indexed.triangles.len(), "one material per triangle");
+        assert!(m.iter().all(|&k| (k as usize) < indexed.materials.len()), "material index");
     }
     let triangles = window_triangles(mesh);
     assert_eq!(triangles.len(), mesh.triangle_count());
@@ -238,10 +241,7 @@ fn check_mesh(mesh: &ObjMesh, lines: usize) {
         let [x, y, z] = mesh.positions[face[0].position as usize];
         for _ in 2..face.len() {
             let v = triangles[k][0];
-            assert!(
-                same(v.x, x) && same(v.y, y) && same(v.z, z),
-                "fan vertex of triangle {k}"
-            );
+            assert!(same(v.x, x) && same(v.y, y) && same(v.z, z), "fan vertex of triangle {k}");
             k += 1;
         }
     }
@@ -255,17 +255,9 @@ fn check_mesh(mesh: &ObjMesh, lines: usize) {
     };
     let (edge, scan) = (draw(Algorithm::EdgeFunctions), draw(Algorithm::Scanline));
     assert_eq!(edge.0, scan.0, "draw stats differ between rasterizers");
-    assert_eq!(
-        (edge.1, edge.2),
-        (scan.1, scan.2),
-        "ids/overdraw differ between rasterizers"
-    );
+    assert_eq!((edge.1, edge.2), (scan.1, scan.2), "ids/overdraw differ between rasterizers");
     let bits = |d: &[f32]| d.iter().map(|z| z.to_bits()).collect::<Vec<_>>();
-    assert_eq!(
-        bits(&edge.3),
-        bits(&scan.3),
-        "depth differs between rasterizers"
-    );
+    assert_eq!(bits(&edge.3), bits(&scan.3), "depth differs between rasterizers");
 }
 
 fn same(a: f32, b: f32) -> bool {
@@ -285,10 +277,7 @@ fn run_case(input: &[u8]) -> Result<bool, String> {
 }
 
 fn env_or<T: std::str::FromStr>(name: &str, default: T) -> T {
-    std::env::var(name)
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
+    std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
 }
 
 #[test]
@@ -336,12 +325,7 @@ fn hand_picked_edge_cases_keep_the_contract() {
         b"\xef\xbb\xbfv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3",
     ];
     let failures: Vec<String> = cases.iter().filter_map(|c| run_case(c).err()).collect();
-    assert!(
-        failures.is_empty(),
-        "{} failures:\n{}",
-        failures.len(),
-        failures.join("\n")
-    );
+    assert!(failures.is_empty(), "{} failures:\n{}", failures.len(), failures.join("\n"));
 }
 
 /// Regression: the largest index that fits in `u32` once made the past-the-end message
@@ -390,19 +374,8 @@ fn mutated_obj_files_never_break_the_reader() {
         }
     }
     eprintln!("obj fuzz: {accepted} accepted, {rejected} rejected, seed {seed:#x}");
-    assert!(
-        failures.is_empty(),
-        "{} failures:\n{}",
-        failures.len(),
-        failures.join("\n")
-    );
+    assert!(failures.is_empty(), "{} failures:\n{}", failures.len(), failures.join("\n"));
     // The mutations must exercise both outcomes, or the test proves little.
-    assert!(
-        accepted > iters / 20,
-        "only {accepted} of {iters} inputs were accepted"
-    );
-    assert!(
-        rejected > iters / 20,
-        "only {rejected} of {iters} inputs were rejected"
-    );
+    assert!(accepted > iters / 20, "only {accepted} of {iters} inputs were accepted");
+    assert!(rejected > iters / 20, "only {rejected} of {iters} inputs were rejected");
 }

@@ -324,7 +324,9 @@ fn auto_framing_keeps_every_vertex_in_view() {
 
 fn checker(n: u32) -> (Texture, Vec<[u8; 4]>) {
     let texels: Vec<[u8; 4]> = (0..n * n)
-        .map(|i| if (i % n + i / n).is_multiple_of(2) { [230, 40, 30, 255] } else { [20, 60, 200, 255] })
+        .map(|i| {
+            if (i % n + i / n).is_multiple_of(2) { [230, 40, 30, 255] } else { [20, 60, 200, 255] }
+        })
         .collect();
     (Texture::from_srgba8(n, n, texels.as_flattened()), texels)
 }

@@ -21,6 +21,9 @@ fuzz_target!(|data: &[u8]| {
                 assert!(c.texcoord.is_none_or(|t| (t as usize) < mesh.texcoords.len()));
                 assert!(c.normal.is_none_or(|n| (n as usize) < mesh.normals.len()));
             }
+            let indexed = obj::to_mesh(&mesh);
+            let vertices = indexed.positions.len();
+            assert!(indexed.triangles.iter().flatten().all(|&i| (i as usize) < vertices));
             let triangles = window_triangles(&mesh);
             assert_eq!(triangles.len(), mesh.triangle_count());
             // Drawing may refuse out-of-range vertices, but must not panic.

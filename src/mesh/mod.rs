@@ -3,7 +3,10 @@
 //! Readers report errors as [`Error::Parse`] naming the file and the 1-based line (or, for
 //! binary files, the byte offset).
 
+pub mod mtl;
 pub mod obj;
+pub mod ply;
+pub mod stl;
 
 use std::path::{Path, PathBuf};
 
@@ -58,11 +61,9 @@ pub fn load(path: &Path) -> Result<Mesh, Error> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
         Some("obj") => obj::read_mesh(path),
-        _ => Err(Error::Parse {
-            path: path.to_path_buf(),
-            line: 0,
-            message: "unsupported mesh format: expected .obj, .ply or .stl".into(),
-        }),
+        Some("ply") => ply::read(path),
+        Some("stl") => stl::read(path),
+        _ => Err(Error::UnsupportedFormat { path: path.to_path_buf() }),
     }
 }
 
@@ -82,9 +83,12 @@ pub fn window_triangles(mesh: &ObjMesh) -> Vec<[Vertex; 3]> {
     let vertex = |c: &Corner| {
         let i = c.position as usize;
         let [x, y, z] = mesh.positions[i];
-        let color = mesh.colors.get(i).copied().flatten().map_or([255; 4], |[r, g, b]| {
-            [unorm8(r), unorm8(g), unorm8(b), 255]
-        });
+        let color = mesh
+            .colors
+            .get(i)
+            .copied()
+            .flatten()
+            .map_or([255; 4], |[r, g, b]| [unorm8(r), unorm8(g), unorm8(b), 255]);
         Vertex { x, y, z, inv_w: 1.0 / mesh.w[i], color }
     };
     let mut out = Vec::with_capacity(mesh.triangle_count());

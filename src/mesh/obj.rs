@@ -4,12 +4,13 @@
 //! the line, and triangles must be numbered in file order (tobj regroups faces by object and
 //! material). Supported: `v x y z [w]` and `v x y z r g b`, `vt`, `vn`, and faces of any size
 //! whose corners are `v`, `v/vt`, `v//vn` or `v/vt/vn`, with negative (relative) indices.
-//! Other statements (`o`, `g`, `s`, `usemtl`, `mtllib`, `l`, `p`, ...) are skipped.
+//! `mtllib` and `usemtl` are recorded; [`read_mesh`] resolves them through [`super::mtl`].
+//! Other statements (`o`, `g`, `s`, `l`, `p`, ...) are skipped.
 
 use std::collections::HashMap;
 use std::path::Path;
 
-use super::Mesh;
+use super::{Material, Mesh};
 use crate::error::Error;
 
 /// One face corner: indices (0-based) into the mesh's arrays.
@@ -42,6 +43,13 @@ pub struct ObjMesh {
     pub face_starts: Vec<u32>,
     /// The 1-based line of each face.
     pub face_lines: Vec<u32>,
+    /// The argument of each `mtllib` statement (one or more file names) with its line.
+    pub material_libraries: Vec<(String, u32)>,
+    /// Distinct `usemtl` names in order of first use, with the line of that first use.
+    pub material_names: Vec<(String, u32)>,
+    /// For each face, the `usemtl` in force as an index into `material_names` (`None` before the
+    /// first `usemtl`).
+    pub face_materials: Vec<Option<u32>>,
 }
 
 impl ObjMesh {
@@ -74,12 +82,19 @@ pub fn read(path: &Path) -> Result<ObjMesh, Error> {
 }
 
 /// Reads an OBJ file as an indexed [`Mesh`]: corners with the same (v, vt, vn) share a vertex,
-/// faces are triangulated by [`crate::polygon::triangulate_face`] in file order.
+/// faces are triangulated by [`crate::polygon::triangulate_face`] in file order. Materials
+/// come from the `mtllib` files (see [`super::mtl::apply`]); a missing library or texture is a
+/// warning in [`Mesh::warnings`].
 pub fn read_mesh(path: &Path) -> Result<Mesh, Error> {
-    Ok(to_mesh(&read(path)?))
+    let obj = read(path)?;
+    let mut mesh = to_mesh(&obj);
+    super::mtl::apply(&mut mesh, &obj, path)?;
+    Ok(mesh)
 }
 
-/// Converts parsed OBJ data to an indexed [`Mesh`].
+/// Converts parsed OBJ data to an indexed [`Mesh`]. When the file has `usemtl`, `materials`
+/// holds one default-coloured [`Material`] per name (preceded by an unnamed default for faces
+/// before the first `usemtl`) and `triangle_materials` points into it.
 #[must_use]
 pub fn to_mesh(obj: &ObjMesh) -> Mesh {
     let has_uv = obj.corners.iter().any(|c| c.texcoord.is_some());
@@ -90,7 +105,19 @@ pub fn to_mesh(obj: &ObjMesh) -> Mesh {
     let mut index: HashMap<(u32, Option<u32>, Option<u32>), u32> = HashMap::new();
     let mut face_vertices = Vec::new();
     let mut face_points = Vec::new();
-    for face in obj.faces() {
+    let mut triangle_materials = Vec::new();
+    let uses_materials = !obj.material_names.is_empty();
+    let face_material = |f: usize| obj.face_materials.get(f).copied().flatten();
+    let offset = u32::from((0..obj.face_count()).any(|f| face_material(f).is_none()));
+    if uses_materials {
+        if offset == 1 {
+            mesh.materials.push(Material::default());
+        }
+        for (name, _) in &obj.material_names {
+            mesh.materials.push(Material { name: name.clone(), ..Material::default() });
+        }
+    }
+    for (f, face) in obj.faces().enumerate() {
         face_vertices.clear();
         face_points.clear();
         for c in face {
@@ -113,10 +140,16 @@ pub fn to_mesh(obj: &ObjMesh) -> Mesh {
             face_vertices.push(v);
             face_points.push(obj.positions[c.position as usize]);
         }
+        let before = mesh.triangles.len();
         for t in crate::polygon::triangulate_face(&face_points) {
             mesh.triangles.push(t.map(|k| face_vertices[k]));
         }
+        if uses_materials {
+            let m = face_material(f).map_or(0, |k| k + offset);
+            triangle_materials.resize(triangle_materials.len() + mesh.triangles.len() - before, m);
+        }
     }
+    mesh.triangle_materials = uses_materials.then_some(triangle_materials);
     mesh.normals = has_normal.then_some(normals);
     mesh.texcoords = has_uv.then_some(texcoords);
     mesh.colors = has_color.then_some(colors);
@@ -126,8 +159,12 @@ pub fn to_mesh(obj: &ObjMesh) -> Mesh {
 /// Parses OBJ text; an error is `(line, message)`.
 pub fn parse(bytes: &[u8]) -> Result<ObjMesh, (usize, String)> {
     let mut mesh = ObjMesh { face_starts: vec![0], ..ObjMesh::default() };
+    let mut material: Option<u32> = None;
+    let mut material_index: HashMap<String, u32> = HashMap::new();
     // Positive indices may refer forwards; they are checked once the whole file is read.
     let mut max_ref: [(u32, usize); 3] = [(0, 0); 3];
+    // A UTF-8 byte-order mark (some Windows tools write one) is not part of the first line.
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
         let line = n + 1;
         let text = std::str::from_utf8(raw).map_err(|_| (line, "not valid UTF-8".to_string()))?;
@@ -172,7 +209,10 @@ pub fn parse(bytes: &[u8]) -> Result<ObjMesh, (usize, String)> {
             }
             "f" => {
                 if args.len() < 3 {
-                    return Err((line, format!("a face needs 3 or more corners, found {}", args.len())));
+                    return Err((
+                        line,
+                        format!("a face needs 3 or more corners, found {}", args.len()),
+                    ));
                 }
                 let counts = [mesh.positions.len(), mesh.texcoords.len(), mesh.normals.len()];
                 for arg in &args {
@@ -189,6 +229,20 @@ pub fn parse(bytes: &[u8]) -> Result<ObjMesh, (usize, String)> {
                     .map_err(|_| (line, "more than 2^32 face corners".to_string()))?;
                 mesh.face_starts.push(end);
                 mesh.face_lines.push(line as u32);
+                mesh.face_materials.push(material);
+            }
+            "mtllib" if !args.is_empty() => {
+                mesh.material_libraries.push((args.join(" "), line as u32));
+            }
+            "usemtl" => {
+                let name = args.join(" ");
+                material = (!name.is_empty()).then(|| {
+                    let next = material_index.len() as u32;
+                    *material_index.entry(name.clone()).or_insert_with(|| {
+                        mesh.material_names.push((name, line as u32));
+                        next
+                    })
+                });
             }
             _ => {}
         }
@@ -198,7 +252,10 @@ pub fn parse(bytes: &[u8]) -> Result<ObjMesh, (usize, String)> {
         if *line > 0 && *max as usize >= count {
             return Err((
                 *line,
-                format!("index {} refers past the last `{what}` (the file has {count})", max + 1),
+                format!(
+                    "index {} refers past the last `{what}` (the file has {count})",
+                    u64::from(*max) + 1
+                ),
             ));
         }
     }

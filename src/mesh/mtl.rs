@@ -1,0 +1,239 @@
+//! Wavefront material libraries (`.mtl`), as referenced by an OBJ's `mtllib` statements.
+//!
+//! Hand-written, like the OBJ reader, so that errors name the line. Only what the pipeline uses
+//! is read: `newmtl name`, the diffuse colour `Kd r [g b]` and the diffuse texture
+//! `map_Kd [options] file` (the last token is the file; options such as `-s 1 1 1` before it are
+//! skipped). Other statements (`Ka`, `Ks`, `Ns`, `d`, `illum`, other maps, ...) are ignored.
+//!
+//! Paths: `mtllib` names are resolved relative to the OBJ's directory, `map_Kd` names relative to
+//! the `.mtl`'s directory. A missing library, a missing or unreadable texture and a `usemtl`
+//! naming no known material are warnings ([`Mesh::warnings`]), and the affected faces fall back
+//! to the material's `Kd` (or the default grey); a malformed `.mtl` is an error naming its line.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use super::obj::ObjMesh;
+use super::{Material, Mesh};
+use crate::error::Error;
+
+/// The materials of one `.mtl` file, in file order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MaterialLibrary {
+    /// One entry per `newmtl`; `diffuse_texture` is resolved against the library's directory
+    /// but not checked for existence (see [`apply`]).
+    pub materials: Vec<Material>,
+    /// Statements that were understood but not supported (`Kd spectral ...`, say).
+    pub warnings: Vec<String>,
+}
+
+/// Reads and parses a `.mtl` file; texture paths are resolved relative to its directory.
+pub fn read(path: &Path) -> Result<MaterialLibrary, Error> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let dir = path.parent().unwrap_or_else(|| Path::new(""));
+    parse(&bytes, dir).map_err(|(line, message)| Error::Parse {
+        path: path.to_path_buf(),
+        line,
+        message,
+    })
+}
+
+/// Parses `.mtl` text, resolving `map_Kd` file names against `dir`; an error is
+/// `(line, message)`.
+pub fn parse(bytes: &[u8], dir: &Path) -> Result<MaterialLibrary, (usize, String)> {
+    let mut lib = MaterialLibrary::default();
+    for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+        let line = n + 1;
+        let text = std::str::from_utf8(raw).map_err(|_| (line, "not valid UTF-8".to_string()))?;
+        let text = text.split('#').next().unwrap_or("").trim();
+        let mut tokens = text.split_ascii_whitespace();
+        let Some(keyword) = tokens.next() else {
+            continue;
+        };
+        let args: Vec<&str> = tokens.collect();
+        // Keywords are matched case-insensitively (`map_kd` occurs in the wild).
+        let lower = keyword.to_ascii_lowercase();
+        if lower == "newmtl" {
+            if args.is_empty() {
+                return Err((line, "`newmtl` needs a material name".into()));
+            }
+            lib.materials.push(Material { name: args.join(" "), ..Material::default() });
+            continue;
+        }
+        if lower != "kd" && lower != "map_kd" {
+            continue;
+        }
+        let Some(material) = lib.materials.last_mut() else {
+            return Err((line, format!("`{keyword}` before any `newmtl`")));
+        };
+        if lower == "kd" {
+            if matches!(args.first(), Some(&("spectral" | "xyz"))) {
+                lib.warnings.push(format!(
+                    "line {line}: `Kd {}` is not supported; material `{}` keeps its default colour",
+                    args[0], material.name
+                ));
+                continue;
+            }
+            let mut rgb = [0.0f32; 3];
+            let f = args
+                .iter()
+                .map(|a| match a.parse::<f32>() {
+                    Ok(v) if v.is_finite() => Ok(v.clamp(0.0, 1.0)),
+                    _ => Err((line, format!("`Kd` expected a finite number, found `{a}`"))),
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            match f.len() {
+                1 => rgb = [f[0]; 3],
+                3 => rgb.copy_from_slice(&f),
+                k => return Err((line, format!("`Kd` takes r [g b], found {k} numbers"))),
+            }
+            material.diffuse = rgb;
+        } else {
+            let Some(file) = args.last() else {
+                return Err((line, "`map_Kd` needs a file name".into()));
+            };
+            material.diffuse_texture = Some(dir.join(file));
+        }
+    }
+    Ok(lib)
+}
+
+/// Resolves an OBJ's materials: loads its `mtllib` files (relative to `obj_path`'s directory)
+/// and fills in the colour and texture of every named material in `mesh.materials` (as made by
+/// [`super::obj::to_mesh`]). Problems that do not stop rendering go to `mesh.warnings`: a
+/// missing or unreadable library, a material no library defines (not reported when a library is
+/// missing: it was probably there), a texture that is missing or cannot be decoded (its
+/// `diffuse_texture` is then `None`, leaving the `Kd` colour). Materials keep the default grey
+/// when undefined. A malformed library is an error naming the `.mtl` file and line.
+pub fn apply(mesh: &mut Mesh, obj: &ObjMesh, obj_path: &Path) -> Result<(), Error> {
+    let dir = obj_path.parent().unwrap_or_else(|| Path::new(""));
+    let obj_name = obj_path.display();
+    let mut defined: HashMap<String, (Material, PathBuf)> = HashMap::new();
+    let mut missing_library = false;
+    for (argument, line) in &obj.material_libraries {
+        for file in library_files(dir, argument) {
+            let lib = match read(&file) {
+                Ok(lib) => lib,
+                Err(Error::Io { source, .. }) => {
+                    let why = if source.kind() == std::io::ErrorKind::NotFound {
+                        "was not found".to_string()
+                    } else {
+                        format!("cannot be read ({source})")
+                    };
+                    mesh.warnings.push(format!(
+                        "{obj_name}:{line}: material library {} {why}; using default materials",
+                        file.display()
+                    ));
+                    missing_library = true;
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
+            for w in lib.warnings {
+                mesh.warnings.push(format!("{}: {w}", file.display()));
+            }
+            for m in lib.materials {
+                defined.entry(m.name.clone()).or_insert_with(|| (m, file.clone()));
+            }
+        }
+    }
+    let lines: HashMap<&str, u32> =
+        obj.material_names.iter().map(|(name, line)| (name.as_str(), *line)).collect();
+    for material in mesh.materials.iter_mut().filter(|m| !m.name.is_empty()) {
+        let Some((found, library)) = defined.get(&material.name) else {
+            if missing_library {
+                // Probably defined in the missing library, which has its warning already.
+                continue;
+            }
+            let line = lines.get(material.name.as_str()).copied().unwrap_or(0);
+            let why = if obj.material_libraries.is_empty() {
+                "the file has no `mtllib`"
+            } else {
+                "no material library defines it"
+            };
+            mesh.warnings.push(format!(
+                "{obj_name}:{line}: material `{}`: {why}; using the default colour",
+                material.name
+            ));
+            continue;
+        };
+        material.diffuse = found.diffuse;
+        material.diffuse_texture = None;
+        if let Some(texture) = &found.diffuse_texture {
+            match check_texture(texture) {
+                Ok(path) => material.diffuse_texture = Some(path),
+                Err(why) => mesh.warnings.push(format!(
+                    "{}: texture {} of material `{}` {why}; using its diffuse colour",
+                    library.display(),
+                    texture.display(),
+                    material.name
+                )),
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The files an `mtllib` argument names: the whole argument if such a file exists (names may
+/// contain spaces), else each whitespace-separated name.
+fn library_files(dir: &Path, argument: &str) -> Vec<PathBuf> {
+    let whole = dir.join(argument);
+    if whole.is_file() || !argument.contains(' ') {
+        return vec![whole];
+    }
+    argument.split(' ').map(|f| dir.join(f)).collect()
+}
+
+/// Checks that a texture exists and its header decodes; returns the path to use (a name
+/// written with Windows separators is retried with `/`).
+fn check_texture(path: &Path) -> Result<PathBuf, String> {
+    let mut path = path.to_path_buf();
+    if !path.is_file() {
+        let text = path.to_string_lossy();
+        let alternative = PathBuf::from(text.replace('\\', "/"));
+        if !text.contains('\\') || !alternative.is_file() {
+            return Err("was not found".into());
+        }
+        path = alternative;
+    }
+    let reader = image::ImageReader::open(&path)
+        .and_then(image::ImageReader::with_guessed_format)
+        .map_err(|e| format!("cannot be read ({e})"))?;
+    reader.into_dimensions().map_err(|e| format!("cannot be decoded ({e})"))?;
+    Ok(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_kd_and_map_kd_with_options() {
+        let src = b"# lib\nnewmtl a\nKd 1 0.5 0.25\nmap_kd -s 1 1 1 -o 0 0 tex/a.png\n\
+                    newmtl b c\nKd 0.3\nKs 1 1 1\nnewmtl d\nKd 2 -1 0.5\n";
+        let lib = parse(src, Path::new("models")).unwrap();
+        assert_eq!(lib.materials.len(), 3);
+        assert_eq!(lib.materials[0].diffuse, [1.0, 0.5, 0.25]);
+        assert_eq!(lib.materials[0].diffuse_texture, Some(PathBuf::from("models/tex/a.png")));
+        assert_eq!(lib.materials[1].name, "b c");
+        assert_eq!(lib.materials[1].diffuse, [0.3; 3]);
+        assert_eq!(lib.materials[2].diffuse, [1.0, 0.0, 0.5]);
+    }
+
+    #[test]
+    fn errors_name_the_line() {
+        let cases: &[(&[u8], usize, &str)] = &[
+            (b"Kd 1 1 1\n", 1, "before any `newmtl`"),
+            (b"newmtl a\nKd 1 x 1\n", 2, "found `x`"),
+            (b"newmtl a\n\nKd 1 1\n", 3, "found 2 numbers"),
+            (b"newmtl\n", 1, "needs a material name"),
+            (b"newmtl a\nmap_Kd\n", 2, "needs a file name"),
+            (b"newmtl a\nKd nan 0 0\n", 2, "finite"),
+        ];
+        for (src, line, needle) in cases {
+            let (l, msg) = parse(src, Path::new("")).unwrap_err();
+            assert_eq!(l, *line, "{msg}");
+            assert!(msg.contains(needle), "{msg:?} should contain {needle:?}");
+        }
+    }
+}
