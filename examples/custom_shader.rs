@@ -27,7 +27,8 @@ fn main() -> Result<(), Error> {
         println!("{} not found: drawing a generated sphere", path.display());
         sphere(64, 32)
     };
-    let normals = mesh.normals.clone().unwrap_or_else(|| vertex_normals(&mesh.positions, &mesh.triangles));
+    let normals =
+        mesh.normals.clone().unwrap_or_else(|| vertex_normals(&mesh.positions, &mesh.triangles));
 
     let (width, height) = (800, 600);
     let (centre, radius) = bounding_sphere(&mesh.positions);

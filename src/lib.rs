@@ -34,6 +34,7 @@ pub mod pipeline;
 pub mod polygon;
 pub mod raster;
 pub mod render;
+pub mod sample;
 pub mod scene;
 pub mod setup;
 pub mod shade;

@@ -10,6 +10,7 @@ use trirast::camera::{self, Camera, Projection};
 use trirast::mesh::Mesh;
 use trirast::model::{self, Lighting, MaterialTextures, ModelOptions};
 use trirast::pipeline::FaceCull;
+use trirast::sample::SampleCount;
 use trirast::scene::{self, Demo};
 use trirast::texture::{Filter, Wrap};
 use trirast::{Algorithm, CullMode, DepthTest, Error, RenderOptions, Shading, Target, Vertex};
@@ -115,6 +116,13 @@ struct RenderArgs {
     /// materials.
     #[arg(long, value_name = "IMAGE")]
     texture: Option<PathBuf>,
+    /// Samples per pixel: 1, 4 or 8 (D3D standard patterns). Default: 1 for window
+    /// projection, 4 for models.
+    #[arg(long, value_parser = parse_msaa)]
+    msaa: Option<SampleCount>,
+    /// Write --ids and --depth with every sample, shape (H, W, S), instead of sample 0.
+    #[arg(long)]
+    per_sample: bool,
     /// Render N frames orbiting the model (3D only).
     #[arg(long, value_name = "N")]
     turntable: Option<u32>,
@@ -184,6 +192,13 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
         .ok_or_else(|| format!("expected WIDTHxHEIGHT, e.g. 640x480, found `{s}`"))?;
     let side = |t: &str| t.trim().parse::<u32>().map_err(|_| format!("`{t}` is not a size"));
     Ok((side(w)?, side(h)?))
+}
+
+fn parse_msaa(s: &str) -> Result<SampleCount, String> {
+    s.parse::<u32>()
+        .ok()
+        .and_then(SampleCount::from_count)
+        .ok_or_else(|| format!("--msaa takes 1, 4 or 8, found `{s}`"))
 }
 
 fn parse_floats<const N: usize>(s: &str) -> Result<[f32; N], String> {
@@ -259,7 +274,9 @@ fn main() -> ExitCode {
 
 fn render(args: &RenderArgs) -> Result<(), Error> {
     let (width, height) = args.size;
-    let mut target = Target::new(width, height)?;
+    let window = args.projection == ProjectionArg::Window;
+    let default_msaa = if window { SampleCount::X1 } else { SampleCount::X4 };
+    let mut target = Target::multisampled(width, height, args.msaa.unwrap_or(default_msaa))?;
     if args.ids.is_some() {
         target = target.with_ids();
     }
@@ -269,7 +286,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     if args.normals.is_some() {
         target = target.with_normals();
     }
-    if args.projection == ProjectionArg::Window {
+    if window {
         render_window(args, &mut target)?;
         return write_outputs(args, &target, None);
     }
@@ -456,10 +473,10 @@ fn write_outputs(args: &RenderArgs, target: &Target, frame: Option<u32>) -> Resu
     let png = named(&args.output);
     trirast::output::write_png(&png, target)?;
     if let Some(p) = &args.depth {
-        trirast::output::write_npy(&named(p), &target.depth, width, height)?;
+        write_sampled(&named(p), &target.depth, target, args.per_sample)?;
     }
     if let (Some(p), Some(ids)) = (&args.ids, &target.ids) {
-        trirast::output::write_npy(&named(p), ids, width, height)?;
+        write_sampled(&named(p), ids, target, args.per_sample)?;
     }
     if let (Some(p), Some(o)) = (&args.overdraw, &target.overdraw) {
         trirast::output::write_npy(&named(p), o, width, height)?;
@@ -472,6 +489,20 @@ fn write_outputs(args: &RenderArgs, target: &Target, frame: Option<u32>) -> Resu
         eprintln!("wrote {}", png.display());
     }
     Ok(())
+}
+
+/// Writes a per-sample buffer: every sample as (H, W, S), or sample 0 as (H, W).
+fn write_sampled<T>(path: &Path, buffer: &[T], target: &Target, all: bool) -> Result<(), Error>
+where
+    T: npyz::Serialize + npyz::AutoSerialize + Copy,
+{
+    let (width, height) = (target.width(), target.height());
+    if all {
+        let shape = [u64::from(height), u64::from(width), target.samples().count() as u64];
+        trirast::output::write_npy_shaped(path, buffer, &shape)
+    } else {
+        trirast::output::write_npy(path, &target.sample_plane(buffer, 0), width, height)
+    }
 }
 
 fn info(path: &Path) -> Result<(), Error> {

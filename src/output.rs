@@ -9,7 +9,7 @@ use npyz::WriterBuilder;
 use crate::error::Error;
 use crate::target::Target;
 
-/// Writes the target's colour buffer as an 8-bit RGBA PNG.
+/// Writes the target's colour image (resolved, when multisampled) as an 8-bit RGBA PNG.
 pub fn write_png(path: &Path, target: &Target) -> Result<(), Error> {
     let file = File::create(path).map_err(|e| Error::io(path, e))?;
     let mut encoder = png::Encoder::new(BufWriter::new(file), target.width(), target.height());
@@ -18,7 +18,7 @@ pub fn write_png(path: &Path, target: &Target) -> Result<(), Error> {
     let encode_err =
         |e: png::EncodingError| Error::Encode { path: path.to_path_buf(), message: e.to_string() };
     let mut writer = encoder.write_header().map_err(encode_err)?;
-    writer.write_image_data(target.color.as_flattened()).map_err(encode_err)?;
+    writer.write_image_data(target.resolve().as_flattened()).map_err(encode_err)?;
     writer.finish().map_err(encode_err)
 }
 

@@ -37,7 +37,7 @@ use rayon::prelude::*;
 use crate::clip::{ClipVertex, ClipVolume};
 use crate::color::{linear_to_srgb8, unorm8};
 use crate::error::Error;
-use crate::raster::{self, Algorithm};
+use crate::raster::Algorithm;
 use crate::render::DrawStats;
 use crate::setup::{CullMode, Rejection, TriangleSetup, Vertex};
 use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
@@ -222,41 +222,39 @@ impl Pipeline {
                 let inv_area2 = 1.0 / setup.area2 as f64;
                 let front_facing = !setup.clockwise;
                 let want_normal = target.normals.is_some();
-                raster::rasterize(self.algorithm, &setup, &clip_rect, |span| {
-                    stats.fragments += span.len() as u64;
-                    shade::shade_span(
-                        target,
-                        &setup,
-                        span,
-                        &depth,
-                        self.depth_test,
-                        id as i32,
-                        |px, e1, e2, z| {
-                            let w = perspective_weights(e1 * inv_area2, e2 * inv_area2, q);
-                            let fragment = Fragment {
-                                x: px,
-                                y: span.y,
-                                depth: z,
-                                varyings: VS::Varyings::weighted(&vary[0], &vary[1], &vary[2], w),
-                                front_facing,
-                                primitive: id as u32,
-                            };
-                            let c = fragment_shader.shade(&fragment)?;
-                            let color = [
-                                linear_to_srgb8(c.x),
-                                linear_to_srgb8(c.y),
-                                linear_to_srgb8(c.z),
-                                unorm8(c.w),
-                            ];
-                            let normal = if want_normal {
-                                fragment_shader.normal(&fragment).map(|n| n.to_array())
-                            } else {
-                                None
-                            };
-                            Some(FragmentOutput { color, normal })
-                        },
-                    );
-                });
+                stats.fragments += shade::shade_triangle(
+                    target,
+                    &setup,
+                    self.algorithm,
+                    &clip_rect,
+                    &depth,
+                    self.depth_test,
+                    id as i32,
+                    |x, y, e1, e2, z| {
+                        let w = perspective_weights(e1 * inv_area2, e2 * inv_area2, q);
+                        let fragment = Fragment {
+                            x,
+                            y,
+                            depth: z,
+                            varyings: VS::Varyings::weighted(&vary[0], &vary[1], &vary[2], w),
+                            front_facing,
+                            primitive: id as u32,
+                        };
+                        let c = fragment_shader.shade(&fragment)?;
+                        let color = [
+                            linear_to_srgb8(c.x),
+                            linear_to_srgb8(c.y),
+                            linear_to_srgb8(c.z),
+                            unorm8(c.w),
+                        ];
+                        let normal = if want_normal {
+                            fragment_shader.normal(&fragment).map(|n| n.to_array())
+                        } else {
+                            None
+                        };
+                        Some(FragmentOutput { color, normal })
+                    },
+                );
             }
         }
         Ok(stats)

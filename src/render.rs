@@ -2,9 +2,9 @@
 
 use crate::error::Error;
 use crate::fixed;
-use crate::raster::{self, Algorithm};
+use crate::raster::Algorithm;
 use crate::setup::{CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
-use crate::shade::{DepthTest, Shading, TriangleShader};
+use crate::shade::{self, DepthTest, FragmentOutput, Shading, TriangleShader};
 use crate::target::Target;
 
 /// How to draw. `RenderOptions::default()` is: edge functions, smooth shading, no culling,
@@ -113,11 +113,17 @@ pub fn draw(
         };
         stats.rasterized += 1;
         let Some(clip) = clip else { continue };
-        let shader = TriangleShader::new(tri, &setup, options.shading, id as i32);
-        raster::rasterize(options.algorithm, &setup, &clip, |span| {
-            stats.fragments += span.len() as u64;
-            shader.shade_span(&setup, span, options.depth_test, target);
-        });
+        let shader = TriangleShader::new(tri, &setup, options.shading);
+        stats.fragments += shade::shade_triangle(
+            target,
+            &setup,
+            options.algorithm,
+            &clip,
+            shader.depth_plane(),
+            options.depth_test,
+            id as i32,
+            |_, _, e1, e2, _| Some(FragmentOutput { color: shader.color_at(e1, e2), normal: None }),
+        );
     }
     Ok(stats)
 }

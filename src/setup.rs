@@ -164,6 +164,8 @@ pub struct TriangleSetup {
     pub clockwise: bool,
     /// Pixels whose centres may be covered: the snapped bounding box, not yet clipped.
     pub bounds: PixelRect,
+    /// The snapped bounding box in fixed point: `[[x_min, y_min], [x_max, y_max]]`.
+    pub extent: [[i64; 2]; 2],
 }
 
 impl TriangleSetup {
@@ -209,13 +211,16 @@ impl TriangleSetup {
         let edges = [edge(p1, p2), edge(p2, p0), edge(p0, p1)];
         let min = |k: usize| p0[k].min(p1[k]).min(p2[k]);
         let max = |k: usize| p0[k].max(p1[k]).max(p2[k]);
-        let bounds = PixelRect {
-            x0: fixed::first_centre_at_or_after(min(0)) as i32,
-            y0: fixed::first_centre_at_or_after(min(1)) as i32,
-            x1: fixed::last_centre_at_or_before(max(0)) as i32,
-            y1: fixed::last_centre_at_or_before(max(1)) as i32,
-        };
-        Ok(Self { xy, edges, area2: signed.abs(), clockwise, bounds })
+        let extent = [[min(0), min(1)], [max(0), max(1)]];
+        let bounds = sample_bounds(extent, [0, 0]);
+        Ok(Self { xy, edges, area2: signed.abs(), clockwise, bounds, extent })
+    }
+
+    /// Pixels whose sample at fixed-point `offset` from the centre may be covered (the
+    /// bounding box, for that sample position).
+    #[must_use]
+    pub fn sample_bounds(&self, offset: [i64; 2]) -> PixelRect {
+        sample_bounds(self.extent, offset)
     }
 
     /// Does the triangle cover the centre of pixel `(px, py)`? The definition every
@@ -244,6 +249,18 @@ impl TriangleSetup {
         let e1 = self.edges[1].a * dx + self.edges[1].b * dy;
         let e2 = self.edges[2].a * dx + self.edges[2].b * dy;
         (e1, e2)
+    }
+}
+
+/// Pixels `p` whose sample position `256 p + 128 + offset` lies within `extent` on both axes.
+fn sample_bounds(extent: [[i64; 2]; 2], offset: [i64; 2]) -> PixelRect {
+    let [[x0, y0], [x1, y1]] = extent;
+    let [ox, oy] = offset;
+    PixelRect {
+        x0: fixed::first_centre_at_or_after(x0 - ox) as i32,
+        y0: fixed::first_centre_at_or_after(y0 - oy) as i32,
+        x1: fixed::last_centre_at_or_before(x1 - ox) as i32,
+        y1: fixed::last_centre_at_or_before(y1 - oy) as i32,
     }
 }
 

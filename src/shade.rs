@@ -15,8 +15,8 @@
 //! interpolated in 0..=255 units and rounded half to even.
 
 use crate::fixed;
-use crate::raster::Span;
-use crate::setup::{TriangleSetup, Vertex};
+use crate::raster::{self, Algorithm, Span};
+use crate::setup::{PixelRect, TriangleSetup, Vertex};
 use crate::target::Target;
 
 /// How a triangle's colour varies across it.
@@ -114,12 +114,11 @@ enum ColorSource {
     Perspective([PerspectivePlane; 4]),
 }
 
-/// What the shade stage needs for one triangle: its coverage setup, depth plane and colour.
+/// The window pipeline's per-triangle shading: a depth plane and a colour source.
 #[derive(Clone, Copy, Debug)]
 pub struct TriangleShader {
     depth: PlaneEquation,
     color: ColorSource,
-    id: i32,
 }
 
 /// The flat colour of a triangle: per channel, the average of the vertex colours rounded to
@@ -142,9 +141,9 @@ pub fn quantize_channel(c: f64) -> u8 {
 }
 
 impl TriangleShader {
-    /// Prepares the planes of triangle `id` with vertices `v` and setup `setup`.
+    /// Prepares the planes of a triangle with vertices `v` and setup `setup`.
     #[must_use]
-    pub fn new(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading, id: i32) -> Self {
+    pub fn new(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> Self {
         let depth = PlaneEquation::new(v.map(|p| f64::from(p.z)), setup);
         let channel = |c: usize| v.map(|p| f64::from(p.color[c]));
         let color = match shading {
@@ -159,7 +158,13 @@ impl TriangleShader {
                 }))
             }
         };
-        Self { depth, color, id }
+        Self { depth, color }
+    }
+
+    /// The depth plane.
+    #[must_use]
+    pub fn depth_plane(&self) -> &PlaneEquation {
+        &self.depth
     }
 
     /// Depth at barycentric numerators `(e1, e2)`, as stored in the depth buffer.
@@ -179,19 +184,6 @@ impl TriangleShader {
             ColorSource::Perspective(p) => p.map(|p| quantize_channel(p.eval(e1, e2))),
         }
     }
-
-    /// Shades every pixel of `span`: overdraw count, depth test, then depth, colour and id.
-    pub fn shade_span(
-        &self,
-        setup: &TriangleSetup,
-        span: Span,
-        depth_test: DepthTest,
-        target: &mut Target,
-    ) {
-        shade_span(target, setup, span, &self.depth, depth_test, self.id, |_, e1, e2, _| {
-            Some(FragmentOutput { color: self.color_at(e1, e2), normal: None })
-        });
-    }
 }
 
 /// What a fragment writes once it has passed the depth test.
@@ -210,39 +202,103 @@ pub fn depth_at(plane: &PlaneEquation, e1: f64, e2: f64) -> f32 {
     (plane.eval(e1, e2) as f32).clamp(0.0, 1.0)
 }
 
-/// The one fragment loop every pipeline shares: for each pixel of `span`, count overdraw,
-/// interpolate depth, test it, and only then ask `fragment(px, e1, e2, z)` for the output
-/// (`None` discards it: nothing is written). Writes depth, colour, id and normal.
-pub fn shade_span(
+/// The one fragment loop every pipeline shares. For each pixel with covered samples: count
+/// them (overdraw), interpolate depth at each covered sample and test it, and only if one
+/// passes ask `fragment(px, py, e1, e2, z)` for the output, once per pixel, with `e1`, `e2`
+/// and `z` at the pixel centre (`None` discards it). Then write depth to the passing
+/// samples, colour and id to the passing samples, and the normal to the pixel.
+///
+/// At 1x the only sample is the pixel centre. Returns the number of covered samples.
+#[allow(clippy::too_many_arguments)]
+pub fn shade_triangle(
     target: &mut Target,
     setup: &TriangleSetup,
-    span: Span,
+    algorithm: Algorithm,
+    clip: &PixelRect,
     depth: &PlaneEquation,
     depth_test: DepthTest,
     id: i32,
-    mut fragment: impl FnMut(i32, f64, f64, f32) -> Option<FragmentOutput>,
-) {
-    let y = fixed::pixel_centre(span.y);
-    let row = target.index(0, span.y);
-    for px in span.x_start..span.x_end {
-        let i = row + px as usize;
+    mut fragment: impl FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>,
+) -> u64 {
+    let samples = target.samples();
+    let n = samples.count();
+    let mut covered = 0u64;
+    let mut pixel = |target: &mut Target, px: i32, py: i32, mask: u32| {
+        covered += u64::from(mask.count_ones());
+        let p = target.index(px, py);
         if let Some(o) = &mut target.overdraw {
-            o[i] += 1;
+            o[p] += mask.count_ones();
         }
-        let (e1, e2) = setup.barycentric_numerators(fixed::pixel_centre(px), y);
+        let (cx, cy) = (fixed::pixel_centre(px), fixed::pixel_centre(py));
+        let mut z = [0.0f32; 8];
+        let mut passed = 0u32;
+        for s in (0..n).filter(|s| mask & (1 << s) != 0) {
+            let [ox, oy] = samples.offset(s);
+            let (e1, e2) = setup.barycentric_numerators(cx + ox, cy + oy);
+            z[s] = depth_at(depth, e1 as f64, e2 as f64);
+            if depth_test.passes(z[s], target.depth[p * n + s]) {
+                passed |= 1 << s;
+            }
+        }
+        if passed == 0 {
+            return;
+        }
+        let (e1, e2) = setup.barycentric_numerators(cx, cy);
         let (e1, e2) = (e1 as f64, e2 as f64);
-        let z = depth_at(depth, e1, e2);
-        if !depth_test.passes(z, target.depth[i]) {
-            continue;
+        let z_centre = if n == 1 { z[0] } else { depth_at(depth, e1, e2) };
+        let Some(out) = fragment(px, py, e1, e2, z_centre) else { return };
+        for s in (0..n).filter(|s| passed & (1 << s) != 0) {
+            target.depth[p * n + s] = z[s];
+            target.color[p * n + s] = out.color;
+            if let Some(ids) = &mut target.ids {
+                ids[p * n + s] = id;
+            }
         }
-        let Some(out) = fragment(px, e1, e2, z) else { continue };
-        target.depth[i] = z;
-        target.color[i] = out.color;
-        if let Some(ids) = &mut target.ids {
-            ids[i] = id;
+        if let (Some(normals), Some(nrm)) = (&mut target.normals, out.normal) {
+            normals[p] = nrm;
         }
-        if let (Some(normals), Some(n)) = (&mut target.normals, out.normal) {
-            normals[i] = n;
+    };
+    if n == 1 {
+        raster::rasterize(algorithm, setup, clip, |span| {
+            for px in span.x_start..span.x_end {
+                pixel(target, px, span.y, 1);
+            }
+        });
+        return covered;
+    }
+    // Multisampling: coverage per sample, then pixel by pixel over each row's union.
+    let spans: Vec<Vec<Span>> = (0..n)
+        .map(|s| {
+            let mut v = Vec::new();
+            raster::rasterize_sample(algorithm, setup, clip, samples.offset(s), |sp| v.push(sp));
+            v
+        })
+        .collect();
+    let Some(y0) = spans.iter().filter_map(|v| v.first()).map(|sp| sp.y).min() else {
+        return covered;
+    };
+    let y1 = spans.iter().filter_map(|v| v.last()).map(|sp| sp.y).max().unwrap_or(y0);
+    let mut cursor = vec![0usize; n];
+    let mut row = [None::<Span>; 8];
+    for y in y0..=y1 {
+        let (mut lo, mut hi) = (i32::MAX, i32::MIN);
+        for s in 0..n {
+            row[s] = spans[s].get(cursor[s]).copied().filter(|sp| sp.y == y);
+            if let Some(sp) = row[s] {
+                cursor[s] += 1;
+                lo = lo.min(sp.x_start);
+                hi = hi.max(sp.x_end);
+            }
+        }
+        for px in lo..hi {
+            let mask = (0..n).fold(0u32, |m, s| match row[s] {
+                Some(sp) if (sp.x_start..sp.x_end).contains(&px) => m | (1 << s),
+                _ => m,
+            });
+            if mask != 0 {
+                pixel(target, px, y, mask);
+            }
         }
     }
+    covered
 }

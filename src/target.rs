@@ -1,22 +1,29 @@
 //! Render targets: the buffers the shade stage writes, laid out row-major, row 0 at the top.
+//!
+//! Per-sample buffers (colour, depth, ids) hold `samples` consecutive values per pixel: element
+//! `pixel * samples + s`, i.e. an array of shape (height, width, samples). Per-pixel buffers
+//! (overdraw, normals) hold one.
 
+use crate::color::{linear_to_srgb8, srgb_to_linear};
 use crate::error::Error;
 use crate::fixed::MAX_TARGET_SIZE;
+use crate::sample::SampleCount;
 use crate::setup::PixelRect;
 
-/// Colour, depth and the optional id and overdraw buffers of one image.
+/// Colour, depth and the optional id, overdraw and normal buffers of one image.
 #[derive(Clone, Debug)]
 pub struct Target {
     width: u32,
     height: u32,
-    /// RGBA8 colour, `width * height` pixels.
+    samples: SampleCount,
+    /// RGBA8 colour per sample (sRGB-encoded where the pipeline is colour-managed).
     pub color: Vec<[u8; 4]>,
-    /// Depth, cleared to 1.0.
+    /// Depth per sample, cleared to 1.0.
     pub depth: Vec<f32>,
-    /// Index of the triangle whose fragment was last written (passed the depth test) at each
-    /// pixel, -1 where none was.
+    /// Per sample, the index of the triangle whose fragment was last written there (passed the
+    /// depth test), -1 where none was.
     pub ids: Option<Vec<i32>>,
-    /// Fragments generated per pixel, counted before the depth test.
+    /// Covered samples per pixel, counted before the depth test (fragments, at 1x).
     pub overdraw: Option<Vec<u32>>,
     /// Normal of the last written fragment (zero where none), when a pipeline provides one.
     pub normals: Option<Vec<[f32; 3]>>,
@@ -29,13 +36,19 @@ impl Target {
     /// A `width x height` target with colour and depth; both sides must be in
     /// `1..=16384` (the range the fixed-point bound is derived for).
     pub fn new(width: u32, height: u32) -> Result<Self, Error> {
+        Self::multisampled(width, height, SampleCount::X1)
+    }
+
+    /// A target with `samples` samples per pixel for colour, depth and ids.
+    pub fn multisampled(width: u32, height: u32, samples: SampleCount) -> Result<Self, Error> {
         if !(1..=MAX_TARGET_SIZE).contains(&width) || !(1..=MAX_TARGET_SIZE).contains(&height) {
             return Err(Error::TargetSize { width, height });
         }
-        let n = width as usize * height as usize;
+        let n = width as usize * height as usize * samples.count();
         Ok(Self {
             width,
             height,
+            samples,
             color: vec![DEFAULT_CLEAR_COLOR; n],
             depth: vec![1.0; n],
             ids: None,
@@ -47,7 +60,7 @@ impl Target {
     /// Adds a triangle-id buffer, cleared to -1.
     #[must_use]
     pub fn with_ids(mut self) -> Self {
-        self.ids = Some(vec![-1; self.pixel_count()]);
+        self.ids = Some(vec![-1; self.pixel_count() * self.samples.count()]);
         self
     }
 
@@ -104,7 +117,54 @@ impl Target {
         PixelRect::of_target(self.width, self.height)
     }
 
-    /// Index of pixel `(x, y)` in the buffers.
+    /// Samples per pixel.
+    #[must_use]
+    pub fn samples(&self) -> SampleCount {
+        self.samples
+    }
+
+    /// The colour image: at 1x the colour buffer itself; with multisampling, each pixel's
+    /// samples averaged in linear light (colour decoded from sRGB, averaged, encoded again;
+    /// alpha averaged as is).
+    #[must_use]
+    pub fn resolve(&self) -> Vec<[u8; 4]> {
+        let n = self.samples.count();
+        if n == 1 {
+            return self.color.clone();
+        }
+        self.color
+            .chunks_exact(n)
+            .map(|px| {
+                let mut sum = [0.0f32; 4];
+                for c in px {
+                    for k in 0..3 {
+                        sum[k] += srgb_to_linear(c[k]);
+                    }
+                    sum[3] += f32::from(c[3]);
+                }
+                let k = n as f32;
+                [
+                    linear_to_srgb8(sum[0] / k),
+                    linear_to_srgb8(sum[1] / k),
+                    linear_to_srgb8(sum[2] / k),
+                    (sum[3] / k).round() as u8,
+                ]
+            })
+            .collect()
+    }
+
+    /// Sample `s` of every pixel of a per-sample buffer, as a per-pixel image.
+    ///
+    /// # Panics
+    /// If `s` is not below the sample count or `buffer` is not a per-sample buffer.
+    #[must_use]
+    pub fn sample_plane<T: Copy>(&self, buffer: &[T], s: usize) -> Vec<T> {
+        let n = self.samples.count();
+        assert!(s < n && buffer.len() == self.pixel_count() * n, "not a per-sample buffer");
+        buffer.iter().skip(s).step_by(n).copied().collect()
+    }
+
+    /// Index of pixel `(x, y)` in per-pixel buffers (and in per-sample ones at 1x).
     #[inline]
     #[must_use]
     pub fn index(&self, x: i32, y: i32) -> usize {

@@ -37,7 +37,7 @@ fn vertex_values_are_reproduced_at_vertex_centres() {
         });
         let Ok(setup) = TriangleSetup::new(&v, CullMode::None) else { continue };
         for shading in [Shading::Smooth, Shading::Perspective] {
-            let shader = TriangleShader::new(&v, &setup, shading, 0);
+            let shader = TriangleShader::new(&v, &setup, shading);
             for (i, p) in v.iter().enumerate() {
                 let [x, y] = setup.xy[i];
                 let (e1, e2) = setup.barycentric_numerators(x, y);
@@ -184,7 +184,7 @@ fn perspective_correct_varyings_match_the_analytic_quad() {
         let pu = PerspectivePlane::new(u3, inv_w, &setup);
         let pv = PerspectivePlane::new(v3, inv_w, &setup);
         let linear_u = PlaneEquation::new(u3, &setup);
-        let shader = TriangleShader::new(tri, &setup, Shading::Smooth, 0);
+        let shader = TriangleShader::new(tri, &setup, Shading::Smooth);
         for py in 0..160 {
             for px in 0..200 {
                 if !setup.covers(px, py) {

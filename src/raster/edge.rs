@@ -9,12 +9,19 @@ use super::Span;
 use crate::fixed;
 use crate::setup::{PIXEL_STEP, PixelRect, TriangleSetup};
 
-/// Emits the spans of `tri` within `clip`, top to bottom.
-pub fn rasterize(tri: &TriangleSetup, clip: &PixelRect, mut emit: impl FnMut(Span)) {
-    let Some(r) = tri.bounds.intersect(clip) else {
+/// Emits the spans of pixels of `tri` within `clip` whose sample at fixed-point `offset` from
+/// the centre is covered, top to bottom.
+pub fn rasterize(
+    tri: &TriangleSetup,
+    clip: &PixelRect,
+    offset: [i64; 2],
+    mut emit: impl FnMut(Span),
+) {
+    let Some(r) = tri.sample_bounds(offset).intersect(clip) else {
         return;
     };
-    let (x0, y0) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
+    let x0 = fixed::pixel_centre(r.x0) + offset[0];
+    let y0 = fixed::pixel_centre(r.y0) + offset[1];
     let mut row = tri.edges.map(|e| e.eval(x0, y0));
     let step_x = tri.edges.map(|e| e.a * PIXEL_STEP);
     let step_y = tri.edges.map(|e| e.b * PIXEL_STEP);

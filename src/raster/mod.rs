@@ -51,16 +51,28 @@ pub enum Algorithm {
     Scanline,
 }
 
-/// Calls `emit` with every span of `tri` inside `clip`, top to bottom.
+/// Calls `emit` with every span of `tri` inside `clip` (pixel centres), top to bottom.
 pub fn rasterize(
     algorithm: Algorithm,
     tri: &TriangleSetup,
     clip: &PixelRect,
     emit: impl FnMut(Span),
 ) {
+    rasterize_sample(algorithm, tri, clip, [0, 0], emit);
+}
+
+/// Like [`rasterize`], for the sample at fixed-point `offset` from each pixel centre: a span
+/// holds the pixels whose sample there is covered.
+pub fn rasterize_sample(
+    algorithm: Algorithm,
+    tri: &TriangleSetup,
+    clip: &PixelRect,
+    offset: [i64; 2],
+    emit: impl FnMut(Span),
+) {
     match algorithm {
-        Algorithm::EdgeFunctions => edge::rasterize(tri, clip, emit),
-        Algorithm::Scanline => scanline::rasterize(tri, clip, emit),
+        Algorithm::EdgeFunctions => edge::rasterize(tri, clip, offset, emit),
+        Algorithm::Scanline => scanline::rasterize(tri, clip, offset, emit),
     }
 }
 

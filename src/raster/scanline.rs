@@ -18,11 +18,18 @@ use super::Span;
 use crate::fixed::{self, HALF, ONE};
 use crate::setup::{EdgeFunction, PixelRect, TriangleSetup};
 
-/// Emits the spans of `tri` within `clip`, top to bottom.
-pub fn rasterize(tri: &TriangleSetup, clip: &PixelRect, mut emit: impl FnMut(Span)) {
-    let Some(r) = tri.bounds.intersect(clip) else {
+/// Emits the spans of pixels of `tri` within `clip` whose sample at fixed-point `offset` from
+/// the centre is covered, top to bottom.
+pub fn rasterize(
+    tri: &TriangleSetup,
+    clip: &PixelRect,
+    offset: [i64; 2],
+    mut emit: impl FnMut(Span),
+) {
+    let Some(r) = tri.sample_bounds(offset).intersect(clip) else {
         return;
     };
+    let oy = offset[1];
     let mut order = [0usize, 1, 2];
     order.sort_by_key(|&i| tri.xy[i][1]);
     let [top, mid, bot] = order;
@@ -31,7 +38,8 @@ pub fn rasterize(tri: &TriangleSetup, clip: &PixelRect, mut emit: impl FnMut(Spa
     let long = edge(top, bot);
     let upper = edge(top, mid);
     let lower = edge(mid, bot);
-    let y_mid = tri.xy[mid][1];
+    // Compare sample rows with the middle vertex in "pixel centre" coordinates.
+    let y_mid = tri.xy[mid][1] - oy;
 
     let rows = |first: i64, last: i64| {
         (first.max(i64::from(r.y0)) as i32)..=(last.min(i64::from(r.y1)) as i32)
@@ -39,26 +47,32 @@ pub fn rasterize(tri: &TriangleSetup, clip: &PixelRect, mut emit: impl FnMut(Spa
     let above = fixed::last_centre_at_or_before(y_mid - 1);
     let below = fixed::first_centre_at_or_after(y_mid + 1);
     for y in rows(i64::from(r.y0), above) {
-        walk_row(y, &[long, upper], &r, &mut emit);
+        walk_row(y, &[long, upper], &r, offset, &mut emit);
     }
     if (y_mid - i64::from(HALF)).rem_euclid(i64::from(ONE)) == 0 {
         let y = fixed::last_centre_at_or_before(y_mid);
         for y in rows(y, y) {
-            walk_row(y, &[long, upper, lower], &r, &mut emit);
+            walk_row(y, &[long, upper, lower], &r, offset, &mut emit);
         }
     }
     for y in rows(below, i64::from(r.y1)) {
-        walk_row(y, &[long, lower], &r, &mut emit);
+        walk_row(y, &[long, lower], &r, offset, &mut emit);
     }
 }
 
 /// Intersects the row's clip range with the bound each active edge puts on `px`.
-fn walk_row(y: i32, active: &[&EdgeFunction], clip: &PixelRect, emit: &mut impl FnMut(Span)) {
-    let yc = fixed::pixel_centre(y);
+fn walk_row(
+    y: i32,
+    active: &[&EdgeFunction],
+    clip: &PixelRect,
+    offset: [i64; 2],
+    emit: &mut impl FnMut(Span),
+) {
+    let yc = fixed::pixel_centre(y) + offset[1];
     let (mut lo, mut hi) = (i64::from(clip.x0), i64::from(clip.x1));
     for e in active {
         // Need a * 256 * px >= rhs.
-        let rhs = -(e.b * yc + e.c + e.a * i64::from(HALF));
+        let rhs = -(e.b * yc + e.c + e.a * (i64::from(HALF) + offset[0]));
         let step = e.a * i64::from(ONE);
         if e.a > 0 {
             lo = lo.max(fixed::ceil_div(rhs, step));
