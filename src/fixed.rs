@@ -47,9 +47,11 @@ pub fn snap(x: f32) -> Option<i32> {
     if !(MIN_COORD..MAX_COORD).contains(&x) {
         return None;
     }
-    let scaled = (x * ONE as f32).round_ties_even();
+    // In f64 (exact), adding and removing 1.5 * 2^52 rounds half to even without a libm call.
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    let scaled = ((f64::from(x) * f64::from(ONE)) + MAGIC) - MAGIC;
     // 32767.999 rounds up to 2^23 = 32768 pixels, just past the range.
-    if scaled >= (MAX_COORD * ONE as f32) {
+    if scaled >= f64::from(MAX_COORD) * f64::from(ONE) {
         return None;
     }
     Some(scaled as i32)

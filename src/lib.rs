@@ -22,6 +22,8 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod bench;
+pub mod bin;
 pub mod camera;
 pub mod clip;
 pub mod color;

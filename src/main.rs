@@ -31,6 +31,27 @@ enum Command {
         /// Mesh file.
         file: PathBuf,
     },
+    /// Time the built-in benchmark scenes (bunny, soup, grid, fill, dense).
+    Bench {
+        /// Scenes to run (default: all five).
+        #[arg(value_enum)]
+        scenes: Vec<SceneArg>,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Timed frames per scene, after one warm-up frame.
+        #[arg(long, default_value_t = 10)]
+        frames: usize,
+        /// Samples per pixel; with 4 or 8, each scene is also timed at 1x for comparison.
+        #[arg(long, value_parser = parse_msaa, default_value = "1")]
+        msaa: SampleCount,
+        /// Triangles in the dense scene.
+        #[arg(long, default_value_t = trirast::bench::DENSE_TRIANGLES)]
+        dense_triangles: usize,
+        /// Print one JSON object per scene instead of a table.
+        #[arg(long)]
+        json: bool,
+    },
     /// Draw one of the lectures' 2D demonstrations.
     Demo {
         /// Which demonstration.
@@ -133,6 +154,15 @@ enum ProjectionArg {
     Perspective,
     Orthographic,
     Window,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum SceneArg {
+    Bunny,
+    Soup,
+    Grid,
+    Fill,
+    Dense,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -261,6 +291,9 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => render(&args),
         Command::Info { file } => info(&file),
+        Command::Bench { scenes, threads, frames, msaa, dense_triangles, json } => {
+            bench(&scenes, threads, frames, msaa, dense_triangles, json)
+        }
         Command::Demo { which, output, size, algorithm } => demo(which, &output, size, algorithm),
     };
     match result {
@@ -503,6 +536,103 @@ where
     } else {
         trirast::output::write_npy(path, &target.sample_plane(buffer, 0), width, height)
     }
+}
+
+fn bench(
+    scenes: &[SceneArg],
+    threads: Option<usize>,
+    frames: usize,
+    msaa: SampleCount,
+    dense_triangles: usize,
+    json: bool,
+) -> Result<(), Error> {
+    use trirast::bench::{self, BenchScene};
+    let threads =
+        threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| usage(format!("cannot start {threads} threads: {e}")))?;
+    let scenes: Vec<BenchScene> = if scenes.is_empty() {
+        BenchScene::ALL.to_vec()
+    } else {
+        scenes
+            .iter()
+            .map(|s| match s {
+                SceneArg::Bunny => BenchScene::Bunny,
+                SceneArg::Soup => BenchScene::Soup,
+                SceneArg::Grid => BenchScene::Grid,
+                SceneArg::Fill => BenchScene::Fill,
+                SceneArg::Dense => BenchScene::Dense,
+            })
+            .collect()
+    };
+    let frames = frames.max(1);
+    if !json {
+        println!(
+            "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10} {:>10} {:>9} {:>9}",
+            "scene",
+            "triangles",
+            "pixels",
+            "fragments",
+            "thr",
+            "msaa",
+            "median ms",
+            "min ms",
+            "Mtri/s",
+            "Gfrag/s"
+        );
+    }
+    for scene in scenes {
+        let mut counts = vec![msaa];
+        if msaa != SampleCount::X1 {
+            counts.insert(0, SampleCount::X1);
+        }
+        let mut baseline = None;
+        for samples in counts {
+            let r =
+                pool.install(|| bench::run(scene, frames, threads, samples, dense_triangles))?;
+            if json {
+                println!(
+                    "{{\"scene\":\"{}\",\"source\":{:?},\"triangles\":{},\"pixels\":{},\"fragments\":{},\"threads\":{},\"msaa\":{},\"median_ms\":{:.3},\"min_ms\":{:.3},\"mtri_per_s\":{:.2},\"gfrag_per_s\":{:.3}}}",
+                    r.scene,
+                    r.source,
+                    r.triangles,
+                    r.pixels,
+                    r.fragments,
+                    r.threads,
+                    r.msaa,
+                    r.median_ms,
+                    r.min_ms,
+                    r.mtri_per_s(),
+                    r.gfrag_per_s()
+                );
+            } else {
+                let cost = match baseline {
+                    Some(b) if r.msaa > 1 => format!("  ({:.2}x the 1x time)", r.median_ms / b),
+                    _ => String::new(),
+                };
+                println!(
+                    "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10.2} {:>10.2} {:>9.1} {:>9.3}{cost}",
+                    r.scene,
+                    r.triangles,
+                    r.pixels,
+                    r.fragments,
+                    r.threads,
+                    r.msaa,
+                    r.median_ms,
+                    r.min_ms,
+                    r.mtri_per_s(),
+                    r.gfrag_per_s()
+                );
+                if r.source != "generated" && r.msaa == 1 {
+                    println!("       ({})", r.source);
+                }
+            }
+            baseline.get_or_insert(r.median_ms);
+        }
+    }
+    Ok(())
 }
 
 fn info(path: &Path) -> Result<(), Error> {

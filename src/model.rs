@@ -94,6 +94,22 @@ pub struct ModelOptions {
     pub wrap: Wrap,
 }
 
+impl ModelOptions {
+    /// Sets the lighting model.
+    #[must_use]
+    pub fn with_lighting(mut self, lighting: Lighting) -> Self {
+        self.lighting = lighting;
+        self
+    }
+
+    /// Sets the faces to discard.
+    #[must_use]
+    pub fn with_cull(mut self, cull: FaceCull) -> Self {
+        self.cull = cull;
+        self
+    }
+}
+
 /// Textures of a mesh's materials, loaded once; a texture that cannot be read becomes a warning
 /// and the material's plain colour.
 #[derive(Clone, Debug, Default)]

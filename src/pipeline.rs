@@ -34,11 +34,12 @@
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
+use crate::bin::{self, BATCH, Prepared};
 use crate::clip::{ClipVertex, ClipVolume};
 use crate::color::{linear_to_srgb8, unorm8};
 use crate::error::Error;
 use crate::raster::Algorithm;
-use crate::render::DrawStats;
+use crate::render::{Backend, DrawStats};
 use crate::setup::{CullMode, Rejection, TriangleSetup, Vertex};
 use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
 use crate::target::Target;
@@ -117,6 +118,8 @@ pub struct Pipeline {
     pub depth_test: DepthTest,
     /// Coverage algorithm.
     pub algorithm: Algorithm,
+    /// Reference or tiled execution (bit-identical results).
+    pub backend: Backend,
 }
 
 impl Pipeline {
@@ -124,6 +127,13 @@ impl Pipeline {
     #[must_use]
     pub fn with_cull(mut self, cull: FaceCull) -> Self {
         self.cull = cull;
+        self
+    }
+
+    /// Sets the backend.
+    #[must_use]
+    pub fn with_backend(mut self, backend: Backend) -> Self {
+        self.backend = backend;
         self
     }
 
@@ -169,95 +179,162 @@ impl Pipeline {
                 ClipVertex { position, varyings }
             })
             .collect();
-        let volume = ClipVolume::for_target(target.width(), target.height());
-        let viewport = Viewport::of(target);
-        let cull = match self.cull {
-            FaceCull::None => CullMode::None,
-            // The viewport's y flip keeps the picture upright, so a triangle counter-clockwise
-            // in NDC is counter-clockwise on the image too.
-            FaceCull::Back => CullMode::Clockwise,
-            FaceCull::Front => CullMode::CounterClockwise,
+        let front = FrontEnd {
+            volume: ClipVolume::for_target(target.width(), target.height()),
+            viewport: Viewport::of(target),
+            cull: match self.cull {
+                FaceCull::None => CullMode::None,
+                // The viewport's y flip keeps the picture upright, so a triangle
+                // counter-clockwise in NDC is counter-clockwise on the image too.
+                FaceCull::Back => CullMode::Clockwise,
+                FaceCull::Front => CullMode::CounterClockwise,
+            },
         };
         let clip_rect = target.rect();
-        let mut stats = DrawStats { submitted: triangles.len(), ..DrawStats::default() };
-        let mut polygon = Vec::new();
-        for (id, tri) in triangles.iter().enumerate() {
-            let input = tri.map(|i| shaded[i as usize]);
-            polygon.clear();
-            let codes = input.map(|v| volume.outcode(v.position));
-            if codes == [0; 3] {
-                polygon.extend(input);
+        let want_normal = target.normals.is_some();
+        let shade = |t: &TriangleData<VS::Varyings>, x, y, e1: f64, e2: f64, z| {
+            let w = perspective_weights(e1 * t.inv_area2, e2 * t.inv_area2, t.inv_w);
+            let fragment = Fragment {
+                x,
+                y,
+                depth: z,
+                varyings: VS::Varyings::weighted(&t.varyings[0], &t.varyings[1], &t.varyings[2], w),
+                front_facing: t.front_facing,
+                primitive: t.primitive,
+            };
+            let c = fragment_shader.shade(&fragment)?;
+            let color =
+                [linear_to_srgb8(c.x), linear_to_srgb8(c.y), linear_to_srgb8(c.z), unorm8(c.w)];
+            let normal = if want_normal {
+                fragment_shader.normal(&fragment).map(|n| n.to_array())
             } else {
-                polygon.extend(volume.clip(input));
-                if polygon.is_empty() {
-                    stats.culled += 1;
-                    continue;
+                None
+            };
+            Some(FragmentOutput { color, normal })
+        };
+        let mut stats = DrawStats { submitted: triangles.len(), ..DrawStats::default() };
+        let count = |stats: &mut DrawStats, r: &Result<_, Rejection>| match r {
+            Ok(_) => stats.rasterized += 1,
+            Err(why) => stats.reject(*why),
+        };
+        match self.backend {
+            Backend::Reference => {
+                for (id, tri) in triangles.iter().enumerate() {
+                    let input = tri.map(|i| shaded[i as usize]);
+                    for r in front.prepare(input, id) {
+                        count(&mut stats, &r);
+                        let Ok(p) = r else { continue };
+                        stats.fragments += shade::shade_triangle(
+                            &mut target.band(),
+                            &p.setup,
+                            self.algorithm,
+                            &clip_rect,
+                            &p.depth,
+                            self.depth_test,
+                            p.id,
+                            |x, y, e1, e2, z| shade(&p.payload, x, y, e1, e2, z),
+                        );
+                    }
                 }
             }
-            let window: Vec<Vertex> = polygon.iter().map(|v| viewport.map(v.position)).collect();
-            for k in 1..polygon.len() - 1 {
-                let corners = [0, k, k + 1];
-                let win = corners.map(|c| window[c]);
-                let setup = match TriangleSetup::new(&win, cull) {
-                    Ok(s) => s,
-                    Err(Rejection::NonFinite) => {
-                        stats.non_finite += 1;
-                        continue;
+            Backend::Tiled => {
+                for (b, batch) in triangles.chunks(BATCH).enumerate() {
+                    let results: Vec<_> = batch
+                        .par_iter()
+                        .enumerate()
+                        .flat_map_iter(|(k, tri)| {
+                            front.prepare(tri.map(|i| shaded[i as usize]), b * BATCH + k)
+                        })
+                        .collect();
+                    for r in &results {
+                        count(&mut stats, r);
                     }
-                    Err(Rejection::Culled) => {
-                        stats.culled += 1;
-                        continue;
-                    }
-                    // The guard band keeps vertices in range; rounding at its edge cannot
-                    // reach the limit, but if it did the piece is skipped, never overflowed.
-                    Err(Rejection::Degenerate | Rejection::OutOfRange) => {
-                        stats.degenerate += 1;
-                        continue;
-                    }
-                };
-                stats.rasterized += 1;
-                let vary = corners.map(|c| polygon[c].varyings);
-                let q = win.map(|v| f64::from(v.inv_w));
-                let depth = PlaneEquation::new(win.map(|v| f64::from(v.z)), &setup);
-                let inv_area2 = 1.0 / setup.area2 as f64;
-                let front_facing = !setup.clockwise;
-                let want_normal = target.normals.is_some();
-                stats.fragments += shade::shade_triangle(
-                    target,
-                    &setup,
-                    self.algorithm,
-                    &clip_rect,
-                    &depth,
-                    self.depth_test,
-                    id as i32,
-                    |x, y, e1, e2, z| {
-                        let w = perspective_weights(e1 * inv_area2, e2 * inv_area2, q);
-                        let fragment = Fragment {
-                            x,
-                            y,
-                            depth: z,
-                            varyings: VS::Varyings::weighted(&vary[0], &vary[1], &vary[2], w),
-                            front_facing,
-                            primitive: id as u32,
-                        };
-                        let c = fragment_shader.shade(&fragment)?;
-                        let color = [
-                            linear_to_srgb8(c.x),
-                            linear_to_srgb8(c.y),
-                            linear_to_srgb8(c.z),
-                            unorm8(c.w),
-                        ];
-                        let normal = if want_normal {
-                            fragment_shader.normal(&fragment).map(|n| n.to_array())
-                        } else {
-                            None
-                        };
-                        Some(FragmentOutput { color, normal })
-                    },
-                );
+                    stats.fragments += bin::draw_binned(
+                        target,
+                        &results,
+                        self.algorithm,
+                        self.depth_test,
+                        &clip_rect,
+                        shade,
+                    );
+                }
             }
         }
         Ok(stats)
+    }
+}
+
+/// What the fragment stage needs of one (possibly clipped) triangle.
+#[derive(Clone, Copy, Debug)]
+struct TriangleData<V> {
+    varyings: [V; 3],
+    inv_w: [f64; 3],
+    inv_area2: f64,
+    front_facing: bool,
+    primitive: u32,
+}
+
+/// The fixed-function stages between the vertex shader and the rasterizer.
+struct FrontEnd {
+    volume: ClipVolume,
+    viewport: Viewport,
+    cull: CullMode,
+}
+
+/// The triangles one input triangle becomes: itself, nothing, or a clipped fan.
+enum Pieces<T> {
+    One(Option<T>),
+    Fan(std::vec::IntoIter<T>),
+}
+
+impl<T> Iterator for Pieces<T> {
+    type Item = T;
+    fn next(&mut self) -> Option<T> {
+        match self {
+            Self::One(t) => t.take(),
+            Self::Fan(it) => it.next(),
+        }
+    }
+}
+
+impl FrontEnd {
+    /// Clip, viewport and setup of triangle `id`: `Err` pieces count as rejected.
+    fn prepare<V: Varyings>(
+        &self,
+        input: [ClipVertex<V>; 3],
+        id: usize,
+    ) -> Pieces<Result<Prepared<TriangleData<V>>, Rejection>> {
+        let codes = input.map(|v| self.volume.outcode(v.position));
+        if codes == [0; 3] {
+            return Pieces::One(Some(self.setup(input, id)));
+        }
+        let polygon = self.volume.clip(input);
+        if polygon.is_empty() {
+            // Entirely outside the view volume: counted with the culled.
+            return Pieces::One(Some(Err(Rejection::Culled)));
+        }
+        let fan: Vec<_> = (1..polygon.len() - 1)
+            .map(|k| self.setup([polygon[0], polygon[k], polygon[k + 1]], id))
+            .collect();
+        Pieces::Fan(fan.into_iter())
+    }
+
+    fn setup<V: Varyings>(
+        &self,
+        tri: [ClipVertex<V>; 3],
+        id: usize,
+    ) -> Result<Prepared<TriangleData<V>>, Rejection> {
+        let win = tri.map(|v| self.viewport.map(v.position));
+        let setup = TriangleSetup::new(&win, self.cull)?;
+        let depth = PlaneEquation::new(win.map(|v| f64::from(v.z)), &setup);
+        let payload = TriangleData {
+            varyings: tri.map(|v| v.varyings),
+            inv_w: win.map(|v| f64::from(v.inv_w)),
+            inv_area2: 1.0 / setup.area2 as f64,
+            front_facing: !setup.clockwise,
+            primitive: id as u32,
+        };
+        Ok(Prepared { setup, depth, id: id as i32, payload })
     }
 }
 

@@ -1,5 +1,8 @@
 //! The draw call: runs `setup -> raster -> shade` over a triangle list, in submission order.
 
+use rayon::prelude::*;
+
+use crate::bin::{self, BATCH, Prepared};
 use crate::error::Error;
 use crate::fixed;
 use crate::raster::Algorithm;
@@ -22,6 +25,19 @@ pub struct RenderOptions {
     pub depth_test: DepthTest,
     /// Optional scissor rectangle (intersected with the target).
     pub scissor: Option<PixelRect>,
+    /// Reference (one triangle after another) or tiled (binned, multithreaded).
+    pub backend: Backend,
+}
+
+/// How a draw call is executed. Both give bit-identical buffers.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Backend {
+    /// The reference: each triangle rasterized and shaded over the whole target in turn. The
+    /// oracle the tiled path is tested against.
+    Reference,
+    /// Binned into 64 x 64 tiles, set up and rendered in parallel on the current rayon pool.
+    #[default]
+    Tiled,
 }
 
 impl RenderOptions {
@@ -53,6 +69,13 @@ impl RenderOptions {
         self
     }
 
+    /// Sets the backend.
+    #[must_use]
+    pub fn with_backend(mut self, backend: Backend) -> Self {
+        self.backend = backend;
+        self
+    }
+
     /// Sets a scissor rectangle.
     #[must_use]
     pub fn with_scissor(mut self, scissor: PixelRect) -> Self {
@@ -74,8 +97,21 @@ pub struct DrawStats {
     pub degenerate: usize,
     /// Removed by culling.
     pub culled: usize,
-    /// Fragments generated (covered pixel centres, before the depth test).
+    /// Fragments generated (covered samples, before the depth test).
     pub fragments: u64,
+}
+
+impl DrawStats {
+    /// Counts a triangle that setup rejected.
+    pub fn reject(&mut self, why: Rejection) {
+        match why {
+            Rejection::NonFinite => self.non_finite += 1,
+            Rejection::Culled => self.culled += 1,
+            // Out-of-range vertices are an error before drawing in `draw`; where a clipped
+            // piece is involved they are a degenerate leftover of the guard band.
+            Rejection::Degenerate | Rejection::OutOfRange => self.degenerate += 1,
+        }
+    }
 }
 
 /// Draws `triangles` into `target`; triangle `i` has id `i`.
@@ -93,36 +129,61 @@ pub fn draw(
         None => Some(target.rect()),
     };
     let mut stats = DrawStats { submitted: triangles.len(), ..DrawStats::default() };
+    let color = |shader: &TriangleShader, e1, e2| FragmentOutput {
+        color: shader.color_at(e1, e2),
+        normal: None,
+    };
+    if options.backend == Backend::Tiled {
+        for (b, batch) in triangles.chunks(BATCH).enumerate() {
+            let results: Vec<Result<Prepared<TriangleShader>, Rejection>> = batch
+                .par_iter()
+                .enumerate()
+                .map(|(k, tri)| {
+                    let setup = TriangleSetup::new(tri, options.cull)?;
+                    let shader = TriangleShader::new(tri, &setup, options.shading);
+                    let id = (b * BATCH + k) as i32;
+                    Ok(Prepared { setup, depth: *shader.depth_plane(), id, payload: shader })
+                })
+                .collect();
+            for r in &results {
+                match r {
+                    Ok(_) => stats.rasterized += 1,
+                    Err(why) => stats.reject(*why),
+                }
+            }
+            if let Some(clip) = clip {
+                stats.fragments += bin::draw_binned(
+                    target,
+                    &results,
+                    options.algorithm,
+                    options.depth_test,
+                    &clip,
+                    |shader, _, _, e1, e2, _| Some(color(shader, e1, e2)),
+                );
+            }
+        }
+        return Ok(stats);
+    }
     for (id, tri) in triangles.iter().enumerate() {
         let setup = match TriangleSetup::new(tri, options.cull) {
             Ok(s) => s,
-            Err(Rejection::NonFinite) => {
-                stats.non_finite += 1;
+            Err(why) => {
+                stats.reject(why);
                 continue;
             }
-            Err(Rejection::Degenerate) => {
-                stats.degenerate += 1;
-                continue;
-            }
-            Err(Rejection::Culled) => {
-                stats.culled += 1;
-                continue;
-            }
-            // Cannot happen: check_range has already returned an error for such a vertex.
-            Err(Rejection::OutOfRange) => continue,
         };
         stats.rasterized += 1;
         let Some(clip) = clip else { continue };
         let shader = TriangleShader::new(tri, &setup, options.shading);
         stats.fragments += shade::shade_triangle(
-            target,
+            &mut target.band(),
             &setup,
             options.algorithm,
             &clip,
             shader.depth_plane(),
             options.depth_test,
             id as i32,
-            |_, _, e1, e2, _| Some(FragmentOutput { color: shader.color_at(e1, e2), normal: None }),
+            |_, _, e1, e2, _| Some(color(&shader, e1, e2)),
         );
     }
     Ok(stats)

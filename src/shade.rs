@@ -17,7 +17,7 @@
 use crate::fixed;
 use crate::raster::{self, Algorithm, Span};
 use crate::setup::{PixelRect, TriangleSetup, Vertex};
-use crate::target::Target;
+use crate::target::TargetBand;
 
 /// How a triangle's colour varies across it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -137,7 +137,10 @@ pub fn flat_color(v: &[Vertex; 3]) -> [u8; 4] {
 pub fn quantize_channel(c: f64) -> u8 {
     // NaN (possible only from a 0/0 perspective division) maps to 0.
     let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, 255.0) };
-    c.round_ties_even() as u8
+    // Adding and removing 1.5 * 2^52 rounds to an integer in the current (nearest-even)
+    // rounding mode: round half to even, without a libm call. Exact for |c| < 2^51.
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    ((c + MAGIC) - MAGIC) as u8
 }
 
 impl TriangleShader {
@@ -208,10 +211,11 @@ pub fn depth_at(plane: &PlaneEquation, e1: f64, e2: f64) -> f32 {
 /// and `z` at the pixel centre (`None` discards it). Then write depth to the passing
 /// samples, colour and id to the passing samples, and the normal to the pixel.
 ///
-/// At 1x the only sample is the pixel centre. Returns the number of covered samples.
+/// `clip` must lie within the band's rows. At 1x the only sample is the pixel centre. Returns
+/// the number of covered samples.
 #[allow(clippy::too_many_arguments)]
 pub fn shade_triangle(
-    target: &mut Target,
+    target: &mut TargetBand<'_>,
     setup: &TriangleSetup,
     algorithm: Algorithm,
     clip: &PixelRect,
@@ -222,8 +226,13 @@ pub fn shade_triangle(
 ) -> u64 {
     let samples = target.samples();
     let n = samples.count();
+    if n == 1 {
+        return shade_single_sample(
+            target, setup, algorithm, clip, depth, depth_test, id, fragment,
+        );
+    }
     let mut covered = 0u64;
-    let mut pixel = |target: &mut Target, px: i32, py: i32, mask: u32| {
+    let mut pixel = |target: &mut TargetBand<'_>, px: i32, py: i32, mask: u32| {
         covered += u64::from(mask.count_ones());
         let p = target.index(px, py);
         if let Some(o) = &mut target.overdraw {
@@ -258,14 +267,7 @@ pub fn shade_triangle(
             normals[p] = nrm;
         }
     };
-    if n == 1 {
-        raster::rasterize(algorithm, setup, clip, |span| {
-            for px in span.x_start..span.x_end {
-                pixel(target, px, span.y, 1);
-            }
-        });
-        return covered;
-    }
+
     // Multisampling: coverage per sample, then pixel by pixel over each row's union.
     let spans: Vec<Vec<Span>> = (0..n)
         .map(|s| {
@@ -300,5 +302,52 @@ pub fn shade_triangle(
             }
         }
     }
+    covered
+}
+
+/// [`shade_triangle`] at 1x: the sample is the pixel centre, and the barycentric numerators
+/// step along the span in exact integers (so the result is the same as evaluating them at
+/// each pixel).
+#[allow(clippy::too_many_arguments)]
+fn shade_single_sample(
+    target: &mut TargetBand<'_>,
+    setup: &TriangleSetup,
+    algorithm: Algorithm,
+    clip: &PixelRect,
+    depth: &PlaneEquation,
+    depth_test: DepthTest,
+    id: i32,
+    mut fragment: impl FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>,
+) -> u64 {
+    let mut covered = 0u64;
+    let step = [setup.edges[1].a, setup.edges[2].a].map(|a| a * i64::from(fixed::ONE));
+    raster::rasterize(algorithm, setup, clip, |span| {
+        covered += span.len() as u64;
+        let row = target.index(0, span.y);
+        let (mut e1, mut e2) = setup
+            .barycentric_numerators(fixed::pixel_centre(span.x_start), fixed::pixel_centre(span.y));
+        for px in span.x_start..span.x_end {
+            let i = row + px as usize;
+            let (f1, f2) = (e1 as f64, e2 as f64);
+            e1 += step[0];
+            e2 += step[1];
+            if let Some(o) = &mut target.overdraw {
+                o[i] += 1;
+            }
+            let z = depth_at(depth, f1, f2);
+            if !depth_test.passes(z, target.depth[i]) {
+                continue;
+            }
+            let Some(out) = fragment(px, span.y, f1, f2, z) else { continue };
+            target.depth[i] = z;
+            target.color[i] = out.color;
+            if let Some(ids) = &mut target.ids {
+                ids[i] = id;
+            }
+            if let (Some(normals), Some(nrm)) = (&mut target.normals, out.normal) {
+                normals[i] = nrm;
+            }
+        }
+    });
     covered
 }

@@ -171,3 +171,100 @@ impl Target {
         y as usize * self.width as usize + x as usize
     }
 }
+
+/// A horizontal band of a target's rows with mutable views of all its buffers: the part of an
+/// image one thread writes. Bands from [`Target::bands`] are disjoint slices, so threads write
+/// them at the same time without locks or `unsafe`.
+#[derive(Debug)]
+pub struct TargetBand<'a> {
+    rect: PixelRect,
+    width: usize,
+    samples: SampleCount,
+    /// Colour per sample of the band's rows.
+    pub color: &'a mut [[u8; 4]],
+    /// Depth per sample.
+    pub depth: &'a mut [f32],
+    /// Ids per sample, when the target has them.
+    pub ids: Option<&'a mut [i32]>,
+    /// Overdraw per pixel, when the target has it.
+    pub overdraw: Option<&'a mut [u32]>,
+    /// Normals per pixel, when the target has them.
+    pub normals: Option<&'a mut [[f32; 3]]>,
+}
+
+impl TargetBand<'_> {
+    /// The band's pixels: full width, its rows.
+    #[must_use]
+    pub fn rect(&self) -> PixelRect {
+        self.rect
+    }
+
+    /// Samples per pixel.
+    #[must_use]
+    pub fn samples(&self) -> SampleCount {
+        self.samples
+    }
+
+    /// Index of pixel `(x, y)` (image coordinates, `y` within the band) in per-pixel buffers.
+    #[inline]
+    #[must_use]
+    pub fn index(&self, x: i32, y: i32) -> usize {
+        (y - self.rect.y0) as usize * self.width + x as usize
+    }
+}
+
+impl Target {
+    /// The whole target as one band.
+    pub fn band(&mut self) -> TargetBand<'_> {
+        let rect = self.rect();
+        TargetBand {
+            rect,
+            width: self.width as usize,
+            samples: self.samples,
+            color: &mut self.color,
+            depth: &mut self.depth,
+            ids: self.ids.as_deref_mut(),
+            overdraw: self.overdraw.as_deref_mut(),
+            normals: self.normals.as_deref_mut(),
+        }
+    }
+
+    /// The target split into bands of `rows` rows (the last may be shorter), top to bottom.
+    ///
+    /// # Panics
+    /// If `rows` is 0.
+    pub fn bands(&mut self, rows: u32) -> Vec<TargetBand<'_>> {
+        assert!(rows > 0, "bands need at least one row");
+        let (w, h, n) = (self.width as usize, self.height, self.samples.count());
+        let px = rows as usize * w;
+        fn split<T>(buf: Option<&mut [T]>, chunk: usize, count: usize) -> Vec<Option<&mut [T]>> {
+            match buf {
+                Some(b) => b.chunks_mut(chunk).map(Some).collect(),
+                None => (0..count).map(|_| None).collect(),
+            }
+        }
+        let count = h.div_ceil(rows) as usize;
+        let mut ids = split(self.ids.as_deref_mut(), px * n, count).into_iter();
+        let mut overdraw = split(self.overdraw.as_deref_mut(), px, count).into_iter();
+        let mut normals = split(self.normals.as_deref_mut(), px, count).into_iter();
+        self.color
+            .chunks_mut(px * n)
+            .zip(self.depth.chunks_mut(px * n))
+            .enumerate()
+            .map(|(k, (color, depth))| {
+                let y0 = k as u32 * rows;
+                let y1 = (y0 + rows).min(h) - 1;
+                TargetBand {
+                    rect: PixelRect { x0: 0, y0: y0 as i32, x1: w as i32 - 1, y1: y1 as i32 },
+                    width: w,
+                    samples: self.samples,
+                    color,
+                    depth,
+                    ids: ids.next().flatten(),
+                    overdraw: overdraw.next().flatten(),
+                    normals: normals.next().flatten(),
+                }
+            })
+            .collect()
+    }
+}

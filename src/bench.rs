@@ -1,0 +1,289 @@
+//! Built-in benchmark scenes and the timing loop behind `trirast bench`.
+//!
+//! Every scene is generated in code (the bunny reads `../shared/models/stanford-bunny.obj` when
+//! it exists and otherwise generates a mesh of the same triangle count, and says which).
+//! Timings are render time only: scene generation and loading are excluded.
+
+use std::path::Path;
+use std::time::Instant;
+
+use glam::{Vec3, Vec4};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+
+use crate::camera::{self, Camera, Projection};
+use crate::error::Error;
+use crate::mesh::Mesh;
+use crate::model::{self, Lighting, MaterialTextures, ModelOptions};
+use crate::pipeline::{FaceCull, Fragment, Pipeline};
+use crate::render::{self, DrawStats, RenderOptions};
+use crate::sample::SampleCount;
+use crate::setup::Vertex;
+use crate::shade::Shading;
+use crate::target::Target;
+
+/// The benchmark scenes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BenchScene {
+    /// The Stanford bunny (69,451 triangles), perspective, 1920x1080, Gouraud + depth.
+    Bunny,
+    /// 1,000,000 random triangles of about 10 px area, 1920x1080, Gouraud + depth.
+    Soup,
+    /// A 1,000,000-triangle indexed grid mesh covering 1920x1080.
+    Grid,
+    /// 256 large random triangles, 3840x2160, Gouraud + depth.
+    Fill,
+    /// A 100,000,000-triangle mesh, 1920x1080, depth + flat colour.
+    Dense,
+}
+
+impl BenchScene {
+    /// All scenes, in the order of the table.
+    pub const ALL: [Self; 5] = [Self::Bunny, Self::Soup, Self::Grid, Self::Fill, Self::Dense];
+
+    /// The scene's name on the command line.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Bunny => "bunny",
+            Self::Soup => "soup",
+            Self::Grid => "grid",
+            Self::Fill => "fill",
+            Self::Dense => "dense",
+        }
+    }
+}
+
+/// What one scene measured.
+#[derive(Clone, Debug)]
+pub struct BenchResult {
+    /// Scene name.
+    pub scene: &'static str,
+    /// Where the scene came from (e.g. which bunny).
+    pub source: String,
+    /// Triangles submitted per frame.
+    pub triangles: usize,
+    /// Target pixels.
+    pub pixels: usize,
+    /// Covered samples per frame.
+    pub fragments: u64,
+    /// Worker threads.
+    pub threads: usize,
+    /// Samples per pixel.
+    pub msaa: usize,
+    /// Median frame time, ms.
+    pub median_ms: f64,
+    /// Fastest frame time, ms.
+    pub min_ms: f64,
+}
+
+impl BenchResult {
+    /// Millions of triangles per second at the median.
+    #[must_use]
+    pub fn mtri_per_s(&self) -> f64 {
+        self.triangles as f64 / self.median_ms / 1e3
+    }
+
+    /// Billions of fragments per second at the median.
+    #[must_use]
+    pub fn gfrag_per_s(&self) -> f64 {
+        self.fragments as f64 / self.median_ms / 1e6
+    }
+}
+
+/// A scene ready to draw repeatedly.
+enum Prepared {
+    Window { triangles: Vec<[Vertex; 3]>, options: RenderOptions },
+    Model { mesh: Box<Mesh>, camera: Camera, options: ModelOptions },
+    Grid { positions: Vec<Vec4>, colors: Vec<Vec3>, triangles: Vec<[u32; 3]> },
+}
+
+/// Size of the dense scene, overridable for quick runs.
+pub const DENSE_TRIANGLES: usize = 100_000_000;
+
+fn prepare(
+    scene: BenchScene,
+    dense_triangles: usize,
+) -> Result<(Prepared, u32, u32, String), Error> {
+    let mut rng = SmallRng::seed_from_u64(2024);
+    Ok(match scene {
+        BenchScene::Bunny => {
+            let path = Path::new("../shared/models/stanford-bunny.obj");
+            let (mesh, source) = if path.exists() {
+                (crate::mesh::load(path)?, format!("{}", path.display()))
+            } else {
+                (
+                    sphere_mesh(69_451),
+                    "generated sphere of 69,451 triangles (bunny not found)".into(),
+                )
+            };
+            let (centre, radius) = camera::bounding_sphere(&mesh.positions);
+            let projection = Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y };
+            let camera = Camera::framing_sphere(centre, radius, 0.5, 0.35, 16.0 / 9.0, projection);
+            let options = ModelOptions::default().with_lighting(Lighting::Gouraud);
+            (Prepared::Model { mesh: Box::new(mesh), camera, options }, 1920, 1080, source)
+        }
+        BenchScene::Soup => {
+            let triangles = (0..1_000_000)
+                .map(|_| {
+                    let c = [rng.random_range(0.0..1920.0f32), rng.random_range(0.0..1080.0f32)];
+                    let angle = rng.random_range(0.0..std::f32::consts::TAU);
+                    let base = rng.random_range(3.0..7.0f32);
+                    let height = 20.0 / base;
+                    let skew = rng.random_range(-0.5..0.5f32) * base;
+                    let local = [[-base / 2.0, 0.0], [base / 2.0, 0.0], [skew, height]];
+                    local.map(|[x, y]| {
+                        let (s, co) = angle.sin_cos();
+                        Vertex::new(
+                            c[0] + x * co - y * s,
+                            c[1] + x * s + y * co,
+                            rng.random_range(0.0..1.0),
+                            [rng.random(), rng.random(), rng.random(), 255],
+                        )
+                    })
+                })
+                .collect();
+            let options = RenderOptions::default().with_shading(Shading::Smooth);
+            (Prepared::Window { triangles, options }, 1920, 1080, "generated".into())
+        }
+        BenchScene::Fill => {
+            let triangles = (0..256)
+                .map(|_| {
+                    std::array::from_fn(|_| {
+                        Vertex::new(
+                            rng.random_range(0.0..3840.0),
+                            rng.random_range(0.0..2160.0),
+                            rng.random_range(0.0..1.0),
+                            [rng.random(), rng.random(), rng.random(), 255],
+                        )
+                    })
+                })
+                .collect();
+            let options = RenderOptions::default().with_shading(Shading::Smooth);
+            (Prepared::Window { triangles, options }, 3840, 2160, "generated".into())
+        }
+        BenchScene::Grid => {
+            let (positions, colors, triangles) = grid(1000, 500, &mut rng);
+            (Prepared::Grid { positions, colors, triangles }, 1920, 1080, "generated".into())
+        }
+        BenchScene::Dense => {
+            let mesh = sphere_mesh(dense_triangles);
+            let (centre, radius) = camera::bounding_sphere(&mesh.positions);
+            let projection = Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y };
+            let camera = Camera::framing_sphere(centre, radius, 0.3, 0.2, 16.0 / 9.0, projection);
+            let options = ModelOptions::default().with_lighting(Lighting::Flat);
+            let source = format!("generated sphere of {} triangles", mesh.triangles.len());
+            (Prepared::Model { mesh: Box::new(mesh), camera, options }, 1920, 1080, source)
+        }
+    })
+}
+
+/// An indexed grid of `nx x ny` quads covering NDC, with random vertex colours and depths.
+fn grid(nx: u32, ny: u32, rng: &mut SmallRng) -> (Vec<Vec4>, Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut positions = Vec::new();
+    let mut colors = Vec::new();
+    for j in 0..=ny {
+        for i in 0..=nx {
+            let x = -1.0 + 2.0 * i as f32 / nx as f32;
+            let y = -1.0 + 2.0 * j as f32 / ny as f32;
+            positions.push(Vec4::new(x, y, rng.random_range(0.1..0.9), 1.0));
+            colors.push(Vec3::new(rng.random(), rng.random(), rng.random()));
+        }
+    }
+    let row = nx + 1;
+    let mut triangles = Vec::with_capacity(2 * (nx * ny) as usize);
+    for j in 0..ny {
+        for i in 0..nx {
+            let a = j * row + i;
+            triangles.push([a, a + 1, a + row + 1]);
+            triangles.push([a, a + row + 1, a + row]);
+        }
+    }
+    (positions, colors, triangles)
+}
+
+/// A UV sphere with about `triangles` triangles, counter-clockwise outside.
+#[must_use]
+pub fn sphere_mesh(triangles: usize) -> Mesh {
+    let stacks = ((triangles as f64 / 4.0).sqrt().round() as u32).max(2);
+    let slices = ((triangles as f64 / (2.0 * f64::from(stacks))).round() as u32).max(3);
+    let mut mesh = Mesh::default();
+    mesh.positions.reserve(((stacks + 1) * (slices + 1)) as usize);
+    for j in 0..=stacks {
+        let theta = std::f32::consts::PI * j as f32 / stacks as f32;
+        for i in 0..=slices {
+            let phi = std::f32::consts::TAU * i as f32 / slices as f32;
+            mesh.positions.push([theta.sin() * phi.cos(), theta.cos(), -theta.sin() * phi.sin()]);
+        }
+    }
+    let row = slices + 1;
+    mesh.triangles.reserve(2 * (stacks * slices) as usize);
+    for j in 0..stacks {
+        for i in 0..slices {
+            let (a, b) = (j * row + i, (j + 1) * row + i);
+            mesh.triangles.push([a, b, b + 1]);
+            mesh.triangles.push([a, b + 1, a + 1]);
+        }
+    }
+    mesh.polygon_count = mesh.triangles.len();
+    mesh
+}
+
+fn draw(
+    prepared: &Prepared,
+    target: &mut Target,
+    textures: &MaterialTextures,
+) -> Result<DrawStats, Error> {
+    match prepared {
+        Prepared::Window { triangles, options } => render::draw(target, triangles, options),
+        Prepared::Model { mesh, camera, options } => {
+            model::render_mesh(target, mesh, camera, options, textures)
+        }
+        Prepared::Grid { positions, colors, triangles } => {
+            let vertices: Vec<u32> = (0..positions.len() as u32).collect();
+            let vs = |&i: &u32| (positions[i as usize], colors[i as usize]);
+            let fs = |f: &Fragment<Vec3>| Some(f.varyings.extend(1.0));
+            Pipeline::default()
+                .with_cull(FaceCull::None)
+                .draw(target, &vs, &fs, &vertices, triangles)
+        }
+    }
+}
+
+/// Renders `scene` `frames` times after one warm-up frame and reports the timings.
+pub fn run(
+    scene: BenchScene,
+    frames: usize,
+    threads: usize,
+    msaa: SampleCount,
+    dense_triangles: usize,
+) -> Result<BenchResult, Error> {
+    let (prepared, width, height, source) = prepare(scene, dense_triangles)?;
+    let textures = match &prepared {
+        Prepared::Model { mesh, .. } => MaterialTextures::load(mesh),
+        _ => MaterialTextures::default(),
+    };
+    let mut target = Target::multisampled(width, height, msaa)?;
+    let mut times = Vec::with_capacity(frames);
+    let mut stats = DrawStats::default();
+    for frame in 0..=frames {
+        target.clear([0, 0, 0, 255]);
+        let start = Instant::now();
+        stats = draw(&prepared, &mut target, &textures)?;
+        if frame > 0 {
+            times.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    times.sort_by(f64::total_cmp);
+    Ok(BenchResult {
+        scene: scene.name(),
+        source,
+        triangles: stats.submitted,
+        pixels: width as usize * height as usize,
+        fragments: stats.fragments,
+        threads,
+        msaa: msaa.count(),
+        median_ms: times[times.len() / 2],
+        min_ms: times[0],
+    })
+}

@@ -1,0 +1,175 @@
+//! Binning: triangles sorted into 64 x 64 pixel tiles, then tiles rendered in parallel.
+//!
+//! Contract: `draw_binned` writes exactly what drawing the same triangles one after another
+//! with [`shade::shade_triangle`] over the whole target writes, bit for bit, whatever the
+//! thread count:
+//! - every pixel belongs to exactly one tile, and a tile's bin lists the triangles that may
+//!   touch it in submission order, so each pixel sees the same triangles in the same order;
+//! - the value written at a pixel depends only on the triangle and the pixel (interpolation
+//!   evaluates the plane at the pixel, never by stepping from a neighbour), so cutting a
+//!   triangle into tiles changes nothing;
+//! - threads take whole rows of tiles ([`Target::bands`]: disjoint slices), so no two threads
+//!   write one pixel and no locks are needed.
+//!
+//! Memory is bounded: callers feed triangles in batches of at most [`BATCH`]; a batch is set
+//! up, binned, rendered and dropped before the next (the lectures' "flush"), so bin memory
+//! never grows with the scene, and no triangle is ever dropped.
+
+use rayon::prelude::*;
+
+use crate::raster::Algorithm;
+use crate::setup::{PixelRect, TriangleSetup};
+use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
+use crate::target::Target;
+
+/// Tile side in pixels.
+pub const TILE: u32 = 64;
+
+/// Triangles per batch: bounds the memory of set-up triangles and bins (a few tens of MB).
+pub const BATCH: usize = 1 << 16;
+
+/// A triangle ready for the back end: coverage setup, depth plane, id, and whatever the
+/// fragment function needs (`payload`).
+#[derive(Clone, Copy, Debug)]
+pub struct Prepared<T> {
+    /// Coverage.
+    pub setup: TriangleSetup,
+    /// Depth plane.
+    pub depth: PlaneEquation,
+    /// Id written to the id buffer.
+    pub id: i32,
+    /// Per-triangle shading data.
+    pub payload: T,
+}
+
+/// Per-tile lists of triangle indices, in submission order.
+#[derive(Debug, Default)]
+pub struct Bins {
+    tiles_x: usize,
+    lists: Vec<Vec<u32>>,
+}
+
+impl Bins {
+    /// Bins triangles whose (clipped, sample-inclusive) pixel bounds are `bounds`. Chunks are
+    /// binned in parallel and merged in chunk order, so lists stay in submission order.
+    #[must_use]
+    pub fn build(bounds: &[Option<PixelRect>], width: u32, height: u32) -> Self {
+        let tiles_x = width.div_ceil(TILE) as usize;
+        let tiles_y = height.div_ceil(TILE) as usize;
+        let tiles = tiles_x * tiles_y;
+        let chunk = bounds.len().div_ceil(rayon::current_num_threads() * 4).max(1024);
+        let partial: Vec<Vec<Vec<u32>>> = bounds
+            .par_chunks(chunk)
+            .enumerate()
+            .map(|(c, part)| {
+                let mut lists = vec![Vec::new(); tiles];
+                for (k, r) in part.iter().enumerate() {
+                    let Some(r) = r else { continue };
+                    let index = (c * chunk + k) as u32;
+                    let (tx0, tx1) = (r.x0 as u32 / TILE, r.x1 as u32 / TILE);
+                    let (ty0, ty1) = (r.y0 as u32 / TILE, r.y1 as u32 / TILE);
+                    for ty in ty0..=ty1 {
+                        for tx in tx0..=tx1 {
+                            lists[ty as usize * tiles_x + tx as usize].push(index);
+                        }
+                    }
+                }
+                lists
+            })
+            .collect();
+        let lists = (0..tiles)
+            .into_par_iter()
+            .map(|t| {
+                let mut merged = Vec::with_capacity(partial.iter().map(|p| p[t].len()).sum());
+                for p in &partial {
+                    merged.extend_from_slice(&p[t]);
+                }
+                merged
+            })
+            .collect();
+        Self { tiles_x, lists }
+    }
+
+    /// The triangles of tile `(tx, ty)`.
+    #[must_use]
+    pub fn tile(&self, tx: usize, ty: usize) -> &[u32] {
+        &self.lists[ty * self.tiles_x + tx]
+    }
+}
+
+/// Pixels whose centre or any sample (offsets within +-1/2 pixel) the triangle may cover,
+/// clipped to `clip`.
+#[must_use]
+pub fn coverage_bounds(
+    setup: &TriangleSetup,
+    multisampled: bool,
+    clip: &PixelRect,
+) -> Option<PixelRect> {
+    let r = if multisampled {
+        let lo = setup.sample_bounds([128, 128]);
+        let hi = setup.sample_bounds([-128, -128]);
+        PixelRect { x0: lo.x0, y0: lo.y0, x1: hi.x1, y1: hi.y1 }
+    } else {
+        setup.bounds
+    };
+    r.intersect(clip)
+}
+
+/// Renders prepared triangles (`Err` entries are skipped: rejected at setup) through tiles on
+/// the current rayon thread pool; returns the number of covered samples.
+/// `fragment(payload, x, y, e1, e2, z)` shades one pixel.
+#[allow(clippy::too_many_arguments)]
+pub fn draw_binned<T, E, F>(
+    target: &mut Target,
+    prepared: &[Result<Prepared<T>, E>],
+    algorithm: Algorithm,
+    depth_test: DepthTest,
+    clip: &PixelRect,
+    fragment: F,
+) -> u64
+where
+    T: Sync,
+    E: Sync,
+    F: Fn(&T, i32, i32, f64, f64, f32) -> Option<FragmentOutput> + Sync,
+{
+    let multisampled = target.samples().count() > 1;
+    let bounds: Vec<Option<PixelRect>> = prepared
+        .par_iter()
+        .map(|p| coverage_bounds(&p.as_ref().ok()?.setup, multisampled, clip))
+        .collect();
+    let (width, height) = (target.width(), target.height());
+    let bins = Bins::build(&bounds, width, height);
+    let tiles_x = width.div_ceil(TILE) as usize;
+    target
+        .bands(TILE)
+        .into_par_iter()
+        .enumerate()
+        .map(|(ty, mut band)| {
+            let mut covered = 0;
+            for tx in 0..tiles_x {
+                let tile = PixelRect {
+                    x0: (tx as u32 * TILE) as i32,
+                    y0: band.rect().y0,
+                    x1: ((tx as u32 + 1) * TILE).min(width) as i32 - 1,
+                    y1: band.rect().y1,
+                };
+                let Some(tile) = tile.intersect(clip) else { continue };
+                for &i in bins.tile(tx, ty) {
+                    // Binned triangles are the `Ok` ones.
+                    let Ok(p) = &prepared[i as usize] else { continue };
+                    covered += shade::shade_triangle(
+                        &mut band,
+                        &p.setup,
+                        algorithm,
+                        &tile,
+                        &p.depth,
+                        depth_test,
+                        p.id,
+                        |x, y, e1, e2, z| fragment(&p.payload, x, y, e1, e2, z),
+                    );
+                }
+            }
+            covered
+        })
+        .sum()
+}

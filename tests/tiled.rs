@@ -1,0 +1,190 @@
+//! The tiled, multithreaded backend against the reference, bit for bit: colour, depth, ids and
+//! overdraw, for 1, 2 and 7 threads, at 1x, 4x and 8x, for window-space scenes and the 3D
+//! pipeline.
+
+mod common;
+
+use glam::{Vec3, Vec4};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+use trirast::pipeline::{FaceCull, Fragment, Pipeline};
+use trirast::render::Backend;
+use trirast::sample::SampleCount;
+use trirast::{CullMode, DepthTest, PixelRect, RenderOptions, Shading, Target, Vertex};
+
+fn pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap()
+}
+
+fn assert_same(a: &Target, b: &Target, what: &str) {
+    assert!(a.color == b.color, "{what}: colour differs");
+    assert!(
+        a.depth.iter().map(|d| d.to_bits()).eq(b.depth.iter().map(|d| d.to_bits())),
+        "{what}: depth differs"
+    );
+    assert!(a.ids == b.ids, "{what}: ids differ");
+    assert!(a.overdraw == b.overdraw, "{what}: overdraw differs");
+    assert!(a.normals == b.normals, "{what}: normals differ");
+}
+
+/// Random window-space scenes: small and large triangles, some far off screen, overlapping at
+/// random depths (so the depth test and submission order matter), some exactly equal depths.
+fn scene(rng: &mut SmallRng, n: usize, w: f32, h: f32) -> Vec<[Vertex; 3]> {
+    (0..n)
+        .map(|_| {
+            let size = match rng.random_range(0..10) {
+                0 => 3000.0,
+                1..=3 => 200.0,
+                _ => 12.0,
+            };
+            let (cx, cy) = (rng.random_range(-20.0..w + 20.0), rng.random_range(-20.0..h + 20.0));
+            let flat_z = rng.random_range(0..4) == 0;
+            let z0 = rng.random_range(0.0..1.0);
+            std::array::from_fn(|_| Vertex {
+                x: cx + rng.random_range(-size..size),
+                y: cy + rng.random_range(-size..size),
+                z: if flat_z { z0 } else { rng.random_range(0.0..1.0) },
+                inv_w: rng.random_range(0.2..3.0),
+                color: [rng.random(), rng.random(), rng.random(), rng.random()],
+            })
+        })
+        .collect()
+}
+
+#[test]
+fn window_scenes_match_the_reference() {
+    let mut rng = SmallRng::seed_from_u64(606);
+    let (w, h) = (211u32, 143u32);
+    for round in 0..12 {
+        let count = rng.random_range(50..1500);
+        let tris = scene(&mut rng, count, w as f32, h as f32);
+        let samples = [SampleCount::X1, SampleCount::X4, SampleCount::X8][round % 3];
+        let shading = [Shading::Flat, Shading::Smooth, Shading::Perspective][(round / 3) % 3];
+        let depth_test = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always][round % 3];
+        let cull = [CullMode::None, CullMode::Clockwise, CullMode::CounterClockwise][round % 3];
+        let mut options = RenderOptions::default()
+            .with_shading(shading)
+            .with_depth_test(depth_test)
+            .with_cull(cull);
+        if round % 4 == 1 {
+            options = options.with_scissor(PixelRect { x0: 17, y0: 9, x1: 150, y1: 120 });
+        }
+        let fresh = || Target::multisampled(w, h, samples).unwrap().with_ids().with_overdraw();
+        let mut reference = fresh();
+        let ref_stats =
+            trirast::draw(&mut reference, &tris, &options.with_backend(Backend::Reference))
+                .unwrap();
+        for threads in [1, 2, 7] {
+            let mut tiled = fresh();
+            let stats = pool(threads)
+                .install(|| trirast::draw(&mut tiled, &tris, &options.with_backend(Backend::Tiled)))
+                .unwrap();
+            assert_eq!(stats, ref_stats, "round {round}, {threads} threads");
+            assert_same(&reference, &tiled, &format!("round {round}, {threads} threads"));
+        }
+    }
+}
+
+/// Watertight tilings through the tiled backend: still exactly one fragment per pixel, and the
+/// same buffers as the reference.
+#[test]
+fn tilings_match_the_reference() {
+    let mut rng = SmallRng::seed_from_u64(17);
+    let rect = [-256 * 300, 256 * 7 + 13, 256 * 500, 256 * 190 - 77];
+    let tris = common::random_tiling(&mut rng, rect, 20_000);
+    let vertex = |p: [i64; 2]| Vertex::new(p[0] as f32 / 256.0, p[1] as f32 / 256.0, 0.5, [200; 4]);
+    let triangles: Vec<[Vertex; 3]> = tris.iter().map(|t| t.map(vertex)).collect();
+    let fresh = || Target::new(300, 200).unwrap().with_ids().with_overdraw();
+    let mut reference = fresh();
+    trirast::draw(
+        &mut reference,
+        &triangles,
+        &RenderOptions::default().with_backend(Backend::Reference),
+    )
+    .unwrap();
+    let mut tiled = fresh();
+    pool(7).install(|| trirast::draw(&mut tiled, &triangles, &RenderOptions::default())).unwrap();
+    assert_same(&reference, &tiled, "tiling");
+}
+
+/// The 3D pipeline (clipping, culling, perspective varyings, normals) through both backends.
+#[test]
+fn pipeline_matches_the_reference() {
+    let mut rng = SmallRng::seed_from_u64(99);
+    let n = 3000;
+    let vertices: Vec<(Vec3, Vec3)> = (0..n)
+        .map(|_| {
+            let p = Vec3::new(
+                rng.random_range(-4.0..4.0),
+                rng.random_range(-3.0..3.0),
+                rng.random_range(-12.0..1.0),
+            );
+            (p, Vec3::new(rng.random(), rng.random(), rng.random()))
+        })
+        .collect();
+    let triangles: Vec<[u32; 3]> = (0..2000)
+        .map(|_| {
+            let a = rng.random_range(0..n as u32);
+            // Mostly nearby vertices (small triangles), some arbitrary (large, clipped).
+            let near = |rng: &mut SmallRng| (a + rng.random_range(1..20)).min(n as u32 - 1);
+            if rng.random_range(0..5) == 0 {
+                [a, rng.random_range(0..n as u32), rng.random_range(0..n as u32)]
+            } else {
+                [a, near(&mut rng), near(&mut rng)]
+            }
+        })
+        .collect();
+    let camera = trirast::camera::Camera {
+        eye: Vec3::ZERO,
+        target: Vec3::NEG_Z,
+        up: Vec3::Y,
+        projection: trirast::camera::Projection::Perspective { fov_y: 1.1 },
+        near: 0.5,
+        far: 10.0,
+    };
+    let vp = camera.view_projection(160.0 / 120.0);
+    let vs = |v: &(Vec3, Vec3)| (vp * v.0.extend(1.0), v.1);
+    let fs = |f: &Fragment<Vec3>| {
+        if f.varyings.x > 0.97 {
+            return None; // discard some fragments
+        }
+        Some(f.varyings.extend(1.0))
+    };
+    struct WithNormal<F>(F);
+    impl<F: Fn(&Fragment<Vec3>) -> Option<Vec4> + Sync> trirast::pipeline::FragmentShader<Vec3>
+        for WithNormal<F>
+    {
+        fn shade(&self, f: &Fragment<Vec3>) -> Option<Vec4> {
+            (self.0)(f)
+        }
+        fn normal(&self, f: &Fragment<Vec3>) -> Option<Vec3> {
+            Some(f.varyings)
+        }
+    }
+    let fs = WithNormal(fs);
+    for samples in [SampleCount::X1, SampleCount::X4] {
+        for cull in [FaceCull::None, FaceCull::Back] {
+            let fresh = || {
+                Target::multisampled(160, 120, samples)
+                    .unwrap()
+                    .with_ids()
+                    .with_overdraw()
+                    .with_normals()
+            };
+            let pipeline = Pipeline::default().with_cull(cull);
+            let mut reference = fresh();
+            let ref_stats = pipeline
+                .with_backend(Backend::Reference)
+                .draw(&mut reference, &vs, &fs, &vertices, &triangles)
+                .unwrap();
+            for threads in [1, 2, 7] {
+                let mut tiled = fresh();
+                let stats = pool(threads)
+                    .install(|| pipeline.draw(&mut tiled, &vs, &fs, &vertices, &triangles))
+                    .unwrap();
+                assert_eq!(stats, ref_stats);
+                assert_same(&reference, &tiled, &format!("{samples:?} {cull:?} {threads} threads"));
+            }
+        }
+    }
+}
