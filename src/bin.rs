@@ -26,7 +26,7 @@ use crate::target::Target;
 pub const TILE: u32 = 64;
 
 /// Triangles per batch: bounds the memory of set-up triangles and bins (a few tens of MB).
-pub const BATCH: usize = 1 << 16;
+pub const BATCH: usize = 1 << 14;
 
 /// A triangle ready for the back end: coverage setup, depth plane, id, and whatever the
 /// fragment function needs (`payload`).
@@ -115,6 +115,17 @@ pub fn coverage_bounds(
     r.intersect(clip)
 }
 
+/// The faster of the two (identical) rasterizers for a triangle: scanline spans cost a few
+/// divisions per row however wide the row, edge stepping a few additions per pixel of the
+/// bounding box; narrow triangles are cheaper to step.
+fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
+    if setup.bounds.x1 - setup.bounds.x0 < 8 {
+        Algorithm::EdgeFunctions
+    } else {
+        Algorithm::Scanline
+    }
+}
+
 /// Renders prepared triangles (`Err` entries are skipped: rejected at setup) through tiles on
 /// the current rayon thread pool; returns the number of covered samples.
 /// `fragment(payload, x, y, e1, e2, z)` shades one pixel.
@@ -122,7 +133,6 @@ pub fn coverage_bounds(
 pub fn draw_binned<T, E, F>(
     target: &mut Target,
     prepared: &[Result<Prepared<T>, E>],
-    algorithm: Algorithm,
     depth_test: DepthTest,
     clip: &PixelRect,
     fragment: F,
@@ -160,7 +170,7 @@ where
                     covered += shade::shade_triangle(
                         &mut band,
                         &p.setup,
-                        algorithm,
+                        coverage_algorithm(&p.setup),
                         &tile,
                         &p.depth,
                         depth_test,

@@ -249,14 +249,8 @@ impl Pipeline {
                     for r in &results {
                         count(&mut stats, r);
                     }
-                    stats.fragments += bin::draw_binned(
-                        target,
-                        &results,
-                        self.algorithm,
-                        self.depth_test,
-                        &clip_rect,
-                        shade,
-                    );
+                    stats.fragments +=
+                        bin::draw_binned(target, &results, self.depth_test, &clip_rect, shade);
                 }
             }
         }

@@ -155,7 +155,6 @@ pub fn draw(
                 stats.fragments += bin::draw_binned(
                     target,
                     &results,
-                    options.algorithm,
                     options.depth_test,
                     &clip,
                     |shader, _, _, e1, e2, _| Some(color(shader, e1, e2)),
