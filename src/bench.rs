@@ -149,14 +149,19 @@ fn prepare(
         BenchScene::Fill => {
             let triangles = (0..256)
                 .map(|_| {
-                    std::array::from_fn(|_| {
+                    let v: [Vertex; 3] = std::array::from_fn(|_| {
                         Vertex::new(
                             rng.random_range(0.0..3840.0),
                             rng.random_range(0.0..2160.0),
                             rng.random_range(0.0..1.0),
                             [rng.random(), rng.random(), rng.random(), 255],
                         )
-                    })
+                    });
+                    // Shrunk about the centroid so the frame has about the 113.5 M
+                    // fragments (random corners alone give 160 M).
+                    let (cx, cy) =
+                        ((v[0].x + v[1].x + v[2].x) / 3.0, (v[0].y + v[1].y + v[2].y) / 3.0);
+                    v.map(|p| Vertex { x: cx + (p.x - cx) * 0.84, y: cy + (p.y - cy) * 0.84, ..p })
                 })
                 .collect();
             let options = RenderOptions::default().with_shading(Shading::Smooth);

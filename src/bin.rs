@@ -20,6 +20,7 @@ use rayon::prelude::*;
 use crate::raster::Algorithm;
 use crate::setup::{PixelRect, TriangleSetup};
 use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
+use crate::simd::{SimdLevel, SpanColor};
 use crate::target::Target;
 
 /// Tile side in pixels.
@@ -128,18 +129,21 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 
 /// Renders prepared triangles (`Err` entries are skipped: rejected at setup) through tiles on
 /// the current rayon thread pool; returns the number of covered samples.
-/// `fragment(payload, x, y, e1, e2, z)` shades one pixel.
+/// `fragment(payload, x, y, e1, e2, z)` shades one pixel; where `kernel(payload)` gives a span
+/// kernel, it shades 1x spans instead.
 #[allow(clippy::too_many_arguments)]
-pub fn draw_binned<T, E, F>(
+pub fn draw_binned<T, E, K, F>(
     target: &mut Target,
     prepared: &[Result<Prepared<T>, E>],
     depth_test: DepthTest,
     clip: &PixelRect,
+    kernel: K,
     fragment: F,
 ) -> u64
 where
     T: Sync,
     E: Sync,
+    K: Fn(&T) -> Option<(SimdLevel, SpanColor)> + Sync,
     F: Fn(&T, i32, i32, f64, f64, f32) -> Option<FragmentOutput> + Sync,
 {
     let multisampled = target.samples().count() > 1;
@@ -175,6 +179,7 @@ where
                         &p.depth,
                         depth_test,
                         p.id,
+                        kernel(&p.payload),
                         |x, y, e1, e2, z| fragment(&p.payload, x, y, e1, e2, z),
                     );
                 }

@@ -40,6 +40,7 @@ pub mod sample;
 pub mod scene;
 pub mod setup;
 pub mod shade;
+pub mod simd;
 pub mod target;
 pub mod texture;
 pub mod varyings;

@@ -232,6 +232,7 @@ impl Pipeline {
                             &p.depth,
                             self.depth_test,
                             p.id,
+                            None,
                             |x, y, e1, e2, z| shade(&p.payload, x, y, e1, e2, z),
                         );
                     }
@@ -249,8 +250,14 @@ impl Pipeline {
                     for r in &results {
                         count(&mut stats, r);
                     }
-                    stats.fragments +=
-                        bin::draw_binned(target, &results, self.depth_test, &clip_rect, shade);
+                    stats.fragments += bin::draw_binned(
+                        target,
+                        &results,
+                        self.depth_test,
+                        &clip_rect,
+                        |_| None,
+                        shade,
+                    );
                 }
             }
         }

@@ -8,6 +8,7 @@ use crate::fixed;
 use crate::raster::Algorithm;
 use crate::setup::{CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
 use crate::shade::{self, DepthTest, FragmentOutput, Shading, TriangleShader};
+use crate::simd::SimdLevel;
 use crate::target::Target;
 
 /// How to draw. `RenderOptions::default()` is: edge functions, smooth shading, no culling,
@@ -27,6 +28,8 @@ pub struct RenderOptions {
     pub scissor: Option<PixelRect>,
     /// Reference (one triangle after another) or tiled (binned, multithreaded).
     pub backend: Backend,
+    /// SIMD level for the tiled backend's span kernels; `None` picks the best available.
+    pub simd: Option<SimdLevel>,
 }
 
 /// How a draw call is executed. Both give bit-identical buffers.
@@ -73,6 +76,13 @@ impl RenderOptions {
     #[must_use]
     pub fn with_backend(mut self, backend: Backend) -> Self {
         self.backend = backend;
+        self
+    }
+
+    /// Forces a SIMD level (for tests and comparisons); unavailable levels run scalar.
+    #[must_use]
+    pub fn with_simd(mut self, level: SimdLevel) -> Self {
+        self.simd = Some(level);
         self
     }
 
@@ -134,6 +144,7 @@ pub fn draw(
         normal: None,
     };
     if options.backend == Backend::Tiled {
+        let level = options.simd.unwrap_or_else(SimdLevel::detect);
         for (b, batch) in triangles.chunks(BATCH).enumerate() {
             let results: Vec<Result<Prepared<TriangleShader>, Rejection>> = batch
                 .par_iter()
@@ -157,6 +168,7 @@ pub fn draw(
                     &results,
                     options.depth_test,
                     &clip,
+                    |shader| shader.span_color().map(|c| (level, c)),
                     |shader, _, _, e1, e2, _| Some(color(shader, e1, e2)),
                 );
             }
@@ -182,6 +194,7 @@ pub fn draw(
             shader.depth_plane(),
             options.depth_test,
             id as i32,
+            None,
             |_, _, e1, e2, _| Some(color(&shader, e1, e2)),
         );
     }

@@ -17,6 +17,7 @@
 use crate::fixed;
 use crate::raster::{self, Algorithm, Span};
 use crate::setup::{PixelRect, TriangleSetup, Vertex};
+use crate::simd::{self, SimdLevel, SpanColor, SpanJob};
 use crate::target::TargetBand;
 
 /// How a triangle's colour varies across it.
@@ -79,6 +80,12 @@ impl PlaneEquation {
     #[must_use]
     pub fn eval(&self, e1: f64, e2: f64) -> f64 {
         self.a0 + e1 * self.g1 + e2 * self.g2
+    }
+
+    /// `[a0, g1, g2]`, for kernels that evaluate the same expression.
+    #[must_use]
+    pub fn coefficients(&self) -> [f64; 3] {
+        [self.a0, self.g1, self.g2]
     }
 }
 
@@ -177,6 +184,17 @@ impl TriangleShader {
         depth_at(&self.depth, e1, e2)
     }
 
+    /// The colour as a SIMD span kernel takes it; `None` for perspective shading, which has
+    /// no kernel.
+    #[must_use]
+    pub fn span_color(&self) -> Option<SpanColor> {
+        match &self.color {
+            ColorSource::Flat(c) => Some(SpanColor::Flat(*c)),
+            ColorSource::Smooth(p) => Some(SpanColor::Smooth(p.map(|p| p.coefficients()))),
+            ColorSource::Perspective(_) => None,
+        }
+    }
+
     /// Colour at barycentric numerators `(e1, e2)`.
     #[inline]
     #[must_use]
@@ -212,7 +230,8 @@ pub fn depth_at(plane: &PlaneEquation, e1: f64, e2: f64) -> f32 {
 /// samples, colour and id to the passing samples, and the normal to the pixel.
 ///
 /// `clip` must lie within the band's rows. At 1x the only sample is the pixel centre. Returns
-/// the number of covered samples.
+/// the number of covered samples. A `kernel` (1x, flat or smooth colour without normals)
+/// replaces `fragment` by a SIMD span kernel computing the same values.
 #[allow(clippy::too_many_arguments)]
 pub fn shade_triangle(
     target: &mut TargetBand<'_>,
@@ -222,13 +241,14 @@ pub fn shade_triangle(
     depth: &PlaneEquation,
     depth_test: DepthTest,
     id: i32,
+    kernel: Option<(SimdLevel, SpanColor)>,
     mut fragment: impl FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>,
 ) -> u64 {
     let samples = target.samples();
     let n = samples.count();
     if n == 1 {
         return shade_single_sample(
-            target, setup, algorithm, clip, depth, depth_test, id, fragment,
+            target, setup, algorithm, clip, depth, depth_test, id, kernel, fragment,
         );
     }
     let mut covered = 0u64;
@@ -305,9 +325,12 @@ pub fn shade_triangle(
     covered
 }
 
+/// Spans at least this long go to the SIMD kernel; shorter ones cost less pixel by pixel.
+const KERNEL_MIN_SPAN: usize = 8;
+
 /// [`shade_triangle`] at 1x: the sample is the pixel centre, and the barycentric numerators
 /// step along the span in exact integers (so the result is the same as evaluating them at
-/// each pixel).
+/// each pixel). Long spans go to the span kernel when there is one.
 #[allow(clippy::too_many_arguments)]
 fn shade_single_sample(
     target: &mut TargetBand<'_>,
@@ -317,6 +340,7 @@ fn shade_single_sample(
     depth: &PlaneEquation,
     depth_test: DepthTest,
     id: i32,
+    kernel: Option<(SimdLevel, SpanColor)>,
     mut fragment: impl FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>,
 ) -> u64 {
     let mut covered = 0u64;
@@ -326,6 +350,25 @@ fn shade_single_sample(
         let row = target.index(0, span.y);
         let (mut e1, mut e2) = setup
             .barycentric_numerators(fixed::pixel_centre(span.x_start), fixed::pixel_centre(span.y));
+        if let Some((level, color)) = kernel.filter(|_| span.len() >= KERNEL_MIN_SPAN) {
+            let range = row + span.x_start as usize..row + span.x_end as usize;
+            let job = SpanJob {
+                e1,
+                e2,
+                step1: step[0],
+                step2: step[1],
+                depth_plane: depth.coefficients(),
+                color,
+                depth_test,
+                id,
+                depth: &mut target.depth[range.clone()],
+                color_out: &mut target.color[range.clone()],
+                ids: target.ids.as_deref_mut().map(|s| &mut s[range.clone()]),
+                overdraw: target.overdraw.as_deref_mut().map(|s| &mut s[range.clone()]),
+            };
+            simd::shade_span(level, job);
+            return;
+        }
         for px in span.x_start..span.x_end {
             let i = row + px as usize;
             let (f1, f2) = (e1 as f64, e2 as f64);

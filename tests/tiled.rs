@@ -10,6 +10,7 @@ use rand::{Rng, SeedableRng};
 use trirast::pipeline::{FaceCull, Fragment, Pipeline};
 use trirast::render::Backend;
 use trirast::sample::SampleCount;
+use trirast::simd::SimdLevel;
 use trirast::{CullMode, DepthTest, PixelRect, RenderOptions, Shading, Target, Vertex};
 
 fn pool(threads: usize) -> rayon::ThreadPool {
@@ -75,12 +76,15 @@ fn window_scenes_match_the_reference() {
             trirast::draw(&mut reference, &tris, &options.with_backend(Backend::Reference))
                 .unwrap();
         for threads in [1, 2, 7] {
-            let mut tiled = fresh();
-            let stats = pool(threads)
-                .install(|| trirast::draw(&mut tiled, &tris, &options.with_backend(Backend::Tiled)))
-                .unwrap();
-            assert_eq!(stats, ref_stats, "round {round}, {threads} threads");
-            assert_same(&reference, &tiled, &format!("round {round}, {threads} threads"));
+            for level in SimdLevel::available() {
+                let mut tiled = fresh();
+                let opts = options.with_backend(Backend::Tiled).with_simd(level);
+                let stats =
+                    pool(threads).install(|| trirast::draw(&mut tiled, &tris, &opts)).unwrap();
+                let what = format!("round {round}, {threads} threads, {level:?}");
+                assert_eq!(stats, ref_stats, "{what}");
+                assert_same(&reference, &tiled, &what);
+            }
         }
     }
 }
