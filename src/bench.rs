@@ -96,6 +96,7 @@ enum Prepared {
     Window { triangles: Vec<[Vertex; 3]>, options: RenderOptions },
     Model { mesh: Box<Mesh>, camera: Camera, options: ModelOptions },
     Grid { positions: Vec<Vec4>, colors: Vec<Vec3>, triangles: Vec<[u32; 3]> },
+    Dense { positions: Vec<[f32; 3]>, triangles: Vec<[u32; 3]>, view_proj: glam::Mat4 },
 }
 
 /// Size of the dense scene, overridable for quick runs.
@@ -172,13 +173,16 @@ fn prepare(
             (Prepared::Grid { positions, colors, triangles }, 1920, 1080, "generated".into())
         }
         BenchScene::Dense => {
+            // Depth + flat colour with the leanest shaders: positions in, no varyings, one
+            // colour per triangle from its index. Nothing per vertex is stored but the mesh.
             let mesh = sphere_mesh(dense_triangles);
             let (centre, radius) = camera::bounding_sphere(&mesh.positions);
             let projection = Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y };
             let camera = Camera::framing_sphere(centre, radius, 0.3, 0.2, 16.0 / 9.0, projection);
-            let options = ModelOptions::default().with_lighting(Lighting::Flat);
             let source = format!("generated sphere of {} triangles", mesh.triangles.len());
-            (Prepared::Model { mesh: Box::new(mesh), camera, options }, 1920, 1080, source)
+            let view_proj = camera.view_projection(16.0 / 9.0);
+            let Mesh { positions, triangles, .. } = mesh;
+            (Prepared::Dense { positions, triangles, view_proj }, 1920, 1080, source)
         }
     })
 }
@@ -243,6 +247,15 @@ fn draw(
         Prepared::Window { triangles, options } => render::draw(target, triangles, options),
         Prepared::Model { mesh, camera, options } => {
             model::render_mesh(target, mesh, camera, options, textures)
+        }
+        Prepared::Dense { positions, triangles, view_proj } => {
+            let vs = |p: &[f32; 3]| (*view_proj * Vec3::from(*p).extend(1.0), ());
+            let fs = |f: &Fragment<()>| {
+                let h = f.primitive.wrapping_mul(0x9E37_79B9);
+                let c = |shift: u32| ((h >> shift) & 0xFF) as f32 / 255.0;
+                Some(Vec4::new(c(0), c(8), c(16), 1.0))
+            };
+            Pipeline::default().draw(target, &vs, &fs, positions, triangles)
         }
         Prepared::Grid { positions, colors, triangles } => {
             let vertices: Vec<u32> = (0..positions.len() as u32).collect();

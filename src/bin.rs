@@ -18,7 +18,8 @@
 use rayon::prelude::*;
 
 use crate::raster::Algorithm;
-use crate::setup::{PixelRect, TriangleSetup};
+use crate::render::DrawStats;
+use crate::setup::{PixelRect, Rejection, TriangleSetup};
 use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
 use crate::simd::{SimdLevel, SpanColor};
 use crate::target::Target;
@@ -41,6 +42,61 @@ pub struct Prepared<T> {
     pub id: i32,
     /// Per-triangle shading data.
     pub payload: T,
+}
+
+/// Why a triangle gives the back end nothing to do.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Skipped {
+    /// Setup rejected it.
+    Rejected(Rejection),
+    /// It was set up but covers no sample inside the clip rectangle (most triangles of a
+    /// dense mesh): shading data is never computed for it.
+    Empty,
+}
+
+impl From<Rejection> for Skipped {
+    fn from(r: Rejection) -> Self {
+        Self::Rejected(r)
+    }
+}
+
+/// Runs the front end over a batch in parallel: `prepare(k)` gives the pieces of the batch's
+/// triangle `k`. Returns the prepared triangles in submission order and the counts of what
+/// was skipped; skipped triangles take no memory.
+pub fn prepare_batch<T, It, F>(len: usize, prepare: F) -> (Vec<Prepared<T>>, DrawStats)
+where
+    T: Send,
+    It: IntoIterator<Item = Result<Prepared<T>, Skipped>>,
+    F: Fn(usize) -> It + Sync,
+{
+    // Fixed chunks collected in order, then joined once: no merge tree, no per-item slots.
+    const CHUNK: usize = 512;
+    let parts: Vec<(Vec<Prepared<T>>, DrawStats)> = (0..len.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let mut out = Vec::new();
+            let mut stats = DrawStats::default();
+            for k in c * CHUNK..((c + 1) * CHUNK).min(len) {
+                for piece in prepare(k) {
+                    match piece {
+                        Ok(p) => {
+                            stats.rasterized += 1;
+                            out.push(p);
+                        }
+                        Err(why) => stats.skip(why),
+                    }
+                }
+            }
+            (out, stats)
+        })
+        .collect();
+    let mut prepared = Vec::with_capacity(parts.iter().map(|p| p.0.len()).sum());
+    let mut stats = DrawStats::default();
+    for (part, counts) in parts {
+        prepared.extend(part);
+        stats = stats.merged(&counts);
+    }
+    (prepared, stats)
 }
 
 /// Per-tile lists of triangle indices, in submission order.
@@ -127,14 +183,14 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
     }
 }
 
-/// Renders prepared triangles (`Err` entries are skipped: rejected at setup) through tiles on
-/// the current rayon thread pool; returns the number of covered samples.
+/// Renders prepared triangles through tiles on the current rayon thread pool; returns the
+/// number of covered samples.
 /// `fragment(payload, x, y, e1, e2, z)` shades one pixel; where `kernel(payload)` gives a span
 /// kernel, it shades 1x spans instead.
 #[allow(clippy::too_many_arguments)]
-pub fn draw_binned<T, E, K, F>(
+pub fn draw_binned<T, K, F>(
     target: &mut Target,
-    prepared: &[Result<Prepared<T>, E>],
+    prepared: &[Prepared<T>],
     depth_test: DepthTest,
     clip: &PixelRect,
     kernel: K,
@@ -142,15 +198,12 @@ pub fn draw_binned<T, E, K, F>(
 ) -> u64
 where
     T: Sync,
-    E: Sync,
     K: Fn(&T) -> Option<(SimdLevel, SpanColor)> + Sync,
     F: Fn(&T, i32, i32, f64, f64, f32) -> Option<FragmentOutput> + Sync,
 {
     let multisampled = target.samples().count() > 1;
-    let bounds: Vec<Option<PixelRect>> = prepared
-        .par_iter()
-        .map(|p| coverage_bounds(&p.as_ref().ok()?.setup, multisampled, clip))
-        .collect();
+    let bounds: Vec<Option<PixelRect>> =
+        prepared.par_iter().map(|p| coverage_bounds(&p.setup, multisampled, clip)).collect();
     let (width, height) = (target.width(), target.height());
     let bins = Bins::build(&bounds, width, height);
     let tiles_x = width.div_ceil(TILE) as usize;
@@ -169,8 +222,7 @@ where
                 };
                 let Some(tile) = tile.intersect(clip) else { continue };
                 for &i in bins.tile(tx, ty) {
-                    // Binned triangles are the `Ok` ones.
-                    let Ok(p) = &prepared[i as usize] else { continue };
+                    let p = &prepared[i as usize];
                     covered += shade::shade_triangle(
                         &mut band,
                         &p.setup,

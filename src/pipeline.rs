@@ -34,13 +34,13 @@
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
-use crate::bin::{self, BATCH, Prepared};
+use crate::bin::{self, BATCH, Prepared, Skipped};
 use crate::clip::{ClipVertex, ClipVolume};
 use crate::color::{linear_to_srgb8, unorm8};
 use crate::error::Error;
 use crate::raster::Algorithm;
 use crate::render::{Backend, DrawStats};
-use crate::setup::{CullMode, Rejection, TriangleSetup, Vertex};
+use crate::setup::{CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
 use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
 use crate::target::Target;
 use crate::varyings::Varyings;
@@ -172,14 +172,18 @@ impl Pipeline {
                 vertices: vertices.len(),
             });
         }
-        let shaded: Vec<ClipVertex<VS::Varyings>> = vertices
-            .par_iter()
-            .map(|v| {
-                let (position, varyings) = vertex_shader.shade(v);
-                ClipVertex { position, varyings }
-            })
-            .collect();
+        let shade_vertex = |v: &I| {
+            let (position, varyings) = vertex_shader.shade(v);
+            ClipVertex { position, varyings }
+        };
+        // Small meshes: every vertex shaded once, up front. Large ones: per batch of
+        // triangles (below), so memory stays bounded whatever the mesh size.
+        let whole = vertices.len() <= VERTEX_CACHE;
+        let shaded: Vec<ClipVertex<VS::Varyings>> =
+            if whole { vertices.par_iter().map(shade_vertex).collect() } else { Vec::new() };
         let front = FrontEnd {
+            multisampled: target.samples().count() > 1,
+            clip: target.rect(),
             volume: ClipVolume::for_target(target.width(), target.height()),
             viewport: Viewport::of(target),
             cull: match self.cull {
@@ -213,14 +217,16 @@ impl Pipeline {
             Some(FragmentOutput { color, normal })
         };
         let mut stats = DrawStats { submitted: triangles.len(), ..DrawStats::default() };
-        let count = |stats: &mut DrawStats, r: &Result<_, Rejection>| match r {
+        let count = |stats: &mut DrawStats, r: &Result<_, Skipped>| match r {
             Ok(_) => stats.rasterized += 1,
-            Err(why) => stats.reject(*why),
+            Err(why) => stats.skip(*why),
         };
         match self.backend {
             Backend::Reference => {
                 for (id, tri) in triangles.iter().enumerate() {
-                    let input = tri.map(|i| shaded[i as usize]);
+                    let input = tri.map(|i| {
+                        if whole { shaded[i as usize] } else { shade_vertex(&vertices[i as usize]) }
+                    });
                     for r in front.prepare(input, id) {
                         count(&mut stats, &r);
                         let Ok(p) = r else { continue };
@@ -239,20 +245,42 @@ impl Pipeline {
                 }
             }
             Backend::Tiled => {
+                let mut window = Vec::new();
                 for (b, batch) in triangles.chunks(BATCH).enumerate() {
-                    let results: Vec<_> = batch
-                        .par_iter()
-                        .enumerate()
-                        .flat_map_iter(|(k, tri)| {
-                            front.prepare(tri.map(|i| shaded[i as usize]), b * BATCH + k)
-                        })
-                        .collect();
-                    for r in &results {
-                        count(&mut stats, r);
+                    // Vertices of a large mesh: the batch's index range shaded into a scratch
+                    // window when it is compact (meshes are mostly stored with locality),
+                    // otherwise each corner shaded where it is used.
+                    let (lo, hi) = if whole {
+                        (0, 0)
+                    } else {
+                        batch
+                            .iter()
+                            .flatten()
+                            .fold((u32::MAX, 0), |(lo, hi), &i| (lo.min(i), hi.max(i)))
+                    };
+                    let windowed = !whole && (hi - lo) as usize <= 4 * 3 * BATCH;
+                    if windowed {
+                        window.clear();
+                        window.par_extend(
+                            vertices[lo as usize..=hi as usize].par_iter().map(shade_vertex),
+                        );
                     }
+                    let fetch = |i: u32| {
+                        if whole {
+                            shaded[i as usize]
+                        } else if windowed {
+                            window[(i - lo) as usize]
+                        } else {
+                            shade_vertex(&vertices[i as usize])
+                        }
+                    };
+                    let (prepared, counts) = bin::prepare_batch(batch.len(), |k| {
+                        front.prepare(batch[k].map(fetch), b * BATCH + k)
+                    });
+                    stats = stats.merged(&counts);
                     stats.fragments += bin::draw_binned(
                         target,
-                        &results,
+                        &prepared,
                         self.depth_test,
                         &clip_rect,
                         |_| None,
@@ -264,6 +292,10 @@ impl Pipeline {
         Ok(stats)
     }
 }
+
+/// Meshes with at most this many vertices have them all shaded before any triangle; larger
+/// ones are shaded batch by batch, bounding memory.
+const VERTEX_CACHE: usize = 1 << 20;
 
 /// What the fragment stage needs of one (possibly clipped) triangle.
 #[derive(Clone, Copy, Debug)]
@@ -277,6 +309,8 @@ struct TriangleData<V> {
 
 /// The fixed-function stages between the vertex shader and the rasterizer.
 struct FrontEnd {
+    multisampled: bool,
+    clip: PixelRect,
     volume: ClipVolume,
     viewport: Viewport,
     cull: CullMode,
@@ -304,7 +338,7 @@ impl FrontEnd {
         &self,
         input: [ClipVertex<V>; 3],
         id: usize,
-    ) -> Pieces<Result<Prepared<TriangleData<V>>, Rejection>> {
+    ) -> Pieces<Result<Prepared<TriangleData<V>>, Skipped>> {
         let codes = input.map(|v| self.volume.outcode(v.position));
         if codes == [0; 3] {
             return Pieces::One(Some(self.setup(input, id)));
@@ -312,7 +346,7 @@ impl FrontEnd {
         let polygon = self.volume.clip(input);
         if polygon.is_empty() {
             // Entirely outside the view volume: counted with the culled.
-            return Pieces::One(Some(Err(Rejection::Culled)));
+            return Pieces::One(Some(Err(Skipped::Rejected(Rejection::Culled))));
         }
         let fan: Vec<_> = (1..polygon.len() - 1)
             .map(|k| self.setup([polygon[0], polygon[k], polygon[k + 1]], id))
@@ -324,9 +358,12 @@ impl FrontEnd {
         &self,
         tri: [ClipVertex<V>; 3],
         id: usize,
-    ) -> Result<Prepared<TriangleData<V>>, Rejection> {
+    ) -> Result<Prepared<TriangleData<V>>, Skipped> {
         let win = tri.map(|v| self.viewport.map(v.position));
         let setup = TriangleSetup::new(&win, self.cull)?;
+        if bin::coverage_bounds(&setup, self.multisampled, &self.clip).is_none() {
+            return Err(Skipped::Empty);
+        }
         let depth = PlaneEquation::new(win.map(|v| f64::from(v.z)), &setup);
         let payload = TriangleData {
             varyings: tri.map(|v| v.varyings),

@@ -1,8 +1,6 @@
 //! The draw call: runs `setup -> raster -> shade` over a triangle list, in submission order.
 
-use rayon::prelude::*;
-
-use crate::bin::{self, BATCH, Prepared};
+use crate::bin::{self, BATCH, Prepared, Skipped};
 use crate::error::Error;
 use crate::fixed;
 use crate::raster::Algorithm;
@@ -112,6 +110,28 @@ pub struct DrawStats {
 }
 
 impl DrawStats {
+    /// The sums of two sets of counts.
+    #[must_use]
+    pub fn merged(&self, other: &Self) -> Self {
+        Self {
+            submitted: self.submitted + other.submitted,
+            rasterized: self.rasterized + other.rasterized,
+            non_finite: self.non_finite + other.non_finite,
+            degenerate: self.degenerate + other.degenerate,
+            culled: self.culled + other.culled,
+            fragments: self.fragments + other.fragments,
+        }
+    }
+
+    /// Counts a triangle the tiled front end skipped.
+    pub fn skip(&mut self, why: Skipped) {
+        match why {
+            Skipped::Rejected(r) => self.reject(r),
+            // Set up like any other: it reached the rasterizer, which finds no sample.
+            Skipped::Empty => self.rasterized += 1,
+        }
+    }
+
     /// Counts a triangle that setup rejected.
     pub fn reject(&mut self, why: Rejection) {
         match why {
@@ -146,26 +166,27 @@ pub fn draw(
     if options.backend == Backend::Tiled {
         let level = options.simd.unwrap_or_else(SimdLevel::detect);
         for (b, batch) in triangles.chunks(BATCH).enumerate() {
-            let results: Vec<Result<Prepared<TriangleShader>, Rejection>> = batch
-                .par_iter()
-                .enumerate()
-                .map(|(k, tri)| {
-                    let setup = TriangleSetup::new(tri, options.cull)?;
-                    let shader = TriangleShader::new(tri, &setup, options.shading);
-                    let id = (b * BATCH + k) as i32;
-                    Ok(Prepared { setup, depth: *shader.depth_plane(), id, payload: shader })
-                })
-                .collect();
-            for r in &results {
-                match r {
-                    Ok(_) => stats.rasterized += 1,
-                    Err(why) => stats.reject(*why),
-                }
-            }
+            let multisampled = target.samples().count() > 1;
+            let visible = clip.unwrap_or(PixelRect { x0: 0, y0: 0, x1: -1, y1: -1 });
+            let (prepared, counts) = bin::prepare_batch(batch.len(), |k| {
+                let tri = &batch[k];
+                let piece = TriangleSetup::new(tri, options.cull).map_err(Skipped::from).and_then(
+                    |setup| {
+                        if bin::coverage_bounds(&setup, multisampled, &visible).is_none() {
+                            return Err(Skipped::Empty);
+                        }
+                        let shader = TriangleShader::new(tri, &setup, options.shading);
+                        let id = (b * BATCH + k) as i32;
+                        Ok(Prepared { setup, depth: *shader.depth_plane(), id, payload: shader })
+                    },
+                );
+                std::iter::once(piece)
+            });
+            stats = stats.merged(&counts);
             if let Some(clip) = clip {
                 stats.fragments += bin::draw_binned(
                     target,
-                    &results,
+                    &prepared,
                     options.depth_test,
                     &clip,
                     |shader| shader.span_color().map(|c| (level, c)),

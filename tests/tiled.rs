@@ -192,3 +192,47 @@ fn pipeline_matches_the_reference() {
         }
     }
 }
+
+/// Meshes with more vertices than the pipeline shades up front go through per-batch vertex
+/// windows (compact index ranges) or per-corner shading (scattered indices); both give the
+/// reference's buffers.
+#[test]
+fn large_meshes_shade_vertices_in_batches() {
+    let (nx, ny) = (1100u32, 1000u32);
+    let positions: Vec<Vec4> = (0..=ny)
+        .flat_map(|j| {
+            (0..=nx).map(move |i| {
+                let (x, y) = (i as f32 / nx as f32, j as f32 / ny as f32);
+                Vec4::new(2.0 * x - 1.0, 2.0 * y - 1.0, 0.25 + 0.5 * x * y, 1.0)
+            })
+        })
+        .collect();
+    assert!(positions.len() > 1 << 20);
+    let row = nx + 1;
+    let mut triangles: Vec<[u32; 3]> = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            let a = j * row + i;
+            triangles.push([a, a + 1, a + row + 1]);
+            triangles.push([a, a + row + 1, a + row]);
+        }
+    }
+    // Also a scattered order: every 7th triangle moved to the end.
+    let mut scattered: Vec<[u32; 3]> = triangles.iter().copied().step_by(7).collect();
+    scattered.extend(triangles.iter().enumerate().filter(|(k, _)| k % 7 != 0).map(|(_, t)| *t));
+    let vs = |p: &Vec4| (*p, p.z);
+    let fs = |f: &Fragment<f32>| Some(Vec4::new(f.varyings, 0.5, 0.25, 1.0));
+    for tris in [&triangles, &scattered] {
+        let fresh = || Target::new(97, 61).unwrap().with_ids().with_overdraw();
+        let pipeline = Pipeline::default().with_cull(FaceCull::None);
+        let mut reference = fresh();
+        pipeline
+            .with_backend(Backend::Reference)
+            .draw(&mut reference, &vs, &fs, &positions, tris)
+            .unwrap();
+        let mut tiled = fresh();
+        pool(2).install(|| pipeline.draw(&mut tiled, &vs, &fs, &positions, tris)).unwrap();
+        assert_same(&reference, &tiled, "large mesh");
+        assert!(reference.overdraw.as_ref().unwrap().iter().all(|&o| o == 1));
+    }
+}
