@@ -74,7 +74,7 @@ where
     let parts: Vec<(Vec<Prepared<T>>, DrawStats)> = (0..len.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
-            let mut out = Vec::new();
+            let mut out = Vec::with_capacity(CHUNK);
             let mut stats = DrawStats::default();
             for k in c * CHUNK..((c + 1) * CHUNK).min(len) {
                 for piece in prepare(k) {

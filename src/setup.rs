@@ -164,8 +164,6 @@ pub struct TriangleSetup {
     pub clockwise: bool,
     /// Pixels whose centres may be covered: the snapped bounding box, not yet clipped.
     pub bounds: PixelRect,
-    /// The snapped bounding box in fixed point: `[[x_min, y_min], [x_max, y_max]]`.
-    pub extent: [[i64; 2]; 2],
 }
 
 impl TriangleSetup {
@@ -213,14 +211,23 @@ impl TriangleSetup {
         let max = |k: usize| p0[k].max(p1[k]).max(p2[k]);
         let extent = [[min(0), min(1)], [max(0), max(1)]];
         let bounds = sample_bounds(extent, [0, 0]);
-        Ok(Self { xy, edges, area2: signed.abs(), clockwise, bounds, extent })
+        Ok(Self { xy, edges, area2: signed.abs(), clockwise, bounds })
     }
 
     /// Pixels whose sample at fixed-point `offset` from the centre may be covered (the
     /// bounding box, for that sample position).
     #[must_use]
     pub fn sample_bounds(&self, offset: [i64; 2]) -> PixelRect {
-        sample_bounds(self.extent, offset)
+        sample_bounds(self.extent(), offset)
+    }
+
+    /// The snapped bounding box in fixed point: `[[x_min, y_min], [x_max, y_max]]`.
+    #[must_use]
+    pub fn extent(&self) -> [[i64; 2]; 2] {
+        let [p0, p1, p2] = self.xy;
+        let min = |k: usize| p0[k].min(p1[k]).min(p2[k]);
+        let max = |k: usize| p0[k].max(p1[k]).max(p2[k]);
+        [[min(0), min(1)], [max(0), max(1)]]
     }
 
     /// Does the triangle cover the centre of pixel `(px, py)`? The definition every

@@ -114,15 +114,17 @@ impl PerspectivePlane {
 }
 
 /// The per-triangle colour source.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 enum ColorSource {
     Flat([u8; 4]),
     Smooth([PlaneEquation; 4]),
-    Perspective([PerspectivePlane; 4]),
+    // Boxed: rare, and twice the size of the others, which would otherwise size every
+    // triangle the tiled backend keeps in flight.
+    Perspective(Box<[PerspectivePlane; 4]>),
 }
 
 /// The window pipeline's per-triangle shading: a depth plane and a colour source.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct TriangleShader {
     depth: PlaneEquation,
     color: ColorSource,
@@ -163,9 +165,9 @@ impl TriangleShader {
             }
             Shading::Perspective => {
                 let inv_w = v.map(|p| f64::from(p.inv_w));
-                ColorSource::Perspective(std::array::from_fn(|c| {
+                ColorSource::Perspective(Box::new(std::array::from_fn(|c| {
                     PerspectivePlane::new(channel(c), inv_w, setup)
-                }))
+                })))
             }
         };
         Self { depth, color }
