@@ -107,8 +107,9 @@ pub struct Bins {
 }
 
 impl Bins {
-    /// Bins triangles whose (clipped, sample-inclusive) pixel bounds are `bounds`. Chunks are
-    /// binned in parallel and merged in chunk order, so lists stay in submission order.
+    /// Bins triangles whose (sample-inclusive) pixel bounds are `bounds`; bounds reaching
+    /// outside the `width x height` target are clipped to it. Chunks are binned in parallel
+    /// and merged in chunk order, so lists stay in submission order.
     #[must_use]
     pub fn build(bounds: &[Option<PixelRect>], width: u32, height: u32) -> Self {
         let tiles_x = width.div_ceil(TILE) as usize;
@@ -120,8 +121,9 @@ impl Bins {
             .enumerate()
             .map(|(c, part)| {
                 let mut lists = vec![Vec::new(); tiles];
+                let target = PixelRect::of_target(width, height);
                 for (k, r) in part.iter().enumerate() {
-                    let Some(r) = r else { continue };
+                    let Some(r) = r.and_then(|r| r.intersect(&target)) else { continue };
                     let index = (c * chunk + k) as u32;
                     let (tx0, tx1) = (r.x0 as u32 / TILE, r.x1 as u32 / TILE);
                     let (ty0, ty1) = (r.y0 as u32 / TILE, r.y1 as u32 / TILE);

@@ -144,6 +144,10 @@ struct RenderArgs {
     /// Write --ids and --depth with every sample, shape (H, W, S), instead of sample 0.
     #[arg(long)]
     per_sample: bool,
+    /// Time the render: draw N frames after a warm-up one and print median / min ms per frame
+    /// and throughput (loading excluded). The image written is the last frame.
+    #[arg(long, value_name = "N")]
+    frames: Option<usize>,
     /// Render N frames orbiting the model (3D only).
     #[arg(long, value_name = "N")]
     turntable: Option<u32>,
@@ -376,10 +380,31 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     };
     match args.turntable {
         None => {
-            target.clear(clear);
-            let stats =
-                model::render_mesh(&mut target, &mesh, &camera_at(az), &options, &textures)?;
+            let camera = camera_at(az);
+            let mut times = Vec::new();
+            let mut stats = trirast::DrawStats::default();
+            for frame in 0..=args.frames.unwrap_or(0) {
+                target.clear(clear);
+                let start = std::time::Instant::now();
+                stats = model::render_mesh(&mut target, &mesh, &camera, &options, &textures)?;
+                if frame > 0 {
+                    times.push(start.elapsed().as_secs_f64() * 1e3);
+                }
+            }
             report(&stats);
+            if !times.is_empty() {
+                times.sort_by(f64::total_cmp);
+                let median = times[times.len() / 2];
+                println!(
+                    "{} frames, {} threads: median {median:.2} ms, min {:.2} ms per frame; \
+                     {:.1} Mtri/s, {:.3} G frag/s",
+                    times.len(),
+                    rayon::current_num_threads(),
+                    times[0],
+                    stats.submitted as f64 / median / 1e3,
+                    stats.fragments as f64 / median / 1e6
+                );
+            }
             write_outputs(args, &target, None)
         }
         Some(0) => Err(usage("--turntable needs at least 1 frame".into())),
