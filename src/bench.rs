@@ -305,3 +305,71 @@ pub fn run(
         min_ms: times[0],
     })
 }
+
+/// The point counts of the lectures' splatting figures.
+pub const SPLAT_COUNTS: [usize; 3] = [130_712, 1_017_149, 14_835_967];
+
+/// What the splat benchmark measured for one point count.
+#[derive(Clone, Debug)]
+pub struct SplatBenchResult {
+    /// Points sampled.
+    pub points: usize,
+    /// Hierarchy nodes.
+    pub nodes: usize,
+    /// Time to build the hierarchy, ms.
+    pub build_ms: f64,
+    /// Size of the `.tsplat` encoding, bytes.
+    pub bytes: usize,
+    /// Median frame time at 1920x1080, ms (decoded tree, 1-pixel threshold).
+    pub median_ms: f64,
+    /// Fastest frame, ms.
+    pub min_ms: f64,
+    /// Splats drawn per frame.
+    pub splats: usize,
+    /// Where the points came from.
+    pub source: String,
+}
+
+/// Samples `points` points from the bunny (or a generated sphere), builds, encodes, decodes and
+/// renders the hierarchy `frames` times at 1920x1080.
+pub fn run_splats(points: usize, frames: usize) -> Result<SplatBenchResult, Error> {
+    use crate::splat::render::{self as splat_render, SplatOptions};
+    use crate::splat::{SplatTree, cloud, format};
+    let path = Path::new("../shared/models/stanford-bunny.obj");
+    let (mesh, source) = if path.exists() {
+        (crate::mesh::load(path)?, "stanford-bunny.obj".to_string())
+    } else {
+        (sphere_mesh(69_451), "generated sphere (bunny not found)".to_string())
+    };
+    let cloud = cloud::sample_mesh(&mesh, &MaterialTextures::load(&mesh), points, 7);
+    let start = Instant::now();
+    let tree = SplatTree::build(&cloud);
+    let build_ms = start.elapsed().as_secs_f64() * 1e3;
+    let bytes = format::encode(&tree);
+    let tree = format::decode(&bytes).map_err(|e| Error::Usage(format!("decoding: {e}")))?;
+    let (centre, radius) = (Vec3::from(tree.nodes[0].centre), tree.nodes[0].radius);
+    let projection = Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y };
+    let camera = Camera::framing_sphere(centre, radius, 0.5, 0.35, 16.0 / 9.0, projection);
+    let mut target = Target::new(1920, 1080)?;
+    let mut times = Vec::new();
+    let mut splats = 0;
+    for frame in 0..=frames.max(1) {
+        target.clear([0, 0, 0, 255]);
+        let t = Instant::now();
+        splats = splat_render::render(&mut target, &tree, &camera, &SplatOptions::default()).drawn;
+        if frame > 0 {
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    times.sort_by(f64::total_cmp);
+    Ok(SplatBenchResult {
+        points: cloud.positions.len(),
+        nodes: tree.nodes.len(),
+        build_ms,
+        bytes: bytes.len(),
+        median_ms: times[times.len() / 2],
+        min_ms: times[0],
+        splats,
+        source,
+    })
+}

@@ -41,6 +41,7 @@ pub mod scene;
 pub mod setup;
 pub mod shade;
 pub mod simd;
+pub mod splat;
 pub mod target;
 pub mod texture;
 pub mod varyings;

@@ -52,6 +52,43 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Time the splat hierarchy: build, bytes per point, ms per frame at 1920x1080, for the
+    /// lectures' 130,712 / 1,017,149 / 14,835,967 points sampled from the bunny.
+    SplatBench {
+        /// Point counts (default: the three above).
+        #[arg(long, value_delimiter = ',')]
+        points: Vec<usize>,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Timed frames per count.
+        #[arg(long, default_value_t = 10)]
+        frames: usize,
+    },
+    /// Sample points from a mesh (area-weighted, with normals and colours) into a PLY cloud.
+    Sample {
+        /// Mesh file (.obj, .ply, .stl).
+        file: PathBuf,
+        /// Number of points.
+        #[arg(long, default_value_t = 1_000_000)]
+        points: usize,
+        /// Output point cloud (.ply, binary).
+        #[arg(short, long, default_value = "cloud.ply")]
+        output: PathBuf,
+        /// Random seed (the same seed gives the same points).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+    /// Build the splat hierarchy of a point cloud and write it as a compact .tsplat file.
+    Pack {
+        /// Point cloud (.ply).
+        file: PathBuf,
+        /// Output file.
+        #[arg(short, long, default_value = "cloud.tsplat")]
+        output: PathBuf,
+    },
+    /// Render a point cloud (.ply, or a packed .tsplat) as splats.
+    Splat(Box<SplatArgs>),
     /// Draw one of the lectures' 2D demonstrations.
     Demo {
         /// Which demonstration.
@@ -151,6 +188,44 @@ struct RenderArgs {
     /// Render N frames orbiting the model (3D only).
     #[arg(long, value_name = "N")]
     turntable: Option<u32>,
+}
+
+#[derive(clap::Args)]
+struct SplatArgs {
+    /// Point cloud: .ply (the hierarchy is built on load) or .tsplat.
+    file: PathBuf,
+    /// Output colour PNG.
+    #[arg(short, long, default_value = "splat.png")]
+    output: PathBuf,
+    /// Image size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "800x600", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Stop refining at nodes whose projected diameter is below this many pixels (0 draws
+    /// every point).
+    #[arg(long, default_value_t = 1.0)]
+    threshold: f32,
+    /// Time budget: draw coarse-to-fine levels while the next is expected to fit; the image
+    /// is the finest level completed.
+    #[arg(long, value_name = "MS")]
+    budget_ms: Option<f64>,
+    /// Also write the depth buffer (float32 .npy, shape (H, W)).
+    #[arg(long, value_name = "FILE")]
+    depth: Option<PathBuf>,
+    /// Orbit: AZIMUTH,ELEVATION in degrees.
+    #[arg(long, value_name = "AZ,EL", value_parser = parse_vec2, allow_hyphen_values = true)]
+    view: Option<[f32; 2]>,
+    /// Splat footprint.
+    #[arg(long, value_enum, default_value_t = ShapeArg::Round)]
+    shape: ShapeArg,
+    /// Background colour as R,G,B (0-255).
+    #[arg(long, value_parser = parse_rgb)]
+    background: Option<[u8; 3]>,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum ShapeArg {
+    Round,
+    Square,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -295,6 +370,10 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => render(&args),
         Command::Info { file } => info(&file),
+        Command::Sample { file, points, output, seed } => sample(&file, points, &output, seed),
+        Command::SplatBench { points, threads, frames } => splat_bench(&points, threads, frames),
+        Command::Pack { file, output } => pack(&file, &output),
+        Command::Splat(args) => splat(&args),
         Command::Bench { scenes, threads, frames, msaa, dense_triangles, json } => {
             bench(&scenes, threads, frames, msaa, dense_triangles, json)
         }
@@ -657,6 +736,159 @@ fn bench(
             baseline.get_or_insert(r.median_ms);
         }
     }
+    Ok(())
+}
+
+fn splat_bench(points: &[usize], threads: Option<usize>, frames: usize) -> Result<(), Error> {
+    let threads =
+        threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| usage(format!("cannot start {threads} threads: {e}")))?;
+    let counts =
+        if points.is_empty() { trirast::bench::SPLAT_COUNTS.to_vec() } else { points.to_vec() };
+    println!(
+        "{:>10} {:>10} {:>10} {:>12} {:>8} {:>8} {:>10} {:>9} {:>4}",
+        "points", "nodes", "build ms", "bytes", "B/node", "B/point", "median ms", "splats", "thr"
+    );
+    for n in counts {
+        let r = pool.install(|| trirast::bench::run_splats(n, frames))?;
+        println!(
+            "{:>10} {:>10} {:>10.0} {:>12} {:>8.2} {:>8.2} {:>10.2} {:>9} {:>4}",
+            r.points,
+            r.nodes,
+            r.build_ms,
+            r.bytes,
+            r.bytes as f64 / r.nodes as f64,
+            r.bytes as f64 / r.points as f64,
+            r.median_ms,
+            r.splats,
+            threads
+        );
+    }
+    Ok(())
+}
+
+fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Error> {
+    let mesh = trirast::mesh::load(file)?;
+    for w in &mesh.warnings {
+        eprintln!("trirast: warning: {w}");
+    }
+    let textures = MaterialTextures::load(&mesh);
+    let start = std::time::Instant::now();
+    let cloud = trirast::splat::cloud::sample_mesh(&mesh, &textures, points, seed);
+    trirast::splat::cloud::write_ply(output, &cloud)?;
+    eprintln!(
+        "sampled {} points in {:.0} ms; wrote {}",
+        cloud.positions.len(),
+        start.elapsed().as_secs_f64() * 1e3,
+        output.display()
+    );
+    Ok(())
+}
+
+fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
+    let is_tsplat = file.extension().is_some_and(|e| e.eq_ignore_ascii_case("tsplat"));
+    if is_tsplat {
+        return trirast::splat::format::read(file);
+    }
+    let cloud = trirast::splat::cloud::read_ply(file)?;
+    let start = std::time::Instant::now();
+    let tree = trirast::splat::SplatTree::build(&cloud);
+    eprintln!(
+        "built the hierarchy of {} points ({} nodes) in {:.0} ms",
+        cloud.positions.len(),
+        tree.nodes.len(),
+        start.elapsed().as_secs_f64() * 1e3
+    );
+    Ok(tree)
+}
+
+fn pack(file: &Path, output: &Path) -> Result<(), Error> {
+    let tree = load_splats(file)?;
+    trirast::splat::format::write(output, &tree)?;
+    let bytes = std::fs::metadata(output).map_err(|e| Error::io(output, e))?.len();
+    eprintln!(
+        "wrote {}: {} nodes, {} points, {} bytes ({:.2} bytes per node, {:.2} per point)",
+        output.display(),
+        tree.nodes.len(),
+        tree.leaf_count(),
+        bytes,
+        bytes as f64 / tree.nodes.len().max(1) as f64,
+        bytes as f64 / tree.leaf_count().max(1) as f64
+    );
+    Ok(())
+}
+
+fn splat(args: &SplatArgs) -> Result<(), Error> {
+    use trirast::splat::render::{Progressive, SplatOptions, SplatShape};
+    let tree = load_splats(&args.file)?;
+    let (width, height) = args.size;
+    let mut target = Target::new(width, height)?;
+    let Some(root) = tree.nodes.first() else {
+        return Err(usage(format!("{}: the point cloud is empty", args.file.display())));
+    };
+    let [az, el] = args.view.unwrap_or([30.0, 20.0]);
+    let camera = Camera::framing_sphere(
+        glam::Vec3::from(root.centre),
+        root.radius,
+        az.to_radians(),
+        el.to_radians(),
+        width as f32 / height as f32,
+        Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y },
+    );
+    let shape = match args.shape {
+        ShapeArg::Round => SplatShape::Round,
+        ShapeArg::Square => SplatShape::Square,
+    };
+    let options = SplatOptions::default().with_shape(shape);
+    let background = args.background.unwrap_or([38, 42, 52]);
+    let clear = [background[0], background[1], background[2], 255];
+    let threshold = args.threshold.max(0.0);
+    let start = std::time::Instant::now();
+    let mut progressive = Progressive::new(threshold);
+    if args.budget_ms.is_none() {
+        // No budget: straight to the final level.
+        while progressive.next_threshold().is_some_and(|t| t != threshold) {
+            progressive.skip();
+        }
+    }
+    let mut last_ms = 0.0;
+    let mut finest = None;
+    // Scratch target so that a level being drawn never replaces a finished one.
+    let mut scratch = target.clone();
+    while let Some(next) = progressive.next_threshold() {
+        let elapsed = start.elapsed().as_secs_f64() * 1e3;
+        if let (Some(budget), Some(_)) = (args.budget_ms, &finest) {
+            // Each level costs about 4x the previous one (about 4x more splats).
+            if elapsed + 4.0 * last_ms > budget {
+                break;
+            }
+        }
+        let t = std::time::Instant::now();
+        let Some((_, stats)) = progressive.step(&mut scratch, &tree, &camera, &options, clear)
+        else {
+            break;
+        };
+        last_ms = t.elapsed().as_secs_f64() * 1e3;
+        std::mem::swap(&mut target, &mut scratch);
+        finest = Some((next, stats, last_ms));
+    }
+    if let Some((level, stats, ms)) = finest {
+        eprintln!(
+            "level {level} px: {} splats ({} points), {} nodes culled, {ms:.1} ms{}",
+            stats.drawn,
+            stats.leaves_drawn,
+            stats.culled,
+            if level == threshold { "" } else { " (coarser than --threshold: budget reached)" }
+        );
+    }
+    trirast::output::write_png(&args.output, &target)?;
+    if let Some(p) = &args.depth {
+        trirast::output::write_npy(p, &target.depth, width, height)?;
+    }
+    eprintln!("wrote {}", args.output.display());
     Ok(())
 }
 

@@ -120,6 +120,12 @@ pub struct MaterialTextures {
 }
 
 impl MaterialTextures {
+    /// The loaded texture of material `material`, if it has one that could be read.
+    #[must_use]
+    pub fn get(&self, material: usize) -> Option<&Texture> {
+        self.textures.get(material).and_then(Option::as_ref)
+    }
+
     /// Loads the diffuse textures of `mesh`'s materials.
     #[must_use]
     pub fn load(mesh: &Mesh) -> Self {
@@ -145,7 +151,7 @@ impl MaterialTextures {
 /// Area-weighted vertex normals (the sum of the adjacent faces' cross products): large faces
 /// count more, and slivers, whose normals are least reliable, count least. Vertices at the
 /// same position share one normal, so seams in texture coordinates (which split vertices)
-/// do not show as creases.
+/// do not show as creases. Triangles with out-of-range indices are ignored.
 #[must_use]
 pub fn vertex_normals(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Vec<[f32; 3]> {
     let mut slot_of = std::collections::HashMap::new();
@@ -158,6 +164,10 @@ pub fn vertex_normals(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Vec<[f3
         .collect();
     let mut sum = vec![Vec3::ZERO; slot_of.len()];
     for t in triangles {
+        // Triangles referring past the vertices contribute nothing (and never panic).
+        if t.iter().any(|&i| i as usize >= positions.len()) {
+            continue;
+        }
         let [a, b, c] = t.map(|i| Vec3::from(positions[i as usize]));
         let n = (b - a).cross(c - a);
         if n.is_finite() {

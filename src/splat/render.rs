@@ -1,0 +1,430 @@
+//! Splat rendering: traverse the hierarchy, cull, stop at a projected size, draw splats.
+//!
+//! A node is culled when its sphere lies outside a frustum plane, or when every normal in its
+//! cone faces away from the eye (with a margin for the sphere's angular size). It is drawn as
+//! a splat when it is a leaf or its projected radius is below the threshold (pixels): a
+//! square or disk of that radius around its projected centre, at the depth of its centre,
+//! lit by its normal with the same light as meshes. Otherwise its children are visited.
+//!
+//! Traversal runs on several threads over disjoint subtrees and splats are concatenated in
+//! tree order; drawing then goes band by band ([`Target::bands`], the triangles' machinery),
+//! each band drawing its splats in that order with the depth test. So the image does not
+//! depend on the thread count.
+
+use glam::{Mat3, Mat4, Vec3, Vec4};
+use rayon::prelude::*;
+
+use super::tree::SplatTree;
+use crate::camera::Camera;
+use crate::color::{linear_to_srgb8, srgb_to_linear};
+use crate::model::Light;
+use crate::target::{Target, TargetBand};
+
+/// The footprint of a splat.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SplatShape {
+    /// An axis-aligned square.
+    Square,
+    /// A disk.
+    #[default]
+    Round,
+}
+
+/// How to render splats. Default: 1-pixel threshold, round splats, back-face culling, the
+/// mesh renderer's head light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct SplatOptions {
+    /// Stop descending at nodes whose projected diameter is below this many pixels (0: draw
+    /// every leaf).
+    pub threshold: f32,
+    /// Splat footprint.
+    pub shape: SplatShape,
+    /// Cull nodes whose normal cone faces away from the eye.
+    pub backface_cull: bool,
+    /// Light (view space, as for meshes); `None` draws the node colours unlit.
+    pub light: Option<Light>,
+}
+
+impl Default for SplatOptions {
+    fn default() -> Self {
+        Self {
+            threshold: 1.0,
+            shape: SplatShape::Round,
+            backface_cull: true,
+            light: Some(Light::default()),
+        }
+    }
+}
+
+impl SplatOptions {
+    /// Sets the threshold in pixels.
+    #[must_use]
+    pub fn with_threshold(mut self, threshold: f32) -> Self {
+        self.threshold = threshold;
+        self
+    }
+
+    /// Sets the splat shape.
+    #[must_use]
+    pub fn with_shape(mut self, shape: SplatShape) -> Self {
+        self.shape = shape;
+        self
+    }
+
+    /// Sets the light (`None`: unlit).
+    #[must_use]
+    pub fn with_light(mut self, light: Option<Light>) -> Self {
+        self.light = light;
+        self
+    }
+
+    /// Turns back-face culling on or off.
+    #[must_use]
+    pub fn with_backface_cull(mut self, on: bool) -> Self {
+        self.backface_cull = on;
+        self
+    }
+}
+
+/// What a splat render did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SplatStats {
+    /// Nodes visited.
+    pub visited: usize,
+    /// Splats drawn.
+    pub drawn: usize,
+    /// Of those, leaves.
+    pub leaves_drawn: usize,
+    /// Nodes culled (frustum or normal cone).
+    pub culled: usize,
+    /// Pixels written (passed the depth test).
+    pub pixels: u64,
+}
+
+/// One splat in window space.
+#[derive(Clone, Copy, Debug)]
+struct Splat {
+    x: f32,
+    y: f32,
+    half: f32,
+    depth: f32,
+    color: [u8; 4],
+    id: i32,
+}
+
+/// Everything traversal needs, derived once from the camera and target.
+struct View<'a> {
+    tree: &'a SplatTree,
+    options: &'a SplatOptions,
+    clip: Mat4,
+    planes: [Vec4; 6],
+    eye: Vec3,
+    direction: Vec3,
+    perspective: bool,
+    /// Pixels per world unit at w = 1 (vertically).
+    pixels_per_unit: f32,
+    half_size: [f32; 2],
+    view_normal: Mat3,
+    light_dir: Vec3,
+}
+
+impl View<'_> {
+    /// Culled, drawn, or to be refined.
+    fn classify(&self, i: usize) -> Visit {
+        let n = &self.tree.nodes[i];
+        let c = Vec3::from(n.centre);
+        let r = n.radius;
+        if self.planes.iter().any(|p| p.truncate().dot(c) + p.w < -r) {
+            return Visit::Culled;
+        }
+        if self.options.backface_cull && n.cone < std::f32::consts::FRAC_PI_2 {
+            let normal = Vec3::from(n.normal);
+            let to_eye = if self.perspective { self.eye - c } else { -self.direction };
+            let dist = to_eye.length();
+            if normal != Vec3::ZERO && dist > r {
+                let facing = normal.dot(to_eye / dist).clamp(-1.0, 1.0).acos();
+                let margin = (r / dist).clamp(0.0, 1.0).asin();
+                if facing > std::f32::consts::FRAC_PI_2 + n.cone + margin {
+                    return Visit::Culled;
+                }
+            }
+        }
+        let p = self.clip * c.extend(1.0);
+        let leaf = n.child_count == 0;
+        if p.w <= r * 1e-3 || (self.perspective && p.w - r <= 0.0) {
+            // Straddles the camera plane: no projection; refine, or drop a leaf.
+            return if leaf { Visit::Culled } else { Visit::Refine };
+        }
+        let radius_px = r * self.pixels_per_unit / p.w;
+        if leaf || 2.0 * radius_px < self.options.threshold {
+            // Two-sided, as for meshes: a normal facing away (a scan's flipped triangle, or a
+            // node kept by the conservative cone test) is lit as its visible side.
+            let mut normal = Vec3::from(n.normal);
+            let to_eye = if self.perspective { self.eye - c } else { -self.direction };
+            if normal.dot(to_eye) < 0.0 {
+                normal = -normal;
+            }
+            let lit = self.shade(n.color, normal);
+            return Visit::Draw(Splat {
+                x: (p.x / p.w + 1.0) * self.half_size[0],
+                y: (1.0 - p.y / p.w) * self.half_size[1],
+                half: radius_px.max(0.5),
+                depth: p.z / p.w,
+                color: lit,
+                id: i as i32,
+            });
+        }
+        Visit::Refine
+    }
+
+    fn shade(&self, color: [u8; 3], normal: Vec3) -> [u8; 4] {
+        let albedo = Vec3::from(color.map(srgb_to_linear));
+        let lit = match self.options.light {
+            Some(light) if normal != Vec3::ZERO => {
+                let n = (self.view_normal * normal).normalize_or_zero();
+                let d = light.ambient + light.diffuse * n.dot(self.light_dir).max(0.0);
+                albedo * d
+            }
+            _ => albedo,
+        };
+        [linear_to_srgb8(lit.x), linear_to_srgb8(lit.y), linear_to_srgb8(lit.z), 255]
+    }
+
+    /// Depth-first from `i`, appending splats in tree order.
+    fn traverse(&self, i: usize, out: &mut Vec<Splat>, stats: &mut SplatStats) {
+        stats.visited += 1;
+        match self.classify(i) {
+            Visit::Culled => stats.culled += 1,
+            Visit::Draw(s) => {
+                stats.drawn += 1;
+                stats.leaves_drawn += usize::from(self.tree.nodes[i].child_count == 0);
+                out.push(s);
+            }
+            Visit::Refine => {
+                for k in self.tree.children(i) {
+                    self.traverse(k, out, stats);
+                }
+            }
+        }
+    }
+}
+
+enum Visit {
+    Culled,
+    Draw(Splat),
+    Refine,
+}
+
+/// Renders `tree` seen by `camera` into `target` (which the caller clears).
+pub fn render(
+    target: &mut Target,
+    tree: &SplatTree,
+    camera: &Camera,
+    options: &SplatOptions,
+) -> SplatStats {
+    if tree.nodes.is_empty() {
+        return SplatStats::default();
+    }
+    let (w, h) = (target.width() as f32, target.height() as f32);
+    let projection = camera.projection(w / h);
+    let view = camera.view();
+    let clip = projection * view;
+    let rows = [clip.row(0), clip.row(1), clip.row(2), clip.row(3)];
+    let planes = [
+        rows[3] + rows[0],
+        rows[3] - rows[0],
+        rows[3] + rows[1],
+        rows[3] - rows[1],
+        rows[2],
+        rows[3] - rows[2],
+    ]
+    .map(|p| p / p.truncate().length().max(1e-30));
+    let light_dir = options.light.map_or(Vec3::Z, |l| l.direction.normalize_or(Vec3::Z));
+    let v = View {
+        tree,
+        options,
+        clip,
+        planes,
+        eye: camera.eye,
+        direction: (camera.target - camera.eye).normalize_or(Vec3::NEG_Z),
+        perspective: matches!(camera.projection, crate::camera::Projection::Perspective { .. }),
+        pixels_per_unit: projection.y_axis.y * h / 2.0,
+        half_size: [w / 2.0, h / 2.0],
+        view_normal: Mat3::from_mat4(view).inverse().transpose(),
+        light_dir,
+    };
+    // Expand a frontier breadth-first (in tree order) so subtrees can be traversed in
+    // parallel; drawn nodes met on the way keep their place in the order.
+    let mut stats = SplatStats::default();
+    let mut frontier: Vec<Result<Splat, usize>> = vec![Err(0)];
+    while frontier.iter().filter(|f| f.is_err()).count() < 256 {
+        let mut next = Vec::with_capacity(frontier.len() * 4);
+        let mut grew = false;
+        for f in frontier {
+            match f {
+                Ok(s) => next.push(Ok(s)),
+                Err(i) => {
+                    stats.visited += 1;
+                    match v.classify(i) {
+                        Visit::Culled => stats.culled += 1,
+                        Visit::Draw(s) => {
+                            stats.drawn += 1;
+                            stats.leaves_drawn += usize::from(tree.nodes[i].child_count == 0);
+                            next.push(Ok(s));
+                        }
+                        Visit::Refine => {
+                            grew = true;
+                            next.extend(tree.children(i).map(Err));
+                        }
+                    }
+                }
+            }
+        }
+        frontier = next;
+        if !grew {
+            break;
+        }
+    }
+    let parts: Vec<(Vec<Splat>, SplatStats)> = frontier
+        .par_iter()
+        .map(|f| match *f {
+            Ok(s) => (vec![s], SplatStats::default()),
+            Err(i) => {
+                let mut out = Vec::new();
+                let mut st = SplatStats::default();
+                v.traverse(i, &mut out, &mut st);
+                (out, st)
+            }
+        })
+        .collect();
+    let mut splats = Vec::with_capacity(parts.iter().map(|p| p.0.len()).sum());
+    for (p, st) in parts {
+        splats.extend(p);
+        stats.visited += st.visited;
+        stats.drawn += st.drawn;
+        stats.leaves_drawn += st.leaves_drawn;
+        stats.culled += st.culled;
+    }
+    stats.pixels = draw_splats(target, &splats, options.shape);
+    stats
+}
+
+/// Draws splats band by band (in parallel), each band in splat order; returns pixels written.
+fn draw_splats(target: &mut Target, splats: &[Splat], shape: SplatShape) -> u64 {
+    const ROWS: u32 = 64;
+    let height = target.height();
+    let bands = height.div_ceil(ROWS) as usize;
+    // Splat indices per band, in order.
+    let mut lists: Vec<Vec<u32>> = vec![Vec::new(); bands];
+    for (k, s) in splats.iter().enumerate() {
+        let (y0, y1) = ((s.y - s.half).floor(), (s.y + s.half).ceil());
+        if y1 < 0.0 || y0 >= height as f32 || !s.x.is_finite() || !s.y.is_finite() {
+            continue;
+        }
+        let b0 = (y0.max(0.0) as u32 / ROWS) as usize;
+        let b1 = ((y1.min(height as f32 - 1.0)) as u32 / ROWS) as usize;
+        for list in &mut lists[b0..=b1.min(bands - 1)] {
+            list.push(k as u32);
+        }
+    }
+    target
+        .bands(ROWS)
+        .into_par_iter()
+        .zip(lists.par_iter())
+        .map(|(mut band, list)| {
+            list.iter().map(|&k| draw_splat(&mut band, &splats[k as usize], shape)).sum::<u64>()
+        })
+        .sum()
+}
+
+/// Pixels whose centres lie in the splat's square (or disk) get it, where it passes LESS; so
+/// does the pixel containing the splat's centre, so that a splat smaller than a pixel still
+/// covers one (otherwise sub-pixel splats between pixel centres would leave holes).
+fn draw_splat(band: &mut TargetBand<'_>, s: &Splat, shape: SplatShape) -> u64 {
+    let r = band.rect();
+    let (hx, hy) = (s.x.floor() as i64, s.y.floor() as i64);
+    let x0 = ((s.x - s.half - 0.5).ceil() as i64).min(hx).max(i64::from(r.x0));
+    let x1 = ((s.x + s.half - 0.5).floor() as i64).max(hx).min(i64::from(r.x1));
+    let y0 = ((s.y - s.half - 0.5).ceil() as i64).min(hy).max(i64::from(r.y0));
+    let y1 = ((s.y + s.half - 0.5).floor() as i64).max(hy).min(i64::from(r.y1));
+    let n = band.samples().count();
+    let z = s.depth.clamp(0.0, 1.0);
+    let mut written = 0;
+    for py in y0..=y1 {
+        for px in x0..=x1 {
+            let (dx, dy) = (px as f32 + 0.5 - s.x, py as f32 + 0.5 - s.y);
+            let home = px == s.x.floor() as i64 && py == s.y.floor() as i64;
+            if shape == SplatShape::Round && dx * dx + dy * dy > s.half * s.half && !home {
+                continue;
+            }
+            let p = band.index(px as i32, py as i32);
+            if let Some(o) = band.overdraw.as_deref_mut() {
+                o[p] += n as u32;
+            }
+            for k in p * n..(p + 1) * n {
+                if z < band.depth[k] {
+                    band.depth[k] = z;
+                    band.color[k] = s.color;
+                    if let Some(ids) = band.ids.as_deref_mut() {
+                        ids[k] = s.id;
+                    }
+                    written += 1;
+                }
+            }
+        }
+    }
+    written
+}
+
+/// Incremental refinement: each step renders a complete frame one level finer (thresholds
+/// 64, 16, 4 and 1 times the final one), so a viewer shows a coarse image at once and the
+/// full-detail image after the last step.
+#[derive(Clone, Debug)]
+pub struct Progressive {
+    thresholds: Vec<f32>,
+    next: usize,
+}
+
+impl Progressive {
+    /// Levels ending at `final_threshold` pixels (0 ends by drawing every leaf).
+    #[must_use]
+    pub fn new(final_threshold: f32) -> Self {
+        let base = if final_threshold > 0.0 { final_threshold } else { 0.5 };
+        let mut thresholds: Vec<f32> = [64.0, 16.0, 4.0].iter().map(|k| base * k).collect();
+        thresholds.push(final_threshold.max(0.0));
+        Self { thresholds, next: 0 }
+    }
+
+    /// True once the final level has been drawn.
+    #[must_use]
+    pub fn is_done(&self) -> bool {
+        self.next >= self.thresholds.len()
+    }
+
+    /// Threshold of the next step, if any.
+    #[must_use]
+    pub fn next_threshold(&self) -> Option<f32> {
+        self.thresholds.get(self.next).copied()
+    }
+
+    /// Skips the next level without drawing it.
+    pub fn skip(&mut self) {
+        self.next += 1;
+    }
+
+    /// Clears `target` to `clear` and renders the next level; `None` when already done.
+    pub fn step(
+        &mut self,
+        target: &mut Target,
+        tree: &SplatTree,
+        camera: &Camera,
+        options: &SplatOptions,
+        clear: [u8; 4],
+    ) -> Option<(f32, SplatStats)> {
+        let threshold = self.next_threshold()?;
+        self.next += 1;
+        target.clear(clear);
+        Some((threshold, render(target, tree, camera, &options.with_threshold(threshold))))
+    }
+}

@@ -1,0 +1,277 @@
+//! The bounding-sphere hierarchy.
+//!
+//! Layout (the one the file format stores): nodes in breadth-first order, the root first, the
+//! children of a node contiguous (`first_child .. first_child + child_count`), at most 4 per
+//! node, leaves have none. Every node's sphere contains every input point below it; its
+//! normal is the (normalised) average of its points' normals and `cone` bounds the angle
+//! between it and any normal below, so a node whose whole cone faces away can be culled.
+
+/// One node of the hierarchy.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SplatNode {
+    /// Sphere centre.
+    pub centre: [f32; 3],
+    /// Sphere radius (for a leaf: the splat radius of its point).
+    pub radius: f32,
+    /// Unit average normal (zero when normals are unknown).
+    pub normal: [f32; 3],
+    /// Half-angle of the normal cone, radians, in [0, pi]; pi means "any direction".
+    pub cone: f32,
+    /// Average colour, sRGB-encoded RGB8.
+    pub color: [u8; 3],
+    /// Index of the first child (meaningless for a leaf).
+    pub first_child: u32,
+    /// Number of children, 0 for a leaf, at most 4.
+    pub child_count: u8,
+}
+
+/// A bounding-sphere tree over a point cloud.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SplatTree {
+    /// Nodes in breadth-first order; `nodes[0]` is the root.
+    pub nodes: Vec<SplatNode>,
+}
+
+impl SplatTree {
+    /// The children of node `i`.
+    #[must_use]
+    pub fn children(&self, i: usize) -> std::ops::Range<usize> {
+        let n = &self.nodes[i];
+        n.first_child as usize..n.first_child as usize + n.child_count as usize
+    }
+
+    /// Number of leaves.
+    #[must_use]
+    pub fn leaf_count(&self) -> usize {
+        self.nodes.iter().filter(|n| n.child_count == 0).count()
+    }
+}
+
+use rayon::prelude::*;
+
+use super::PointCloud;
+
+impl SplatTree {
+    /// Builds the hierarchy over `cloud`, level by level: each node's points (a contiguous
+    /// range of an index array) are split at the median of their longest bounding-box axis,
+    /// and each half again, into up to 4 children, until single points remain; then spheres,
+    /// normals, cones and colours are computed bottom-up. O(n log n) work; the nodes of a
+    /// level are split in parallel. Non-finite points are left out. An empty cloud gives an
+    /// empty tree.
+    ///
+    /// Leaf radii come from the cloud; a cloud without radii gets one radius for all points,
+    /// estimated from the spacing (three quarters of the typical radius of the nodes just
+    /// above the leaves), so splats of neighbouring points overlap.
+    #[must_use]
+    pub fn build(cloud: &PointCloud) -> Self {
+        let points = &cloud.positions;
+        let mut index: Vec<u32> = (0..points.len() as u32)
+            .filter(|&i| points[i as usize].iter().all(|c| c.is_finite()))
+            .collect();
+        if index.is_empty() {
+            return Self::default();
+        }
+        // Top-down: (start, len) of each node's range in `index`, breadth first.
+        let mut ranges: Vec<(u32, u32)> = vec![(0, index.len() as u32)];
+        let mut child_counts: Vec<u8> = Vec::new();
+        let mut level_start = 0;
+        while level_start < ranges.len() {
+            let level = ranges[level_start..].to_vec();
+            // Disjoint mutable slices of `index`, one per node of this level, in order.
+            let mut slices = Vec::with_capacity(level.len());
+            let mut rest: &mut [u32] = &mut index;
+            let mut offset = 0u32;
+            for &(start, len) in &level {
+                let (_, tail) = rest.split_at_mut((start - offset) as usize);
+                let (mine, tail) = tail.split_at_mut(len as usize);
+                slices.push(mine);
+                rest = tail;
+                offset = start + len;
+            }
+            let splits: Vec<Vec<(u32, u32)>> = slices
+                .into_par_iter()
+                .zip(level.par_iter())
+                .with_min_len(64)
+                .map(|(slice, &(start, _))| split4(points, slice, start))
+                .collect();
+            level_start = ranges.len();
+            for children in splits {
+                child_counts.push(children.len() as u8);
+                ranges.extend(children);
+            }
+        }
+        // Bottom-up: spheres, normals, cones, colours.
+        let mut nodes: Vec<SplatNode> = Vec::with_capacity(ranges.len());
+        let mut next_child = 1u32;
+        for &count in &child_counts {
+            nodes.push(SplatNode {
+                centre: [0.0; 3],
+                radius: 0.0,
+                normal: [0.0; 3],
+                cone: std::f32::consts::PI,
+                color: [0; 3],
+                first_child: if count > 0 { next_child } else { 0 },
+                child_count: count,
+            });
+            next_child += u32::from(count);
+        }
+        let uniform = cloud.radii.is_none();
+        let mut tree = Self { nodes };
+        tree.fill_bottom_up(cloud, &index, &ranges, |i| cloud.radii.as_ref().map_or(0.0, |r| r[i]));
+        if uniform {
+            let radius = tree.estimate_spacing();
+            tree.fill_bottom_up(cloud, &index, &ranges, |_| radius);
+        }
+        tree
+    }
+
+    /// Computes every node from its children (or, for a leaf, its point), last node first.
+    fn fill_bottom_up(
+        &mut self,
+        cloud: &PointCloud,
+        index: &[u32],
+        ranges: &[(u32, u32)],
+        leaf_radius: impl Fn(usize) -> f32,
+    ) {
+        // Point counts per node, for weighting averages.
+        let mut weight = vec![0u32; self.nodes.len()];
+        for i in (0..self.nodes.len()).rev() {
+            let node = self.nodes[i];
+            if node.child_count == 0 {
+                let p = index[ranges[i].0 as usize] as usize;
+                let normal = cloud.normals.as_ref().map(|n| n[p]);
+                self.nodes[i] = SplatNode {
+                    centre: cloud.positions[p],
+                    radius: leaf_radius(p).max(0.0),
+                    normal: normal.unwrap_or([0.0; 3]),
+                    cone: if normal.is_some() { 0.0 } else { std::f32::consts::PI },
+                    color: cloud.colors.as_ref().map_or([200; 3], |c| c[p]),
+                    ..node
+                };
+                weight[i] = 1;
+                continue;
+            }
+            let children = self.children(i);
+            let kids = &self.nodes[children.clone()];
+            let ws = &weight[children];
+            let mut lo = [f32::INFINITY; 3];
+            let mut hi = [f32::NEG_INFINITY; 3];
+            for k in kids {
+                for a in 0..3 {
+                    lo[a] = lo[a].min(k.centre[a] - k.radius);
+                    hi[a] = hi[a].max(k.centre[a] + k.radius);
+                }
+            }
+            let centre: [f32; 3] = std::array::from_fn(|a| 0.5 * (lo[a] + hi[a]));
+            // Grown by a relative 1e-6 so f32 rounding never leaves a child poking out.
+            let radius =
+                kids.iter().map(|k| distance(centre, k.centre) + k.radius).fold(0.0f32, f32::max)
+                    * (1.0 + 1e-6);
+            let total: u32 = ws.iter().sum();
+            let mut n = [0.0f32; 3];
+            let mut color = [0u64; 3];
+            for (k, &w) in kids.iter().zip(ws) {
+                for a in 0..3 {
+                    n[a] += k.normal[a] * w as f32;
+                    color[a] += u64::from(k.color[a]) * u64::from(w);
+                }
+            }
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            let (normal, cone) =
+                if len > 1e-12 && kids.iter().all(|k| k.cone < std::f32::consts::PI) {
+                    let n = n.map(|c| c / len);
+                    let cone = kids
+                        .iter()
+                        .map(|k| angle(n, k.normal) + k.cone)
+                        .fold(0.0f32, f32::max)
+                        .min(std::f32::consts::PI);
+                    (n, cone)
+                } else {
+                    ([0.0; 3], std::f32::consts::PI)
+                };
+            let t = u64::from(total.max(1));
+            self.nodes[i] = SplatNode {
+                centre,
+                radius,
+                normal,
+                cone,
+                color: color.map(|c| ((c + t / 2) / t) as u8),
+                ..node
+            };
+            weight[i] = total;
+        }
+    }
+
+    /// A splat radius for clouds without radii: 3/4 of the median radius of the nodes whose
+    /// children are all leaves (computed with zero leaf radii, so it measures point spacing).
+    fn estimate_spacing(&self) -> f32 {
+        let mut radii: Vec<f32> = (0..self.nodes.len())
+            .filter(|&i| {
+                let c = self.children(i);
+                !c.is_empty() && c.clone().all(|k| self.nodes[k].child_count == 0)
+            })
+            .map(|i| self.nodes[i].radius)
+            .filter(|r| *r > 0.0)
+            .collect();
+        if radii.is_empty() {
+            return self.nodes.first().map_or(0.0, |r| r.radius * 0.01);
+        }
+        let mid = radii.len() / 2;
+        let (_, m, _) = radii.select_nth_unstable_by(mid, f32::total_cmp);
+        *m * 0.75
+    }
+}
+
+/// Splits the points of `slice` (starting at `start` in the index array) into up to 4 groups:
+/// the median of the longest axis, then again on each half; returns their ranges. A single
+/// point is a leaf (no groups).
+fn split4(points: &[[f32; 3]], slice: &mut [u32], start: u32) -> Vec<(u32, u32)> {
+    if slice.len() <= 1 {
+        return Vec::new();
+    }
+    let half = split2(points, slice);
+    let mut out = Vec::with_capacity(4);
+    let (a, b) = slice.split_at_mut(half);
+    for (part, offset) in [(a, 0usize), (b, half)] {
+        if part.len() >= 2 {
+            let q = split2(points, part);
+            out.push((start + offset as u32, q as u32));
+            out.push((start + (offset + q) as u32, (part.len() - q) as u32));
+        } else {
+            out.push((start + offset as u32, part.len() as u32));
+        }
+    }
+    out
+}
+
+/// Partitions `slice` at the median of the longest axis of its points' bounding box; returns
+/// the size of the first part (`len / 2`).
+fn split2(points: &[[f32; 3]], slice: &mut [u32]) -> usize {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for &i in slice.iter() {
+        let p = points[i as usize];
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let axis = (0..3).max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b]))).unwrap_or(0);
+    let mid = slice.len() / 2;
+    let key = |i: &u32| points[*i as usize][axis];
+    // Ties broken by index: the partition, hence the tree, is the same on every run.
+    slice.select_nth_unstable_by(mid, |a, b| key(a).total_cmp(&key(b)).then(a.cmp(b)));
+    mid
+}
+
+fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+/// Angle between two vectors, as `atan2(|a x b|, a . b)`: accurate near 0 and pi, where
+/// `acos` of a rounded dot product is not (acos(1 - 2^-24) is already 3e-4).
+fn angle(a: [f32; 3], b: [f32; 3]) -> f32 {
+    let d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let c = [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+    (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt().atan2(d)
+}

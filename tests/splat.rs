@@ -1,0 +1,220 @@
+//! The splat hierarchy and renderer: containment, every leaf at threshold 0, agreement with
+//! the triangle render of the same sphere away from the silhouette, thread independence, and
+//! progressive refinement converging to the full-detail frame.
+
+use glam::{Vec3, Vec4};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+use trirast::Target;
+use trirast::camera::{Camera, Projection};
+use trirast::pipeline::{Fragment, Pipeline};
+use trirast::splat::render::{self, Progressive, SplatOptions};
+use trirast::splat::{PointCloud, SplatTree};
+
+fn random_cloud(rng: &mut SmallRng, n: usize, radii: bool) -> PointCloud {
+    let positions: Vec<[f32; 3]> = (0..n)
+        .map(|_| {
+            let c = if rng.random() { 5.0 } else { -3.0 };
+            [
+                c + rng.random_range(-1.0..1.0),
+                rng.random_range(-2.0..2.0f32).powi(3),
+                rng.random_range(-1.0..1.0),
+            ]
+        })
+        .collect();
+    let normals = positions
+        .iter()
+        .map(|_| {
+            let v = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            v.normalize_or(Vec3::Y).to_array()
+        })
+        .collect();
+    PointCloud {
+        radii: radii.then(|| (0..n).map(|_| rng.random_range(0.0..0.05)).collect()),
+        colors: Some((0..n).map(|_| [rng.random(), rng.random(), rng.random()]).collect()),
+        normals: Some(normals),
+        positions,
+    }
+}
+
+/// Points (with their splat radii) under node `i`.
+fn subtree_points(tree: &SplatTree, i: usize, out: &mut Vec<usize>) {
+    if tree.nodes[i].child_count == 0 {
+        out.push(i);
+    }
+    for k in tree.children(i) {
+        subtree_points(tree, k, out);
+    }
+}
+
+#[test]
+fn every_point_lies_in_every_ancestor_sphere() {
+    let mut rng = SmallRng::seed_from_u64(1);
+    for &n in &[1usize, 2, 3, 5, 17, 1000, 20_000] {
+        for radii in [false, true] {
+            let cloud = random_cloud(&mut rng, n, radii);
+            let tree = SplatTree::build(&cloud);
+            assert_eq!(tree.leaf_count(), n, "one leaf per point");
+            // Breadth-first layout: children after their parent, contiguous, at most 4.
+            let mut expected_child = 1;
+            for (i, node) in tree.nodes.iter().enumerate() {
+                assert!(node.child_count <= 4);
+                if node.child_count > 0 {
+                    assert_eq!(node.first_child as usize, expected_child, "node {i}");
+                    assert!(node.first_child as usize > i);
+                    expected_child += node.child_count as usize;
+                }
+                assert!(node.cone >= 0.0 && node.cone <= std::f32::consts::PI);
+            }
+            assert_eq!(expected_child, tree.nodes.len());
+            // Every leaf's point (a sphere of the leaf's radius) inside every ancestor.
+            let step = (tree.nodes.len() / 400).max(1);
+            for i in (0..tree.nodes.len()).step_by(step) {
+                let node = tree.nodes[i];
+                let mut leaves = Vec::new();
+                subtree_points(&tree, i, &mut leaves);
+                for l in leaves {
+                    let leaf = tree.nodes[l];
+                    let d = Vec3::from(leaf.centre).distance(Vec3::from(node.centre));
+                    assert!(
+                        d + leaf.radius <= node.radius * (1.0 + 1e-5) + 1e-6,
+                        "leaf {l} outside node {i}"
+                    );
+                    // The cone covers the leaf's normal.
+                    if node.cone < std::f32::consts::PI {
+                        let (u, v) = (Vec3::from(node.normal), Vec3::from(leaf.normal));
+                        let a = u.cross(v).length().atan2(u.dot(v));
+                        assert!(
+                            a <= node.cone + 1e-4,
+                            "normal of leaf {l} outside cone of node {i}: n={n} angle {a} cone {} leaf {:?} node {:?}",
+                            node.cone,
+                            leaf.normal,
+                            node.normal
+                        );
+                    }
+                }
+            }
+        }
+    }
+    assert!(SplatTree::build(&PointCloud::default()).nodes.is_empty());
+}
+
+fn framing(cloud: &PointCloud, aspect: f32) -> Camera {
+    let (centre, radius) = trirast::camera::bounding_sphere(&cloud.positions);
+    Camera::framing_sphere(centre, radius, 0.4, 0.3, aspect, Projection::Perspective { fov_y: 0.7 })
+}
+
+#[test]
+fn threshold_zero_draws_every_leaf() {
+    let mut rng = SmallRng::seed_from_u64(2);
+    let cloud = random_cloud(&mut rng, 5000, false);
+    let tree = SplatTree::build(&cloud);
+    let camera = framing(&cloud, 1.5);
+    let mut target = Target::new(150, 100).unwrap();
+    let opts = SplatOptions::default().with_threshold(0.0).with_backface_cull(false);
+    let stats = render::render(&mut target, &tree, &camera, &opts);
+    assert_eq!(stats.leaves_drawn, 5000);
+    assert_eq!(stats.drawn, 5000);
+    // A coarser threshold draws fewer, bigger splats.
+    let coarse = render::render(&mut target, &tree, &camera, &opts.with_threshold(8.0));
+    assert!(coarse.drawn < 5000 / 4, "{}", coarse.drawn);
+}
+
+#[test]
+fn rendering_does_not_depend_on_threads_and_refinement_converges() {
+    let mut rng = SmallRng::seed_from_u64(3);
+    let cloud = random_cloud(&mut rng, 30_000, true);
+    let tree = SplatTree::build(&cloud);
+    let camera = framing(&cloud, 1.0);
+    let frame = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let mut t = Target::new(120, 120).unwrap().with_ids();
+        pool.install(|| render::render(&mut t, &tree, &camera, &SplatOptions::default()));
+        t
+    };
+    let (a, b) = (frame(1), frame(3));
+    assert!(a.color == b.color && a.ids == b.ids);
+    assert!(a.depth.iter().zip(&b.depth).all(|(x, y)| x.to_bits() == y.to_bits()));
+    // Progressive steps end on the same image as a direct render.
+    let mut p = Progressive::new(1.0);
+    let mut t = Target::new(120, 120).unwrap().with_ids();
+    let mut steps = 0;
+    while p.step(&mut t, &tree, &camera, &SplatOptions::default(), [0, 0, 0, 255]).is_some() {
+        steps += 1;
+    }
+    assert_eq!(steps, 4);
+    assert!(p.is_done());
+    assert!(t.color == a.color && t.ids == a.ids);
+}
+
+/// A dense sampling of a sphere, splatted, covers the pixels the triangle render of that
+/// sphere covers, except within 2 pixels of the silhouette (splats are disks around sample
+/// points, so the outline is ragged by up to a splat radius).
+#[test]
+fn splat_sphere_covers_what_the_triangle_sphere_covers() {
+    let (w, h) = (160u32, 120u32);
+    let camera = Camera {
+        eye: Vec3::new(0.0, 0.0, 4.0),
+        target: Vec3::ZERO,
+        up: Vec3::Y,
+        projection: Projection::Perspective { fov_y: 0.8 },
+        near: 1.0,
+        far: 10.0,
+    };
+    // Triangles: a fine UV sphere.
+    let mesh = trirast::bench::sphere_mesh(40_000);
+    let vp = camera.view_projection(w as f32 / h as f32);
+    let mut tri_target = Target::new(w, h).unwrap().with_ids();
+    let vs = |p: &[f32; 3]| (vp * Vec3::from(*p).extend(1.0), ());
+    let fs = |_: &Fragment<()>| Some(Vec4::ONE);
+    Pipeline::default().draw(&mut tri_target, &vs, &fs, &mesh.positions, &mesh.triangles).unwrap();
+    // Splats: 200,000 random points on the unit sphere, outward normals.
+    let mut rng = SmallRng::seed_from_u64(4);
+    let positions: Vec<[f32; 3]> = (0..200_000)
+        .map(|_| {
+            loop {
+                let v = Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                let l = v.length();
+                if l > 0.1 && l <= 1.0 {
+                    break (v / l).to_array();
+                }
+            }
+        })
+        .collect();
+    let cloud =
+        PointCloud { normals: Some(positions.clone()), positions, colors: None, radii: None };
+    let tree = SplatTree::build(&cloud);
+    let mut splat_target = Target::new(w, h).unwrap().with_ids();
+    render::render(&mut splat_target, &tree, &camera, &SplatOptions::default());
+    let covered = |t: &Target, x: i64, y: i64| {
+        (0..w as i64).contains(&x)
+            && (0..h as i64).contains(&y)
+            && t.ids.as_ref().unwrap()[(y * w as i64 + x) as usize] >= 0
+    };
+    let mut differ = 0;
+    let mut inside = 0;
+    for y in 0..h as i64 {
+        for x in 0..w as i64 {
+            let a = covered(&tri_target, x, y);
+            inside += usize::from(a);
+            if a == covered(&splat_target, x, y) {
+                continue;
+            }
+            differ += 1;
+            // Within 2 px of the triangle render's silhouette.
+            let near_edge =
+                (-2..=2).any(|dy| (-2..=2).any(|dx| covered(&tri_target, x + dx, y + dy) != a));
+            assert!(near_edge, "pixel ({x}, {y}) differs away from the silhouette");
+        }
+    }
+    assert!(inside > 3000, "{inside}");
+    assert!(differ < inside / 10, "{differ} of {inside}");
+}
