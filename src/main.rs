@@ -826,13 +826,18 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
     let tree = load_splats(&args.file)?;
     let (width, height) = args.size;
     let mut target = Target::new(width, height)?;
-    let Some(root) = tree.nodes.first() else {
+    if tree.nodes.is_empty() {
         return Err(usage(format!("{}: the point cloud is empty", args.file.display())));
-    };
+    }
+    // Framed like `trirast render` frames a mesh: by the points' bounding box, so a cloud
+    // sampled from a mesh appears exactly where the mesh does.
+    let leaves: Vec<[f32; 3]> =
+        tree.nodes.iter().filter(|n| n.child_count == 0).map(|n| n.centre).collect();
+    let (centre, radius) = camera::bounding_sphere(&leaves);
     let [az, el] = args.view.unwrap_or([30.0, 20.0]);
     let camera = Camera::framing_sphere(
-        glam::Vec3::from(root.centre),
-        root.radius,
+        centre,
+        radius,
         az.to_radians(),
         el.to_radians(),
         width as f32 / height as f32,

@@ -142,8 +142,10 @@ impl View<'_> {
             let normal = Vec3::from(n.normal);
             let to_eye = if self.perspective { self.eye - c } else { -self.direction };
             let dist = to_eye.length();
-            if normal != Vec3::ZERO && dist > r {
-                let facing = normal.dot(to_eye / dist).clamp(-1.0, 1.0).acos();
+            // Only a node whose normal faces away can be culled: test that before any trig.
+            let cos_facing = normal.dot(to_eye) / dist.max(f32::MIN_POSITIVE);
+            if normal != Vec3::ZERO && dist > r && cos_facing < 0.0 {
+                let facing = cos_facing.clamp(-1.0, 1.0).acos();
                 let margin = (r / dist).clamp(0.0, 1.0).asin();
                 if facing > std::f32::consts::FRAC_PI_2 + n.cone + margin {
                     return Visit::Culled;

@@ -64,9 +64,14 @@ impl SplatTree {
     /// above the leaves), so splats of neighbouring points overlap.
     #[must_use]
     pub fn build(cloud: &PointCloud) -> Self {
-        let points = &cloud.positions;
-        let mut index: Vec<u32> = (0..points.len() as u32)
-            .filter(|&i| points[i as usize].iter().all(|c| c.is_finite()))
+        // Points travel with their indices, so partitioning reads memory in order instead of
+        // chasing an index into the cloud (which made building 15 M points cache-miss bound).
+        let mut index: Vec<Item> = cloud
+            .positions
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.iter().all(|c| c.is_finite()))
+            .map(|(i, p)| (*p, i as u32))
             .collect();
         if index.is_empty() {
             return Self::default();
@@ -79,7 +84,7 @@ impl SplatTree {
             let level = ranges[level_start..].to_vec();
             // Disjoint mutable slices of `index`, one per node of this level, in order.
             let mut slices = Vec::with_capacity(level.len());
-            let mut rest: &mut [u32] = &mut index;
+            let mut rest: &mut [Item] = &mut index;
             let mut offset = 0u32;
             for &(start, len) in &level {
                 let (_, tail) = rest.split_at_mut((start - offset) as usize);
@@ -92,7 +97,7 @@ impl SplatTree {
                 .into_par_iter()
                 .zip(level.par_iter())
                 .with_min_len(64)
-                .map(|(slice, &(start, _))| split4(points, slice, start))
+                .map(|(slice, &(start, _))| split4(slice, start))
                 .collect();
             level_start = ranges.len();
             for children in splits {
@@ -129,7 +134,7 @@ impl SplatTree {
     fn fill_bottom_up(
         &mut self,
         cloud: &PointCloud,
-        index: &[u32],
+        index: &[Item],
         ranges: &[(u32, u32)],
         leaf_radius: impl Fn(usize) -> f32,
     ) {
@@ -138,7 +143,7 @@ impl SplatTree {
         for i in (0..self.nodes.len()).rev() {
             let node = self.nodes[i];
             if node.child_count == 0 {
-                let p = index[ranges[i].0 as usize] as usize;
+                let p = index[ranges[i].0 as usize].1 as usize;
                 let normal = cloud.normals.as_ref().map(|n| n[p]);
                 self.nodes[i] = SplatNode {
                     centre: cloud.positions[p],
@@ -222,19 +227,22 @@ impl SplatTree {
     }
 }
 
+/// A point and its index in the cloud.
+type Item = ([f32; 3], u32);
+
 /// Splits the points of `slice` (starting at `start` in the index array) into up to 4 groups:
 /// the median of the longest axis, then again on each half; returns their ranges. A single
 /// point is a leaf (no groups).
-fn split4(points: &[[f32; 3]], slice: &mut [u32], start: u32) -> Vec<(u32, u32)> {
+fn split4(slice: &mut [Item], start: u32) -> Vec<(u32, u32)> {
     if slice.len() <= 1 {
         return Vec::new();
     }
-    let half = split2(points, slice);
+    let half = split2(slice);
     let mut out = Vec::with_capacity(4);
     let (a, b) = slice.split_at_mut(half);
     for (part, offset) in [(a, 0usize), (b, half)] {
         if part.len() >= 2 {
-            let q = split2(points, part);
+            let q = split2(part);
             out.push((start + offset as u32, q as u32));
             out.push((start + (offset + q) as u32, (part.len() - q) as u32));
         } else {
@@ -246,11 +254,10 @@ fn split4(points: &[[f32; 3]], slice: &mut [u32], start: u32) -> Vec<(u32, u32)>
 
 /// Partitions `slice` at the median of the longest axis of its points' bounding box; returns
 /// the size of the first part (`len / 2`).
-fn split2(points: &[[f32; 3]], slice: &mut [u32]) -> usize {
+fn split2(slice: &mut [Item]) -> usize {
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
-    for &i in slice.iter() {
-        let p = points[i as usize];
+    for &(p, _) in slice.iter() {
         for a in 0..3 {
             lo[a] = lo[a].min(p[a]);
             hi[a] = hi[a].max(p[a]);
@@ -258,9 +265,8 @@ fn split2(points: &[[f32; 3]], slice: &mut [u32]) -> usize {
     }
     let axis = (0..3).max_by(|&a, &b| (hi[a] - lo[a]).total_cmp(&(hi[b] - lo[b]))).unwrap_or(0);
     let mid = slice.len() / 2;
-    let key = |i: &u32| points[*i as usize][axis];
     // Ties broken by index: the partition, hence the tree, is the same on every run.
-    slice.select_nth_unstable_by(mid, |a, b| key(a).total_cmp(&key(b)).then(a.cmp(b)));
+    slice.select_nth_unstable_by(mid, |a, b| a.0[axis].total_cmp(&b.0[axis]).then(a.1.cmp(&b.1)));
     mid
 }
 
