@@ -25,7 +25,7 @@ fn main() -> Result<(), Error> {
         trirast::mesh::load(path)?
     } else {
         println!("{} not found: drawing a generated sphere", path.display());
-        sphere(64, 32)
+        trirast::scene::sphere_mesh(4096)
     };
     let normals =
         mesh.normals.clone().unwrap_or_else(|| vertex_normals(&mesh.positions, &mesh.triangles));
@@ -63,25 +63,4 @@ fn main() -> Result<(), Error> {
     trirast::output::write_npy("custom_shader_ids.npy".as_ref(), ids, width, height)?;
     println!("wrote custom_shader.png and custom_shader_ids.npy");
     Ok(())
-}
-
-/// A UV sphere, counter-clockwise seen from outside.
-fn sphere(slices: u32, stacks: u32) -> trirast::mesh::Mesh {
-    let mut mesh = trirast::mesh::Mesh::default();
-    for j in 0..=stacks {
-        let theta = std::f32::consts::PI * j as f32 / stacks as f32;
-        for i in 0..=slices {
-            let phi = std::f32::consts::TAU * i as f32 / slices as f32;
-            mesh.positions.push([theta.sin() * phi.cos(), theta.cos(), -theta.sin() * phi.sin()]);
-        }
-    }
-    let row = slices + 1;
-    for j in 0..stacks {
-        for i in 0..slices {
-            let (a, b) = (j * row + i, (j + 1) * row + i);
-            mesh.triangles.push([a, b, b + 1]);
-            mesh.triangles.push([a, b + 1, a + 1]);
-        }
-    }
-    mesh
 }

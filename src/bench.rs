@@ -18,6 +18,7 @@ use crate::model::{self, Lighting, MaterialTextures, ModelOptions};
 use crate::pipeline::{FaceCull, Fragment, Pipeline};
 use crate::render::{self, DrawStats, RenderOptions};
 use crate::sample::SampleCount;
+use crate::scene;
 use crate::setup::Vertex;
 use crate::shade::Shading;
 use crate::target::Target;
@@ -114,7 +115,7 @@ fn prepare(
                 (crate::mesh::load(path)?, format!("{}", path.display()))
             } else {
                 (
-                    sphere_mesh(69_451),
+                    scene::sphere_mesh(69_451),
                     "generated sphere of 69,451 triangles (bunny not found)".into(),
                 )
             };
@@ -175,7 +176,7 @@ fn prepare(
         BenchScene::Dense => {
             // Depth + flat colour with the leanest shaders: positions in, no varyings, one
             // colour per triangle from its index. Nothing per vertex is stored but the mesh.
-            let mesh = sphere_mesh(dense_triangles);
+            let mesh = scene::sphere_mesh(dense_triangles);
             let (centre, radius) = camera::bounding_sphere(&mesh.positions);
             let projection = Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y };
             let camera = Camera::framing_sphere(centre, radius, 0.3, 0.2, 16.0 / 9.0, projection);
@@ -209,33 +210,6 @@ fn grid(nx: u32, ny: u32, rng: &mut SmallRng) -> (Vec<Vec4>, Vec<Vec3>, Vec<[u32
         }
     }
     (positions, colors, triangles)
-}
-
-/// A UV sphere with about `triangles` triangles, counter-clockwise outside.
-#[must_use]
-pub fn sphere_mesh(triangles: usize) -> Mesh {
-    let stacks = ((triangles as f64 / 4.0).sqrt().round() as u32).max(2);
-    let slices = ((triangles as f64 / (2.0 * f64::from(stacks))).round() as u32).max(3);
-    let mut mesh = Mesh::default();
-    mesh.positions.reserve(((stacks + 1) * (slices + 1)) as usize);
-    for j in 0..=stacks {
-        let theta = std::f32::consts::PI * j as f32 / stacks as f32;
-        for i in 0..=slices {
-            let phi = std::f32::consts::TAU * i as f32 / slices as f32;
-            mesh.positions.push([theta.sin() * phi.cos(), theta.cos(), -theta.sin() * phi.sin()]);
-        }
-    }
-    let row = slices + 1;
-    mesh.triangles.reserve(2 * (stacks * slices) as usize);
-    for j in 0..stacks {
-        for i in 0..slices {
-            let (a, b) = (j * row + i, (j + 1) * row + i);
-            mesh.triangles.push([a, b, b + 1]);
-            mesh.triangles.push([a, b + 1, a + 1]);
-        }
-    }
-    mesh.polygon_count = mesh.triangles.len();
-    mesh
 }
 
 fn draw(
@@ -339,7 +313,7 @@ pub fn run_splats(points: usize, frames: usize) -> Result<SplatBenchResult, Erro
     let (mesh, source) = if path.exists() {
         (crate::mesh::load(path)?, "stanford-bunny.obj".to_string())
     } else {
-        (sphere_mesh(69_451), "generated sphere (bunny not found)".to_string())
+        (scene::sphere_mesh(69_451), "generated sphere (bunny not found)".to_string())
     };
     let cloud = cloud::sample_mesh(&mesh, &MaterialTextures::load(&mesh), points, 7);
     let start = Instant::now();

@@ -208,3 +208,30 @@ pub fn default_model() -> crate::mesh::Mesh {
     mesh.colors = Some(colors);
     mesh
 }
+
+/// A UV sphere with about `triangles` triangles, counter-clockwise outside.
+#[must_use]
+pub fn sphere_mesh(triangles: usize) -> crate::mesh::Mesh {
+    let stacks = ((triangles as f64 / 4.0).sqrt().round() as u32).max(2);
+    let slices = ((triangles as f64 / (2.0 * f64::from(stacks))).round() as u32).max(3);
+    let mut mesh = crate::mesh::Mesh::default();
+    mesh.positions.reserve(((stacks + 1) * (slices + 1)) as usize);
+    for j in 0..=stacks {
+        let theta = std::f32::consts::PI * j as f32 / stacks as f32;
+        for i in 0..=slices {
+            let phi = std::f32::consts::TAU * i as f32 / slices as f32;
+            mesh.positions.push([theta.sin() * phi.cos(), theta.cos(), -theta.sin() * phi.sin()]);
+        }
+    }
+    let row = slices + 1;
+    mesh.triangles.reserve(2 * (stacks * slices) as usize);
+    for j in 0..stacks {
+        for i in 0..slices {
+            let (a, b) = (j * row + i, (j + 1) * row + i);
+            mesh.triangles.push([a, b, b + 1]);
+            mesh.triangles.push([a, b + 1, a + 1]);
+        }
+    }
+    mesh.polygon_count = mesh.triangles.len();
+    mesh
+}
