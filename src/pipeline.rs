@@ -194,7 +194,6 @@ impl Pipeline {
                 FaceCull::Front => CullMode::CounterClockwise,
             },
         };
-        let clip_rect = target.rect();
         let want_normal = target.normals.is_some();
         let shade = |t: &TriangleData<VS::Varyings>, x, y, e1: f64, e2: f64, z| {
             let w = perspective_weights(e1 * t.inv_area2, e2 * t.inv_area2, t.inv_w);
@@ -234,7 +233,7 @@ impl Pipeline {
                             &mut target.band(),
                             &p.setup,
                             self.algorithm,
-                            &clip_rect,
+                            &front.clip,
                             &p.depth,
                             self.depth_test,
                             p.id,
@@ -282,7 +281,7 @@ impl Pipeline {
                         target,
                         &prepared,
                         self.depth_test,
-                        &clip_rect,
+                        &front.clip,
                         |_| None,
                         shade,
                     );

@@ -165,9 +165,10 @@ pub fn draw(
     };
     if options.backend == Backend::Tiled {
         let level = options.simd.unwrap_or_else(SimdLevel::detect);
+        let multisampled = target.samples().count() > 1;
+        // With the scissor off the target nothing is visible, but setup still counts.
+        let visible = clip.unwrap_or(PixelRect::EMPTY);
         for (b, batch) in triangles.chunks(BATCH).enumerate() {
-            let multisampled = target.samples().count() > 1;
-            let visible = clip.unwrap_or(PixelRect { x0: 0, y0: 0, x1: -1, y1: -1 });
             let (prepared, counts) = bin::prepare_batch(batch.len(), |k| {
                 let tri = &batch[k];
                 let piece = TriangleSetup::new(tri, options.cull).map_err(Skipped::from).and_then(

@@ -129,6 +129,9 @@ pub struct PixelRect {
 }
 
 impl PixelRect {
+    /// A rectangle containing no pixel.
+    pub const EMPTY: Self = Self { x0: 0, y0: 0, x1: -1, y1: -1 };
+
     /// The rectangle of a whole `width x height` target.
     #[must_use]
     pub fn of_target(width: u32, height: u32) -> Self {

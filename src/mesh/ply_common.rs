@@ -1,0 +1,500 @@
+//! What the two PLY readers share: [`super::ply`] (meshes) and [`crate::splat::cloud`] (point
+//! clouds) drive the `ply-rs-bw` crate the same way and differ only in what they keep of an
+//! element's values, so the driving is here, once.
+//!
+//! The crate's header parser reports the header line of a problem; the header is then scanned
+//! again for duplicate element or property names (the crate would silently merge them and
+//! misread the body). ASCII elements are handed to the crate line by line (we count the lines),
+//! and binary elements are read from a cursor whose position gives the byte offset of the
+//! element that failed. The crate's messages are shortened and completed with what was expected
+//! (the element's declared layout). Reservations are capped by what the rest of the file can
+//! hold, so `element vertex 4000000000` in a small file allocates nothing and fails where the
+//! data ends.
+//!
+//! A reader supplies its [`Fields`] (what it keeps of one element's properties) and a [`Sink`]
+//! (what it does with each element), and words the few errors that differ between the two.
+
+use std::collections::HashMap;
+use std::io::Cursor;
+use std::path::Path;
+
+use ply_rs_bw::parser::{ParseError, Parser, Reader};
+use ply_rs_bw::ply::{
+    ElementDef, Encoding, Header, Property, PropertyAccess, PropertyAccessResult, PropertyType,
+    ScalarType,
+};
+
+use crate::error::Error;
+
+/// Where an error is: a 1-based line (header, ASCII body) or a byte offset (binary body).
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum At {
+    /// A 1-based line of the header or of an ASCII body.
+    Line(usize),
+    /// The byte offset where the failing binary element starts.
+    Byte(u64),
+}
+
+/// An error before it names its file: where it is, and what is wrong.
+pub(crate) type Fail = (At, String);
+
+/// `fail` as [`Error::Parse`] naming `path`; a byte offset goes in the message as `byte N:`,
+/// with `line: 0`.
+pub(crate) fn parse_error(path: &Path, (at, message): Fail) -> Error {
+    match at {
+        At::Line(line) => Error::Parse { path: path.to_path_buf(), line, message },
+        At::Byte(offset) => Error::Parse {
+            path: path.to_path_buf(),
+            line: 0,
+            message: format!("byte {offset}: {message}"),
+        },
+    }
+}
+
+/// The colour property spellings both readers accept, by channel (red, green, blue, alpha).
+pub(crate) const COLOR_NAMES: [[&str; 3]; 4] = [
+    ["red", "r", "diffuse_red"],
+    ["green", "g", "diffuse_green"],
+    ["blue", "b", "diffuse_blue"],
+    ["alpha", "a", "diffuse_alpha"],
+];
+
+/// The first value slots of both readers: the position, then the normal.
+pub(crate) const POSITION_NORMAL: [&str; 6] = ["x", "y", "z", "nx", "ny", "nz"];
+
+/// What a reader keeps of one element's properties; `Default` is an element before any of
+/// them is read.
+pub(crate) trait Fields: Default {
+    /// Takes the value of property `name`; false when the reader does not use it (or not with
+    /// that type), so that it is skipped.
+    fn set(&mut self, name: &str, property: Property) -> bool;
+}
+
+/// One element as the crate delivers it: the reader's [`Fields`], and how many values its
+/// lists had (to check an ASCII line's length).
+pub(crate) struct Row<F> {
+    fields: F,
+    list_values: usize,
+}
+
+impl<F: Fields> PropertyAccess for Row<F> {
+    fn new() -> Self {
+        Self { fields: F::default(), list_values: 0 }
+    }
+
+    fn set_property(&mut self, name: &str, property: Property) -> PropertyAccessResult {
+        self.list_values += list_len(&property);
+        if self.fields.set(name, property) {
+            PropertyAccessResult::Set
+        } else {
+            PropertyAccessResult::Ignored
+        }
+    }
+}
+
+fn list_len(p: &Property) -> usize {
+    match p {
+        Property::ListChar(v) => v.len(),
+        Property::ListUChar(v) => v.len(),
+        Property::ListShort(v) => v.len(),
+        Property::ListUShort(v) => v.len(),
+        Property::ListInt(v) => v.len(),
+        Property::ListUInt(v) => v.len(),
+        Property::ListFloat(v) => v.len(),
+        Property::ListDouble(v) => v.len(),
+        _ => 0,
+    }
+}
+
+/// A scalar property as `f32` (`None` for a list): what both readers make of positions and
+/// normals.
+#[allow(clippy::cast_precision_loss, clippy::cast_possible_truncation)]
+pub(crate) fn scalar(p: &Property) -> Option<f32> {
+    Some(match *p {
+        Property::Char(v) => f32::from(v),
+        Property::UChar(v) => f32::from(v),
+        Property::Short(v) => f32::from(v),
+        Property::UShort(v) => f32::from(v),
+        Property::Int(v) => v as f32,
+        Property::UInt(v) => v as f32,
+        Property::Float(v) => v,
+        Property::Double(v) => v as f32,
+        _ => return None,
+    })
+}
+
+/// What a reader does with the elements of the body.
+pub(crate) trait Sink {
+    /// What the reader keeps of one element.
+    type Fields: Fields;
+    /// The last element to read, when the elements after it are of no use (they are then not
+    /// read at all, so their errors go unreported); `None` reads the whole body.
+    const LAST: Option<&'static str> = None;
+    /// Whether the `\r`s ending an ASCII line are dropped before the crate parses it (the crate
+    /// itself accepts one, not two).
+    const STRIP_CR: bool = false;
+
+    /// Starts element `def`; `capacity` is how many of its rows the rest of the file can hold,
+    /// which caps any reservation.
+    fn start(&mut self, def: &ElementDef, capacity: usize);
+
+    /// Takes row `index` of the element started last, found at `at`.
+    fn add(&mut self, row: Self::Fields, index: usize, at: At) -> Result<(), Fail>;
+}
+
+/// An element's declaration: its name, its header line and those of its properties.
+struct Declared {
+    name: String,
+    line: usize,
+    properties: HashMap<String, usize>,
+}
+
+/// A PLY file whose header has been read, ready for its body to be read into a [`Sink`].
+pub(crate) struct Ply<'b, F> {
+    bytes: &'b [u8],
+    parser: Parser<Row<F>>,
+    /// The header as the crate reads it.
+    pub(crate) header: Header,
+    /// Where each element and its properties are declared, in header order.
+    declared: Vec<Declared>,
+    body_start: u64,
+    /// The line of `end_header`.
+    pub(crate) end_line: usize,
+}
+
+impl<'b, F: Fields> Ply<'b, F> {
+    /// Reads and checks the header of `bytes`. `property_twice(element, property, first_line)`
+    /// words the error for a property declared twice, which each reader words its own way.
+    pub(crate) fn read_header(
+        bytes: &'b [u8],
+        property_twice: fn(&str, &str, usize) -> String,
+    ) -> Result<Self, Fail> {
+        if !bytes.starts_with(b"ply") {
+            return Err((At::Line(1), "not a PLY file: expected `ply` on the first line".into()));
+        }
+        let parser = Parser::<Row<F>>::new();
+        let mut reader = Reader::new(Cursor::new(bytes));
+        let header =
+            parser.read_header(&mut reader).map_err(|e| header_error(&e, &reader, bytes))?;
+        let body_start = reader.get_ref().position();
+        let header_bytes = &bytes[..usize::try_from(body_start).unwrap_or(bytes.len())];
+        let declared = scan_header(header_bytes, property_twice)?;
+        let end_line = header_bytes.iter().filter(|&&b| b == b'\n').count();
+        Ok(Self { bytes, parser, header, declared, body_start, end_line })
+    }
+
+    /// The header line of element `name` (that of `end_header` when there is none).
+    pub(crate) fn element_line(&self, name: &str) -> usize {
+        self.declared(name).map_or(self.end_line, |d| d.line)
+    }
+
+    /// The header line of property `property` of `element` (that of the element when there is
+    /// no such property).
+    pub(crate) fn property_line(&self, element: &str, property: &str) -> usize {
+        let line = self.declared(element).and_then(|d| d.properties.get(property));
+        line.copied().unwrap_or_else(|| self.element_line(element))
+    }
+
+    fn declared(&self, element: &str) -> Option<&Declared> {
+        self.declared.iter().find(|d| d.name == element)
+    }
+
+    /// The `vertex` element, with the checks both readers make: it is there (else the error
+    /// `missing`, at `end_header`), the properties the reader `uses` are scalars (a list is
+    /// reported at `list_line(property)`), and it has `x y z`.
+    pub(crate) fn vertex(
+        &self,
+        missing: &str,
+        uses: impl Fn(&str) -> bool,
+        list_line: impl Fn(&str) -> usize,
+    ) -> Result<&ElementDef, Fail> {
+        let Some(vertex) = self.header.elements.get("vertex") else {
+            return Err((At::Line(self.end_line), missing.into()));
+        };
+        for p in vertex.properties.values() {
+            if uses(&p.name) && matches!(p.data_type, PropertyType::List(..)) {
+                return Err((
+                    At::Line(list_line(&p.name)),
+                    format!("`vertex` property `{}` must be a scalar, not a list", p.name),
+                ));
+            }
+        }
+        for name in ["x", "y", "z"] {
+            let property = vertex.properties.get(name);
+            if !property.is_some_and(|p| matches!(p.data_type, PropertyType::Scalar(_))) {
+                return Err((
+                    At::Line(self.element_line("vertex")),
+                    format!("element `vertex` has no property `{name}`"),
+                ));
+            }
+        }
+        Ok(vertex)
+    }
+
+    /// Reads the body into `sink`, up to [`Sink::LAST`]; elements without properties take no
+    /// room in the body and are passed over.
+    pub(crate) fn read_body<S: Sink<Fields = F>>(&self, sink: &mut S) -> Result<(), Fail> {
+        let elements = self.header.elements.values();
+        let last = S::LAST.and_then(|name| elements.clone().position(|d| d.name == name));
+        let count = last.map_or(usize::MAX, |k| k + 1);
+        let defs = elements.take(count).filter(|d| !d.properties.is_empty());
+        match self.header.encoding {
+            Encoding::Ascii => self.read_ascii(defs, sink),
+            Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => {
+                self.read_binary(defs, sink)
+            }
+        }
+    }
+
+    /// How many rows of `def` the rest of the file can hold.
+    fn capacity(&self, def: &ElementDef) -> usize {
+        capacity(def, self.header.encoding, self.bytes.len() as u64 - self.body_start)
+    }
+
+    /// Reads an ASCII body, one element per non-blank line, counting from the line after
+    /// `end_header`.
+    fn read_ascii<'h, S: Sink<Fields = F>>(
+        &self,
+        defs: impl Iterator<Item = &'h ElementDef>,
+        sink: &mut S,
+    ) -> Result<(), Fail> {
+        let bytes = self.bytes;
+        let first_line = self.end_line + 1;
+        let start = usize::try_from(self.body_start).unwrap_or(bytes.len());
+        let mut lines = bytes[start..]
+            .split(|&b| b == b'\n')
+            .enumerate()
+            .map(|(n, text)| (first_line + n, text))
+            .filter(|(_, text)| !text.iter().all(u8::is_ascii_whitespace));
+        let mut last_line = first_line;
+        for def in defs {
+            sink.start(def, self.capacity(def));
+            for i in 0..def.count {
+                let Some((line, raw)) = lines.next() else {
+                    let end = bytes[start..].split(|&b| b == b'\n').count() + first_line - 1;
+                    return Err((
+                        At::Line(end.max(last_line)),
+                        format!(
+                            "file ends after {i} of the {} `{}` elements the header declares",
+                            def.count, def.name
+                        ),
+                    ));
+                };
+                last_line = line;
+                let at = At::Line(line);
+                let text =
+                    std::str::from_utf8(raw).map_err(|_| (at, "not valid UTF-8".to_string()))?;
+                let text = if S::STRIP_CR { text.trim_end_matches('\r') } else { text };
+                let row = self.parser.read_ascii_element(text, def).map_err(|e| {
+                    let found: String = text.trim().chars().take(60).collect();
+                    (
+                        at,
+                        format!(
+                            "`{}` {i}: {}; expected {}, found `{found}`",
+                            def.name,
+                            crate_message(&e),
+                            describe(def)
+                        ),
+                    )
+                })?;
+                // The crate ignores values past the declared ones; a longer line means the
+                // header does not describe the data.
+                let values = text.split_ascii_whitespace().count();
+                let declared = def.properties.len() + row.list_values;
+                if values != declared {
+                    return Err((
+                        at,
+                        format!(
+                            "`{}` {i}: found {values} values, but the header declares \
+                             {declared} ({})",
+                            def.name,
+                            describe(def)
+                        ),
+                    ));
+                }
+                sink.add(row.fields, i, at)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads a binary body element by element from a cursor, whose position names the byte
+    /// where the failing element starts.
+    fn read_binary<'h, S: Sink<Fields = F>>(
+        &self,
+        defs: impl Iterator<Item = &'h ElementDef>,
+        sink: &mut S,
+    ) -> Result<(), Fail> {
+        let bytes = self.bytes;
+        let mut cursor = Cursor::new(bytes);
+        cursor.set_position(self.body_start);
+        let big = self.header.encoding == Encoding::BinaryBigEndian;
+        for def in defs {
+            sink.start(def, self.capacity(def));
+            for i in 0..def.count {
+                let at = At::Byte(cursor.position());
+                let row = if big {
+                    self.parser.read_big_endian_element(&mut cursor, def)
+                } else {
+                    self.parser.read_little_endian_element(&mut cursor, def)
+                };
+                let row = row.map_err(|e| {
+                    let message = if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                        format!(
+                            "file ends inside `{}` {i} of {} (the file has {} bytes); expected {}",
+                            def.name,
+                            def.count,
+                            bytes.len(),
+                            describe(def)
+                        )
+                    } else {
+                        let message = crate_message(&e);
+                        format!("`{}` {i}: {message}; expected {}", def.name, describe(def))
+                    };
+                    (at, message)
+                })?;
+                sink.add(row.fields, i, at)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Turns a header error from the crate into one naming the line, with a readable message.
+fn header_error(e: &ParseError, reader: &Reader<Cursor<&[u8]>>, bytes: &[u8]) -> Fail {
+    let line = e.line().unwrap_or_else(|| reader.line()).max(1);
+    let text = bytes.split(|&b| b == b'\n').nth(line - 1).map(String::from_utf8_lossy);
+    let text = text.as_deref().unwrap_or("").trim();
+    let text: String = text.chars().take(80).collect();
+    let first = e.to_string();
+    let first = first.split("\n\t").next().unwrap_or("").trim();
+    let first = first.strip_prefix(&format!("Line {line}: ")).unwrap_or(first);
+    let message = match first {
+        "Couldn't parse line." => format!(
+            "expected a PLY header line (`format ascii|binary_little_endian|binary_big_endian \
+             1.0`, `comment ...`, `obj_info ...`, `element NAME COUNT`, `property TYPE NAME`, \
+             `property list COUNT_TYPE TYPE NAME` or `end_header`), found `{text}`"
+        ),
+        "Invalid element" => format!("element count too large in `{text}`"),
+        "No format line found." => "the header has no `format` line".into(),
+        m if m.starts_with("Unexpected end of file while reading header") => {
+            "file ends before `end_header`".into()
+        }
+        m if m.contains("UTF-8") => "header line is not valid text".into(),
+        m => format!("{m} (found `{text}`)"),
+    };
+    (At::Line(line), message)
+}
+
+/// Where each element and property is declared; rejects duplicate element or property names,
+/// which the crate would merge (so the body would be misread). `property_twice` words the
+/// error for a property, as [`Ply::read_header`] says.
+fn scan_header(
+    header: &[u8],
+    property_twice: fn(&str, &str, usize) -> String,
+) -> Result<Vec<Declared>, Fail> {
+    let mut elements: Vec<Declared> = Vec::new();
+    let mut element_lines: HashMap<String, usize> = HashMap::new();
+    for (n, raw) in header.split(|&b| b == b'\n').enumerate() {
+        let line = n + 1;
+        let text = String::from_utf8_lossy(raw);
+        let mut tokens = text.split_ascii_whitespace();
+        match tokens.next() {
+            Some("element") => {
+                let name = tokens.next().unwrap_or("").to_string();
+                if let Some(first) = element_lines.insert(name.clone(), line) {
+                    return Err((
+                        At::Line(line),
+                        format!("element `{name}` is declared twice (first at line {first})"),
+                    ));
+                }
+                elements.push(Declared { name, line, properties: HashMap::new() });
+            }
+            // The crate has refused a property before any element.
+            Some("property") => {
+                let Some(element) = elements.last_mut() else { continue };
+                let name = tokens.last().unwrap_or("").to_string();
+                if let Some(&first) = element.properties.get(&name) {
+                    return Err((At::Line(line), property_twice(&element.name, &name, first)));
+                }
+                element.properties.insert(name, line);
+            }
+            _ => {}
+        }
+    }
+    Ok(elements)
+}
+
+fn scalar_size(t: &ScalarType) -> u64 {
+    match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
+}
+
+/// The fewest bytes an element can take in the body.
+fn min_size(def: &ElementDef, encoding: Encoding) -> u64 {
+    if encoding == Encoding::Ascii {
+        // Each value is at least one character and a separator (space or newline).
+        return 2 * def.properties.len() as u64;
+    }
+    def.properties
+        .values()
+        .map(|p| match &p.data_type {
+            PropertyType::Scalar(t) | PropertyType::List(t, _) => scalar_size(t),
+        })
+        .sum()
+}
+
+/// How many elements of `def` can fit in `available` bytes: caps reservations, so that a header
+/// declaring billions of elements allocates nothing before the body runs out.
+pub(crate) fn capacity(def: &ElementDef, encoding: Encoding, available: u64) -> usize {
+    let fit = available / min_size(def, encoding).max(1) + 1;
+    def.count.min(usize::try_from(fit).unwrap_or(usize::MAX))
+}
+
+/// The crate's message without its debugging detail.
+fn crate_message(e: &ParseError) -> String {
+    let text = e.to_string();
+    let mut parts = text.split("\n\t");
+    let first = parts.next().unwrap_or("").trim();
+    let value = parts.find_map(|p| p.strip_prefix("Value: "));
+    let first = match first {
+        "Couldn't parse element line." => "not a list of numbers",
+        "Parse error." => "a value does not fit its type",
+        m if m.starts_with("Expected element of type") => "too few values",
+        m if m.starts_with("Couldn't parse element at index") => {
+            "a list value does not fit its type"
+        }
+        m => m.trim_end_matches('.'),
+    };
+    match value {
+        Some(v) => format!("{first} ({})", v.trim()),
+        None => first.to_string(),
+    }
+}
+
+/// An element's declared layout, as `float x, float y, list uchar int vertex_indices`.
+fn describe(def: &ElementDef) -> String {
+    let name = |t: &ScalarType| match t {
+        ScalarType::Char => "char",
+        ScalarType::UChar => "uchar",
+        ScalarType::Short => "short",
+        ScalarType::UShort => "ushort",
+        ScalarType::Int => "int",
+        ScalarType::UInt => "uint",
+        ScalarType::Float => "float",
+        ScalarType::Double => "double",
+    };
+    let parts: Vec<String> = def
+        .properties
+        .values()
+        .map(|p| match &p.data_type {
+            PropertyType::Scalar(t) => format!("{} {}", name(t), p.name),
+            PropertyType::List(c, t) => format!("list {} {} {}", name(c), name(t), p.name),
+        })
+        .collect();
+    parts.join(", ")
+}
