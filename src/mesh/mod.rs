@@ -6,6 +6,7 @@
 pub mod mtl;
 pub mod obj;
 pub mod ply;
+pub(crate) mod ply_common;
 pub mod stl;
 
 use std::path::{Path, PathBuf};

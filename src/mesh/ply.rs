@@ -9,6 +9,8 @@
 //! them and misread the body), the types of the properties we use, non-finite positions, and
 //! face indices out of range. Reservations are capped by what the rest of the file can hold, so
 //! `element vertex 4000000000` in a small file allocates nothing and fails where the data ends.
+//! The driving is shared with [`crate::splat::cloud`] (in `ply_common`); this reader adds what
+//! it keeps of the elements and how it makes a [`Mesh`] of them.
 //!
 //! Read from the `vertex` element: `x y z`, optional normals `nx ny nz`, colours `red green
 //! blue [alpha]` (also `r g b [a]` and `diffuse_red ...`; `uchar` is divided by 255, `ushort`
@@ -20,17 +22,14 @@
 //!
 //! Binary errors are [`Error::Parse`] with `line: 0` and a message starting `byte N:`.
 
-use std::collections::{HashMap, HashSet};
-use std::io::Cursor;
 use std::path::Path;
 
-use ply_rs_bw::parser::{ParseError, Parser, Reader};
-use ply_rs_bw::ply::{
-    ElementDef, Encoding, Header, Property, PropertyAccess, PropertyAccessResult, PropertyType,
-    ScalarType,
-};
+use ply_rs_bw::ply::{ElementDef, Property, PropertyType, ScalarType};
 
 use super::Mesh;
+use super::ply_common::{
+    At, COLOR_NAMES, Fail, Fields, NX, POSITION_NORMAL, Ply, RED, Sink, X, parse_error, scalar,
+};
 use crate::error::Error;
 
 /// Reads a PLY file as a [`Mesh`].
@@ -41,79 +40,45 @@ pub fn read(path: &Path) -> Result<Mesh, Error> {
 
 /// Parses the contents of a PLY file; `path` is only used to name the file in errors.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, Error> {
-    parse_at(bytes).map_err(|(at, message)| match at {
-        At::Line(line) => Error::Parse { path: path.to_path_buf(), line, message },
-        At::Byte(offset) => Error::Parse {
-            path: path.to_path_buf(),
-            line: 0,
-            message: format!("byte {offset}: {message}"),
-        },
-    })
+    parse_at(bytes).map_err(|fail| parse_error(path, fail))
 }
 
-/// Where an error is: a 1-based line (header, ASCII body) or a byte offset (binary body).
-#[derive(Clone, Copy, Debug)]
-enum At {
-    Line(usize),
-    Byte(u64),
-}
-
-type Fail = (At, String);
-
-// Value slots of an element; the texture coordinate spellings have slots of their own so that
-// the header decides which pair is used.
-const X: usize = 0;
-const NX: usize = 3;
-const RED: usize = 6;
+// Value slots of an element after the shared ones (`X`, `NX`, `RED`); the texture coordinate
+// spellings have slots of their own so that the header decides which pair is used.
 const ALPHA: usize = 9;
 const UV: usize = 10;
 const SLOTS: usize = 18;
 const UV_NAMES: [[&str; 2]; 4] =
     [["u", "v"], ["s", "t"], ["texture_u", "texture_v"], ["texture_s", "texture_t"]];
-const COLOR_NAMES: [[&str; 3]; 4] = [
-    ["red", "r", "diffuse_red"],
-    ["green", "g", "diffuse_green"],
-    ["blue", "b", "diffuse_blue"],
-    ["alpha", "a", "diffuse_alpha"],
-];
 const INDEX_NAMES: [&str; 2] = ["vertex_indices", "vertex_index"];
 
 fn slot(name: &str) -> Option<usize> {
-    Some(match name {
-        "x" => X,
-        "y" => X + 1,
-        "z" => X + 2,
-        "nx" => NX,
-        "ny" => NX + 1,
-        "nz" => NX + 2,
-        _ => {
-            if let Some(c) = COLOR_NAMES.iter().position(|names| names.contains(&name)) {
-                RED + c
-            } else {
-                let k = UV_NAMES.as_flattened().iter().position(|n| *n == name)?;
-                UV + k
-            }
-        }
-    })
+    if let Some(k) = POSITION_NORMAL.iter().position(|n| *n == name) {
+        Some(X + k)
+    } else if let Some(c) = COLOR_NAMES.iter().position(|names| names.contains(&name)) {
+        Some(RED + c)
+    } else {
+        let k = UV_NAMES.as_flattened().iter().position(|n| *n == name)?;
+        Some(UV + k)
+    }
 }
 
-/// One element as the crate delivers it: the values we use, by slot, and the face indices.
+/// What we keep of one element: the values we use, by slot, and the face indices.
 struct Element {
     values: [f32; SLOTS],
     indices: Vec<i64>,
-    /// The number of values in the element's lists (to check an ASCII line's length).
-    list_values: usize,
 }
 
-impl PropertyAccess for Element {
-    fn new() -> Self {
+impl Default for Element {
+    fn default() -> Self {
         let mut values = [0.0; SLOTS];
         values[ALPHA] = 1.0;
-        Self { values, indices: Vec::new(), list_values: 0 }
+        Self { values, indices: Vec::new() }
     }
+}
 
-    fn set_property(&mut self, name: &str, property: Property) -> PropertyAccessResult {
-        self.list_values += list_len(&property);
+impl Fields for Element {
+    fn set(&mut self, name: &str, property: Property) -> bool {
         if INDEX_NAMES.contains(&name) {
             self.indices = match property {
                 Property::ListChar(v) => v.into_iter().map(i64::from).collect(),
@@ -122,51 +87,14 @@ impl PropertyAccess for Element {
                 Property::ListUShort(v) => v.into_iter().map(i64::from).collect(),
                 Property::ListInt(v) => v.into_iter().map(i64::from).collect(),
                 Property::ListUInt(v) => v.into_iter().map(i64::from).collect(),
-                _ => return PropertyAccessResult::Ignored,
+                _ => return false,
             };
-            return PropertyAccessResult::Set;
+            return true;
         }
-        let Some(k) = slot(name) else {
-            return PropertyAccessResult::Ignored;
-        };
+        let Some(k) = slot(name) else { return false };
         let value = if (RED..=ALPHA).contains(&k) { color(&property) } else { scalar(&property) };
-        match value {
-            Some(v) => {
-                self.values[k] = v;
-                PropertyAccessResult::Set
-            }
-            None => PropertyAccessResult::Ignored,
-        }
+        value.map(|v| self.values[k] = v).is_some()
     }
-}
-
-fn list_len(p: &Property) -> usize {
-    match p {
-        Property::ListChar(v) => v.len(),
-        Property::ListUChar(v) => v.len(),
-        Property::ListShort(v) => v.len(),
-        Property::ListUShort(v) => v.len(),
-        Property::ListInt(v) => v.len(),
-        Property::ListUInt(v) => v.len(),
-        Property::ListFloat(v) => v.len(),
-        Property::ListDouble(v) => v.len(),
-        _ => 0,
-    }
-}
-
-#[allow(clippy::cast_precision_loss, clippy::cast_possible_truncation)]
-fn scalar(p: &Property) -> Option<f32> {
-    Some(match *p {
-        Property::Char(v) => f32::from(v),
-        Property::UChar(v) => f32::from(v),
-        Property::Short(v) => f32::from(v),
-        Property::UShort(v) => f32::from(v),
-        Property::Int(v) => v as f32,
-        Property::UInt(v) => v as f32,
-        Property::Float(v) => v,
-        Property::Double(v) => v as f32,
-        _ => return None,
-    })
 }
 
 /// A colour channel in [0, 1]: `ushort` / 65535, other integers / 255, floats as they are.
@@ -191,140 +119,43 @@ struct Layout {
 }
 
 /// What an element is to us.
-#[derive(Clone, Copy, PartialEq)]
+#[derive(Clone, Copy, Default, PartialEq)]
 enum Role {
     Vertex,
     Face,
+    #[default]
     Skip,
 }
 
 fn parse_at(bytes: &[u8]) -> Result<Mesh, Fail> {
-    if !bytes.starts_with(b"ply") {
-        return Err((At::Line(1), "not a PLY file: expected `ply` on the first line".into()));
-    }
-    let parser = Parser::<Element>::new();
-    let mut reader = Reader::new(Cursor::new(bytes));
-    let header = parser.read_header(&mut reader).map_err(|e| header_error(&e, &reader, bytes))?;
-    let body_start = reader.get_ref().position();
-    let header_bytes = &bytes[..usize::try_from(body_start).unwrap_or(bytes.len())];
-    let declared = scan_header(header_bytes)?;
-    let end_line = header_bytes.iter().filter(|&&b| b == b'\n').count();
-    let line_of =
-        |name: &str| declared.iter().find(|(n, _)| n == name).map_or(end_line, |(_, line)| *line);
-
-    let layout = check_header(&header, &line_of, end_line)?;
-
+    let ply = Ply::<Element>::read_header(bytes, |element, property, _| {
+        format!("property `{property}` is declared twice in element `{element}`")
+    })?;
+    let layout = check_header(&ply)?;
     let mut body = Body { layout, ..Body::default() };
-    match header.encoding {
-        Encoding::Ascii => {
-            read_ascii(&parser, &header, bytes, body_start, end_line + 1, &mut body)?
-        }
-        Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => {
-            read_binary(&parser, &header, bytes, body_start, &mut body)?;
-        }
-    }
+    ply.read_body(&mut body)?;
     body.into_mesh()
 }
 
-/// Turns a header error from the crate into one naming the line, with a readable message.
-fn header_error(e: &ParseError, reader: &Reader<Cursor<&[u8]>>, bytes: &[u8]) -> Fail {
-    let line = e.line().unwrap_or_else(|| reader.line()).max(1);
-    let text = bytes.split(|&b| b == b'\n').nth(line - 1).map(String::from_utf8_lossy);
-    let text = text.as_deref().unwrap_or("").trim();
-    let text: String = text.chars().take(80).collect();
-    let first = e.to_string();
-    let first = first.split("\n\t").next().unwrap_or("").trim();
-    let first = first.strip_prefix(&format!("Line {line}: ")).unwrap_or(first);
-    let message = match first {
-        "Couldn't parse line." => format!(
-            "expected a PLY header line (`format ascii|binary_little_endian|binary_big_endian \
-             1.0`, `comment ...`, `obj_info ...`, `element NAME COUNT`, `property TYPE NAME`, \
-             `property list COUNT_TYPE TYPE NAME` or `end_header`), found `{text}`"
-        ),
-        "Invalid element" => format!("element count too large in `{text}`"),
-        "No format line found." => "the header has no `format` line".into(),
-        m if m.starts_with("Unexpected end of file while reading header") => {
-            "file ends before `end_header`".into()
-        }
-        m if m.contains("UTF-8") => "header line is not valid text".into(),
-        m => format!("{m} (found `{text}`)"),
-    };
-    (At::Line(line), message)
-}
-
-/// Element names and their header lines; rejects duplicate element or property names, which the
-/// crate would merge (so the body would be misread).
-fn scan_header(header: &[u8]) -> Result<Vec<(String, usize)>, Fail> {
-    let mut elements: Vec<(String, usize)> = Vec::new();
-    let mut element_lines: HashMap<String, usize> = HashMap::new();
-    let mut properties = HashSet::new();
-    for (n, raw) in header.split(|&b| b == b'\n').enumerate() {
-        let line = n + 1;
-        let text = String::from_utf8_lossy(raw);
-        let mut tokens = text.split_ascii_whitespace();
-        match tokens.next() {
-            Some("element") => {
-                let name = tokens.next().unwrap_or("").to_string();
-                if let Some(first) = element_lines.insert(name.clone(), line) {
-                    return Err((
-                        At::Line(line),
-                        format!("element `{name}` is declared twice (first at line {first})"),
-                    ));
-                }
-                properties.clear();
-                elements.push((name, line));
-            }
-            Some("property") => {
-                let name = tokens.last().unwrap_or("").to_string();
-                if !properties.insert(name.clone()) {
-                    let element = elements.last().map_or("", |(e, _)| e.as_str());
-                    return Err((
-                        At::Line(line),
-                        format!("property `{name}` is declared twice in element `{element}`"),
-                    ));
-                }
-            }
-            _ => {}
-        }
-    }
-    Ok(elements)
-}
-
 /// Checks the properties we use and decides which attributes the vertices have.
-fn check_header(
-    header: &Header,
-    line_of: &dyn Fn(&str) -> usize,
-    end_line: usize,
-) -> Result<Layout, Fail> {
-    let Some(vertex) = header.elements.get("vertex") else {
-        return Err((At::Line(end_line), "the header declares no `vertex` element".into()));
-    };
-    let at = At::Line(line_of("vertex"));
+fn check_header(ply: &Ply<Element>) -> Result<Layout, Fail> {
+    let vertex = ply.vertex(
+        "the header declares no `vertex` element",
+        |name| slot(name).is_some(),
+        |_| ply.element_line("vertex"),
+    )?;
     let scalar = |name: &str| {
         let property = vertex.properties.get(name);
         property.is_some_and(|p| matches!(p.data_type, PropertyType::Scalar(_)))
     };
-    for p in vertex.properties.values() {
-        if slot(&p.name).is_some() && matches!(p.data_type, PropertyType::List(..)) {
-            return Err((
-                at,
-                format!("`vertex` property `{}` must be a scalar, not a list", p.name),
-            ));
-        }
-    }
-    for name in ["x", "y", "z"] {
-        if !scalar(name) {
-            return Err((at, format!("element `vertex` has no property `{name}`")));
-        }
-    }
     let channel = |c: usize| COLOR_NAMES[c].iter().any(|n| scalar(n));
     let layout = Layout {
         normals: ["nx", "ny", "nz"].iter().all(|n| scalar(n)),
         colors: (0..3).all(channel),
         uv: UV_NAMES.iter().position(|[u, v]| scalar(u) && scalar(v)).map(|k| UV + 2 * k),
     };
-    if let Some(face) = header.elements.get("face") {
-        let at = At::Line(line_of("face"));
+    if let Some(face) = ply.header.elements.get("face") {
+        let at = At::Line(ply.element_line("face"));
         let Some(list) = INDEX_NAMES.iter().find_map(|n| face.properties.get(*n)) else {
             return Err((
                 at,
@@ -347,40 +178,12 @@ fn check_header(
     Ok(layout)
 }
 
-fn scalar_size(t: &ScalarType) -> u64 {
-    match t {
-        ScalarType::Char | ScalarType::UChar => 1,
-        ScalarType::Short | ScalarType::UShort => 2,
-        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
-        ScalarType::Double => 8,
-    }
-}
-
-/// The fewest bytes an element can take in the body.
-fn min_size(def: &ElementDef, encoding: Encoding) -> u64 {
-    if encoding == Encoding::Ascii {
-        // Each value is at least one character and a separator (space or newline).
-        return 2 * def.properties.len() as u64;
-    }
-    def.properties
-        .values()
-        .map(|p| match &p.data_type {
-            PropertyType::Scalar(t) | PropertyType::List(t, _) => scalar_size(t),
-        })
-        .sum()
-}
-
-/// How many elements of `def` can fit in `available` bytes: caps reservations, so that a header
-/// declaring billions of elements allocates nothing before the body runs out.
-fn capacity(def: &ElementDef, encoding: Encoding, available: u64) -> usize {
-    let fit = available / min_size(def, encoding).max(1) + 1;
-    def.count.min(usize::try_from(fit).unwrap_or(usize::MAX))
-}
-
 /// Accumulates the elements we use while the body is read.
 #[derive(Default)]
 struct Body {
     layout: Layout,
+    /// What the element being read is to us.
+    role: Role,
     positions: Vec<[f32; 3]>,
     normals: Vec<[f32; 3]>,
     colors: Vec<[f32; 4]>,
@@ -390,39 +193,38 @@ struct Body {
     face_at: Vec<At>,
 }
 
-impl Body {
-    fn role(name: &str) -> Role {
-        match name {
+impl Sink for Body {
+    type Fields = Element;
+
+    fn start(&mut self, def: &ElementDef, capacity: usize) {
+        self.role = match def.name.as_str() {
             "vertex" => Role::Vertex,
             "face" => Role::Face,
             _ => Role::Skip,
-        }
-    }
-
-    fn reserve(&mut self, role: Role, count: usize) {
-        match role {
+        };
+        match self.role {
             Role::Vertex => {
-                self.positions.reserve(count);
+                self.positions.reserve(capacity);
                 if self.layout.normals {
-                    self.normals.reserve(count);
+                    self.normals.reserve(capacity);
                 }
                 if self.layout.colors {
-                    self.colors.reserve(count);
+                    self.colors.reserve(capacity);
                 }
                 if self.layout.uv.is_some() {
-                    self.texcoords.reserve(count);
+                    self.texcoords.reserve(capacity);
                 }
             }
             Role::Face => {
-                self.face_ends.reserve(count);
-                self.face_at.reserve(count);
+                self.face_ends.reserve(capacity);
+                self.face_at.reserve(capacity);
             }
             Role::Skip => {}
         }
     }
 
-    fn add(&mut self, role: Role, e: Element, index: usize, at: At) -> Result<(), Fail> {
-        match role {
+    fn add(&mut self, e: Element, index: usize, at: At) -> Result<(), Fail> {
+        match self.role {
             Role::Vertex => {
                 let v = &e.values;
                 let p = [v[X], v[X + 1], v[X + 2]];
@@ -458,7 +260,9 @@ impl Body {
         }
         Ok(())
     }
+}
 
+impl Body {
     fn into_mesh(self) -> Result<Mesh, Fail> {
         let n = self.positions.len();
         if u32::try_from(n).is_err() {
@@ -498,165 +302,6 @@ impl Body {
         mesh.positions = self.positions;
         Ok(mesh)
     }
-}
-
-/// Reads an ASCII body, one element per non-blank line; `first_line` is the line after
-/// `end_header`.
-fn read_ascii(
-    parser: &Parser<Element>,
-    header: &Header,
-    bytes: &[u8],
-    body_start: u64,
-    first_line: usize,
-    body: &mut Body,
-) -> Result<(), Fail> {
-    let start = usize::try_from(body_start).unwrap_or(bytes.len());
-    let mut lines = bytes[start..]
-        .split(|&b| b == b'\n')
-        .enumerate()
-        .map(|(n, text)| (first_line + n, text))
-        .filter(|(_, text)| !text.iter().all(u8::is_ascii_whitespace));
-    let mut last_line = first_line;
-    for def in header.elements.values() {
-        if def.properties.is_empty() {
-            continue;
-        }
-        let role = Body::role(&def.name);
-        body.reserve(role, capacity(def, header.encoding, bytes.len() as u64 - body_start));
-        for i in 0..def.count {
-            let Some((line, raw)) = lines.next() else {
-                let end = bytes[start..].split(|&b| b == b'\n').count() + first_line - 1;
-                return Err((
-                    At::Line(end.max(last_line)),
-                    format!(
-                        "file ends after {i} of the {} `{}` elements the header declares",
-                        def.count, def.name
-                    ),
-                ));
-            };
-            last_line = line;
-            let at = At::Line(line);
-            let text = std::str::from_utf8(raw).map_err(|_| (at, "not valid UTF-8".to_string()))?;
-            let element = parser.read_ascii_element(text, def).map_err(|e| {
-                let found: String = text.trim().chars().take(60).collect();
-                (
-                    at,
-                    format!(
-                        "`{}` {i}: {}; expected {}, found `{found}`",
-                        def.name,
-                        crate_message(&e),
-                        describe(def)
-                    ),
-                )
-            })?;
-            // The crate ignores values past the declared ones; a longer line means the header
-            // does not describe the data.
-            let values = text.split_ascii_whitespace().count();
-            let declared = def.properties.len() + element.list_values;
-            if values != declared {
-                return Err((
-                    at,
-                    format!(
-                        "`{}` {i}: found {values} values, but the header declares {declared} \
-                         ({})",
-                        def.name,
-                        describe(def)
-                    ),
-                ));
-            }
-            body.add(role, element, i, at)?;
-        }
-    }
-    Ok(())
-}
-
-/// Reads a binary body element by element from a cursor, whose position names the failing byte.
-fn read_binary(
-    parser: &Parser<Element>,
-    header: &Header,
-    bytes: &[u8],
-    body_start: u64,
-    body: &mut Body,
-) -> Result<(), Fail> {
-    let mut cursor = Cursor::new(bytes);
-    cursor.set_position(body_start);
-    let big = header.encoding == Encoding::BinaryBigEndian;
-    for def in header.elements.values() {
-        if def.properties.is_empty() {
-            continue;
-        }
-        let role = Body::role(&def.name);
-        body.reserve(role, capacity(def, header.encoding, bytes.len() as u64 - body_start));
-        for i in 0..def.count {
-            let offset = cursor.position();
-            let at = At::Byte(offset);
-            let element = if big {
-                parser.read_big_endian_element(&mut cursor, def)
-            } else {
-                parser.read_little_endian_element(&mut cursor, def)
-            };
-            let element = element.map_err(|e| {
-                let message = if e.kind() == std::io::ErrorKind::UnexpectedEof {
-                    format!(
-                        "file ends inside `{}` {i} of {} (the file has {} bytes); expected {}",
-                        def.name,
-                        def.count,
-                        bytes.len(),
-                        describe(def)
-                    )
-                } else {
-                    format!("`{}` {i}: {}; expected {}", def.name, crate_message(&e), describe(def))
-                };
-                (at, message)
-            })?;
-            body.add(role, element, i, at)?;
-        }
-    }
-    Ok(())
-}
-
-/// The crate's message without its debugging detail.
-fn crate_message(e: &ParseError) -> String {
-    let text = e.to_string();
-    let mut parts = text.split("\n\t");
-    let first = parts.next().unwrap_or("").trim();
-    let value = parts.find_map(|p| p.strip_prefix("Value: "));
-    let first = match first {
-        "Couldn't parse element line." => "not a list of numbers",
-        "Parse error." => "a value does not fit its type",
-        m if m.starts_with("Expected element of type") => "too few values",
-        m if m.starts_with("Couldn't parse element at index") => {
-            "a list value does not fit its type"
-        }
-        m => m.trim_end_matches('.'),
-    };
-    match value {
-        Some(v) => format!("{first} ({})", v.trim()),
-        None => first.to_string(),
-    }
-}
-
-/// An element's declared layout, as `float x, float y, list uchar int vertex_indices`.
-fn describe(def: &ElementDef) -> String {
-    let name = |t: &ScalarType| match t {
-        ScalarType::Char => "char",
-        ScalarType::UChar => "uchar",
-        ScalarType::Short => "short",
-        ScalarType::UShort => "ushort",
-        ScalarType::Int => "int",
-        ScalarType::UInt => "uint",
-        ScalarType::Float => "float",
-        ScalarType::Double => "double",
-    };
-    let parts: Vec<String> = def
-        .properties
-        .values()
-        .map(|p| match &p.data_type {
-            PropertyType::Scalar(t) => format!("{} {}", name(t), p.name),
-            PropertyType::List(c, t) => format!("list {} {} {}", name(c), name(t), p.name),
-        })
-        .collect();
-    parts.join(", ")
 }
 
 #[cfg(test)]

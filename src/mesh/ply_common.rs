@@ -59,8 +59,14 @@ pub(crate) const COLOR_NAMES: [[&str; 3]; 4] = [
     ["alpha", "a", "diffuse_alpha"],
 ];
 
-/// The first value slots of both readers: the position, then the normal.
+/// The first value slots of both readers, from slot [`X`]: the position, then the normal.
 pub(crate) const POSITION_NORMAL: [&str; 6] = ["x", "y", "z", "nx", "ny", "nz"];
+/// The slot of `x` (then `y`, `z`) in both readers.
+pub(crate) const X: usize = 0;
+/// The slot of `nx` (then `ny`, `nz`) in both readers.
+pub(crate) const NX: usize = 3;
+/// The slot of the first colour channel in both readers, after [`POSITION_NORMAL`].
+pub(crate) const RED: usize = 6;
 
 /// What a reader keeps of one element's properties; `Default` is an element before any of
 /// them is read.
@@ -150,7 +156,7 @@ struct Declared {
 }
 
 /// A PLY file whose header has been read, ready for its body to be read into a [`Sink`].
-pub(crate) struct Ply<'b, F> {
+pub(crate) struct Ply<'b, F: Fields> {
     bytes: &'b [u8],
     parser: Parser<Row<F>>,
     /// The header as the crate reads it.
@@ -159,7 +165,7 @@ pub(crate) struct Ply<'b, F> {
     declared: Vec<Declared>,
     body_start: u64,
     /// The line of `end_header`.
-    pub(crate) end_line: usize,
+    end_line: usize,
 }
 
 impl<'b, F: Fields> Ply<'b, F> {
@@ -195,6 +201,7 @@ impl<'b, F: Fields> Ply<'b, F> {
         line.copied().unwrap_or_else(|| self.element_line(element))
     }
 
+    /// The declaration of `element` (a few lookups a file: a scan is enough).
     fn declared(&self, element: &str) -> Option<&Declared> {
         self.declared.iter().find(|d| d.name == element)
     }
@@ -239,9 +246,9 @@ impl<'b, F: Fields> Ply<'b, F> {
         let count = last.map_or(usize::MAX, |k| k + 1);
         let defs = elements.take(count).filter(|d| !d.properties.is_empty());
         match self.header.encoding {
-            Encoding::Ascii => self.read_ascii(defs, sink),
+            Encoding::Ascii => self.feed(defs, sink, self.ascii_rows(S::STRIP_CR)),
             Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => {
-                self.read_binary(defs, sink)
+                self.feed(defs, sink, self.binary_rows())
             }
         }
     }
@@ -251,112 +258,115 @@ impl<'b, F: Fields> Ply<'b, F> {
         capacity(def, self.header.encoding, self.bytes.len() as u64 - self.body_start)
     }
 
-    /// Reads an ASCII body, one element per non-blank line, counting from the line after
-    /// `end_header`.
-    fn read_ascii<'h, S: Sink<Fields = F>>(
+    /// Hands the rows of `defs` to `sink`, each read by `read(def, index)`, which also says
+    /// where the row is.
+    fn feed<'h, S: Sink<Fields = F>>(
         &self,
         defs: impl Iterator<Item = &'h ElementDef>,
         sink: &mut S,
+        mut read: impl FnMut(&ElementDef, usize) -> Result<(Row<F>, At), Fail>,
     ) -> Result<(), Fail> {
-        let bytes = self.bytes;
-        let first_line = self.end_line + 1;
-        let start = usize::try_from(self.body_start).unwrap_or(bytes.len());
-        let mut lines = bytes[start..]
-            .split(|&b| b == b'\n')
-            .enumerate()
-            .map(|(n, text)| (first_line + n, text))
-            .filter(|(_, text)| !text.iter().all(u8::is_ascii_whitespace));
-        let mut last_line = first_line;
         for def in defs {
             sink.start(def, self.capacity(def));
             for i in 0..def.count {
-                let Some((line, raw)) = lines.next() else {
-                    let end = bytes[start..].split(|&b| b == b'\n').count() + first_line - 1;
-                    return Err((
-                        At::Line(end.max(last_line)),
-                        format!(
-                            "file ends after {i} of the {} `{}` elements the header declares",
-                            def.count, def.name
-                        ),
-                    ));
-                };
-                last_line = line;
-                let at = At::Line(line);
-                let text =
-                    std::str::from_utf8(raw).map_err(|_| (at, "not valid UTF-8".to_string()))?;
-                let text = if S::STRIP_CR { text.trim_end_matches('\r') } else { text };
-                let row = self.parser.read_ascii_element(text, def).map_err(|e| {
-                    let found: String = text.trim().chars().take(60).collect();
-                    (
-                        at,
-                        format!(
-                            "`{}` {i}: {}; expected {}, found `{found}`",
-                            def.name,
-                            crate_message(&e),
-                            describe(def)
-                        ),
-                    )
-                })?;
-                // The crate ignores values past the declared ones; a longer line means the
-                // header does not describe the data.
-                let values = text.split_ascii_whitespace().count();
-                let declared = def.properties.len() + row.list_values;
-                if values != declared {
-                    return Err((
-                        at,
-                        format!(
-                            "`{}` {i}: found {values} values, but the header declares \
-                             {declared} ({})",
-                            def.name,
-                            describe(def)
-                        ),
-                    ));
-                }
+                let (row, at) = read(def, i)?;
                 sink.add(row.fields, i, at)?;
             }
         }
         Ok(())
     }
 
-    /// Reads a binary body element by element from a cursor, whose position names the byte
-    /// where the failing element starts.
-    fn read_binary<'h, S: Sink<Fields = F>>(
+    /// Reads the rows of an ASCII body, one per non-blank line, counting from the line after
+    /// `end_header`; `strip_cr` as [`Sink::STRIP_CR`] says.
+    fn ascii_rows(
         &self,
-        defs: impl Iterator<Item = &'h ElementDef>,
-        sink: &mut S,
-    ) -> Result<(), Fail> {
+        strip_cr: bool,
+    ) -> impl FnMut(&ElementDef, usize) -> Result<(Row<F>, At), Fail> {
+        let bytes = self.bytes;
+        let first_line = self.end_line + 1;
+        let start = usize::try_from(self.body_start).unwrap_or(bytes.len());
+        let mut lines = bytes[start..]
+            .split(|&b| b == b'\n')
+            .enumerate()
+            .map(move |(n, text)| (first_line + n, text))
+            .filter(|(_, text)| !text.iter().all(u8::is_ascii_whitespace));
+        let mut last_line = first_line;
+        move |def: &ElementDef, i: usize| {
+            let Some((line, raw)) = lines.next() else {
+                let end = bytes[start..].split(|&b| b == b'\n').count() + first_line - 1;
+                return Err((
+                    At::Line(end.max(last_line)),
+                    format!(
+                        "file ends after {i} of the {} `{}` elements the header declares",
+                        def.count, def.name
+                    ),
+                ));
+            };
+            last_line = line;
+            let at = At::Line(line);
+            let text = std::str::from_utf8(raw).map_err(|_| (at, "not valid UTF-8".to_string()))?;
+            let text = if strip_cr { text.trim_end_matches('\r') } else { text };
+            let row = self.parser.read_ascii_element(text, def).map_err(|e| {
+                let found: String = text.trim().chars().take(60).collect();
+                (
+                    at,
+                    format!(
+                        "`{}` {i}: {}; expected {}, found `{found}`",
+                        def.name,
+                        crate_message(&e),
+                        describe(def)
+                    ),
+                )
+            })?;
+            // The crate ignores values past the declared ones; a longer line means the header
+            // does not describe the data.
+            let values = text.split_ascii_whitespace().count();
+            let declared = def.properties.len() + row.list_values;
+            if values != declared {
+                return Err((
+                    at,
+                    format!(
+                        "`{}` {i}: found {values} values, but the header declares {declared} \
+                         ({})",
+                        def.name,
+                        describe(def)
+                    ),
+                ));
+            }
+            Ok((row, at))
+        }
+    }
+
+    /// Reads the rows of a binary body from a cursor, whose position names the byte where the
+    /// failing row starts.
+    fn binary_rows(&self) -> impl FnMut(&ElementDef, usize) -> Result<(Row<F>, At), Fail> {
         let bytes = self.bytes;
         let mut cursor = Cursor::new(bytes);
         cursor.set_position(self.body_start);
         let big = self.header.encoding == Encoding::BinaryBigEndian;
-        for def in defs {
-            sink.start(def, self.capacity(def));
-            for i in 0..def.count {
-                let at = At::Byte(cursor.position());
-                let row = if big {
-                    self.parser.read_big_endian_element(&mut cursor, def)
+        move |def: &ElementDef, i: usize| {
+            let at = At::Byte(cursor.position());
+            let row = if big {
+                self.parser.read_big_endian_element(&mut cursor, def)
+            } else {
+                self.parser.read_little_endian_element(&mut cursor, def)
+            };
+            let row = row.map_err(|e| {
+                let message = if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                    format!(
+                        "file ends inside `{}` {i} of {} (the file has {} bytes); expected {}",
+                        def.name,
+                        def.count,
+                        bytes.len(),
+                        describe(def)
+                    )
                 } else {
-                    self.parser.read_little_endian_element(&mut cursor, def)
+                    format!("`{}` {i}: {}; expected {}", def.name, crate_message(&e), describe(def))
                 };
-                let row = row.map_err(|e| {
-                    let message = if e.kind() == std::io::ErrorKind::UnexpectedEof {
-                        format!(
-                            "file ends inside `{}` {i} of {} (the file has {} bytes); expected {}",
-                            def.name,
-                            def.count,
-                            bytes.len(),
-                            describe(def)
-                        )
-                    } else {
-                        let message = crate_message(&e);
-                        format!("`{}` {i}: {message}; expected {}", def.name, describe(def))
-                    };
-                    (at, message)
-                })?;
-                sink.add(row.fields, i, at)?;
-            }
+                (at, message)
+            })?;
+            Ok((row, at))
         }
-        Ok(())
     }
 }
 

@@ -34,24 +34,31 @@
 //! capped by what the rest of the file can hold, so `element vertex 4000000000` in a small
 //! file allocates nothing and fails where the data ends.
 
-use std::io::{BufWriter, Cursor, Write};
+use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use glam::{DVec2, DVec3, Vec2};
-use ply_rs_bw::parser::{ParseError, Parser, Reader};
-use ply_rs_bw::ply::{
-    ElementDef, Encoding, Header, Property, PropertyAccess, PropertyAccessResult, PropertyType,
-    ScalarType,
-};
+use ply_rs_bw::ply::{ElementDef, Property};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
 use crate::color::{linear_to_srgb8, srgb_decode};
 use crate::error::Error;
+use crate::mesh::ply_common::{
+    At, COLOR_NAMES, Fail, Fields, NX, POSITION_NORMAL, Ply, RED, Sink, X, parse_error, scalar,
+};
 use crate::mesh::{Mesh, unorm8};
 use crate::model::MaterialTextures;
 use crate::texture::{Filter, Texture, Wrap};
+// The unit tests drive the crate's header parser and the reservation cap themselves.
+#[cfg(test)]
+use {
+    crate::mesh::ply_common::{Row, capacity},
+    ply_rs_bw::parser::{Parser, Reader},
+    ply_rs_bw::ply::Encoding,
+    std::io::Cursor,
+};
 
 /// Points with optional per-point normals, colours and radii.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -130,103 +137,40 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, Error> {
 /// # Errors
 /// [`Error::Parse`] naming `path` and the line or byte offset of the first problem.
 pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<PointCloud, Error> {
-    parse_at(bytes).map_err(|(at, message)| match at {
-        At::Line(line) => Error::Parse { path: path.to_path_buf(), line, message },
-        At::Byte(offset) => Error::Parse {
-            path: path.to_path_buf(),
-            line: 0,
-            message: format!("byte {offset}: {message}"),
-        },
-    })
+    parse_at(bytes).map_err(|fail| parse_error(path, fail))
 }
 
-/// Where an error is: a 1-based line (header, ASCII body) or a byte offset (binary body).
-#[derive(Clone, Copy, Debug)]
-enum At {
-    Line(usize),
-    Byte(u64),
-}
-
-type Fail = (At, String);
-
-// Value slots of a vertex.
-const X: usize = 0;
-const NX: usize = 3;
-const RED: usize = 6;
+// Value slots of a vertex after the shared ones (`X`, `NX`, `RED`).
 const RADIUS: usize = 9;
 const SLOTS: usize = 10;
-const COLOR_NAMES: [[&str; 3]; 3] =
-    [["red", "r", "diffuse_red"], ["green", "g", "diffuse_green"], ["blue", "b", "diffuse_blue"]];
 
 fn slot(name: &str) -> Option<usize> {
-    Some(match name {
-        "x" => X,
-        "y" => X + 1,
-        "z" => X + 2,
-        "nx" => NX,
-        "ny" => NX + 1,
-        "nz" => NX + 2,
-        "radius" => RADIUS,
-        _ => RED + COLOR_NAMES.iter().position(|names| names.contains(&name))?,
-    })
-}
-
-/// One element as the crate delivers it: the values we use, by slot (colours on a 0..255
-/// scale), and how many list values it had (to check an ASCII line's length).
-struct Values {
-    values: [f32; SLOTS],
-    list_values: usize,
-}
-
-impl PropertyAccess for Values {
-    fn new() -> Self {
-        Self { values: [0.0; SLOTS], list_values: 0 }
+    if let Some(k) = POSITION_NORMAL.iter().position(|n| *n == name) {
+        Some(X + k)
+    } else if name == "radius" {
+        Some(RADIUS)
+    } else {
+        Some(RED + COLOR_NAMES[..3].iter().position(|names| names.contains(&name))?)
     }
+}
 
-    fn set_property(&mut self, name: &str, property: Property) -> PropertyAccessResult {
-        self.list_values += list_len(&property);
-        let Some(k) = slot(name) else {
-            return PropertyAccessResult::Ignored;
-        };
+/// What we keep of one element: the values we use, by slot (colours on a 0..255 scale).
+#[derive(Default)]
+struct Point {
+    values: [f32; SLOTS],
+}
+
+/// One element as the crate delivers it (the unit tests parse headers with it).
+#[cfg(test)]
+type Values = Row<Point>;
+
+impl Fields for Point {
+    fn set(&mut self, name: &str, property: Property) -> bool {
+        let Some(k) = slot(name) else { return false };
         let value =
             if (RED..RED + 3).contains(&k) { channel(&property) } else { scalar(&property) };
-        match value {
-            Some(v) => {
-                self.values[k] = v;
-                PropertyAccessResult::Set
-            }
-            None => PropertyAccessResult::Ignored,
-        }
+        value.map(|v| self.values[k] = v).is_some()
     }
-}
-
-fn list_len(p: &Property) -> usize {
-    match p {
-        Property::ListChar(v) => v.len(),
-        Property::ListUChar(v) => v.len(),
-        Property::ListShort(v) => v.len(),
-        Property::ListUShort(v) => v.len(),
-        Property::ListInt(v) => v.len(),
-        Property::ListUInt(v) => v.len(),
-        Property::ListFloat(v) => v.len(),
-        Property::ListDouble(v) => v.len(),
-        _ => 0,
-    }
-}
-
-#[allow(clippy::cast_precision_loss, clippy::cast_possible_truncation)]
-fn scalar(p: &Property) -> Option<f32> {
-    Some(match *p {
-        Property::Char(v) => f32::from(v),
-        Property::UChar(v) => f32::from(v),
-        Property::Short(v) => f32::from(v),
-        Property::UShort(v) => f32::from(v),
-        Property::Int(v) => v as f32,
-        Property::UInt(v) => v as f32,
-        Property::Float(v) => v,
-        Property::Double(v) => v as f32,
-        _ => return None,
-    })
 }
 
 /// A colour channel on a 0..255 scale: `uchar` as it is, `ushort` / 257, floats * 255 (from
@@ -251,201 +195,69 @@ struct Layout {
 }
 
 fn parse_at(bytes: &[u8]) -> Result<PointCloud, Fail> {
-    if !bytes.starts_with(b"ply") {
-        return Err((At::Line(1), "not a PLY file: expected `ply` on the first line".into()));
-    }
-    let parser = Parser::<Values>::new();
-    let mut reader = Reader::new(Cursor::new(bytes));
-    let header = parser.read_header(&mut reader).map_err(|e| header_error(&e, &reader, bytes))?;
-    let body_start = reader.get_ref().position();
-    let header_bytes = &bytes[..usize::try_from(body_start).unwrap_or(bytes.len())];
-    let declared = scan_header(header_bytes)?;
-    let end_line = header_bytes.iter().filter(|&&b| b == b'\n').count();
-    let layout = check_header(&header, &declared, end_line)?;
-
+    let ply = Ply::<Point>::read_header(bytes, |element, property, first| {
+        format!("element `{element}` has two properties `{property}` (first at line {first})")
+    })?;
+    let layout = check_header(&ply)?;
     let mut body = Body { layout, ..Body::default() };
-    match header.encoding {
-        Encoding::Ascii => {
-            read_ascii(&parser, &header, bytes, body_start, end_line + 1, &mut body)?;
-        }
-        Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => {
-            read_binary(&parser, &header, bytes, body_start, &mut body)?;
-        }
-    }
+    ply.read_body(&mut body)?;
     Ok(body.into_cloud())
 }
 
-/// Turns a header error from the crate into one naming the line, with a readable message.
-fn header_error(e: &ParseError, reader: &Reader<Cursor<&[u8]>>, bytes: &[u8]) -> Fail {
-    let line = e.line().unwrap_or_else(|| reader.line()).max(1);
-    let text = bytes.split(|&b| b == b'\n').nth(line - 1).map(String::from_utf8_lossy);
-    let text = text.as_deref().unwrap_or("").trim();
-    let text: String = text.chars().take(80).collect();
-    let first = e.to_string();
-    let first = first.split("\n\t").next().unwrap_or("").trim();
-    let first = first.strip_prefix(&format!("Line {line}: ")).unwrap_or(first);
-    let message = match first {
-        "Couldn't parse line." => format!(
-            "expected a PLY header line (`format ascii|binary_little_endian|binary_big_endian \
-             1.0`, `comment ...`, `obj_info ...`, `element NAME COUNT`, `property TYPE NAME`, \
-             `property list COUNT_TYPE TYPE NAME` or `end_header`), found `{text}`"
-        ),
-        "Invalid element" => format!("element count too large in `{text}`"),
-        "No format line found." => "the header has no `format` line".into(),
-        m if m.starts_with("Unexpected end of file while reading header") => {
-            "file ends before `end_header`".into()
-        }
-        m if m.contains("UTF-8") => "header line is not valid text".into(),
-        m => format!("{m} (found `{text}`)"),
-    };
-    (At::Line(line), message)
-}
-
-/// An element declared in the header, with the lines of its declaration and its properties.
-struct Declared {
-    name: String,
-    line: usize,
-    properties: Vec<(String, usize)>,
-}
-
-/// The header's elements and properties with their lines; rejects duplicate element or
-/// property names, which the crate would merge (so the body would be misread).
-fn scan_header(header: &[u8]) -> Result<Vec<Declared>, Fail> {
-    let mut elements: Vec<Declared> = Vec::new();
-    for (n, raw) in header.split(|&b| b == b'\n').enumerate() {
-        let line = n + 1;
-        let text = String::from_utf8_lossy(raw);
-        let mut tokens = text.split_ascii_whitespace();
-        match tokens.next() {
-            Some("element") => {
-                let name = tokens.next().unwrap_or("").to_string();
-                if let Some(first) = elements.iter().find(|e| e.name == name) {
-                    return Err((
-                        At::Line(line),
-                        format!(
-                            "element `{name}` is declared twice (first at line {})",
-                            first.line
-                        ),
-                    ));
-                }
-                elements.push(Declared { name, line, properties: Vec::new() });
-            }
-            Some("property") => {
-                let name = tokens.last().unwrap_or("").to_string();
-                if let Some(element) = elements.last_mut() {
-                    if let Some((_, first)) = element.properties.iter().find(|(p, _)| *p == name) {
-                        return Err((
-                            At::Line(line),
-                            format!(
-                                "element `{}` has two properties `{name}` (first at line {first})",
-                                element.name
-                            ),
-                        ));
-                    }
-                    element.properties.push((name, line));
-                }
-            }
-            _ => {}
-        }
-    }
-    Ok(elements)
-}
-
 /// Checks the `vertex` element: present, `x y z` there, the properties we read scalars.
-fn check_header(header: &Header, declared: &[Declared], end_line: usize) -> Result<Layout, Fail> {
-    let Some(vertex) = header.elements.get("vertex") else {
-        return Err((
-            At::Line(end_line),
-            "the header declares no `vertex` element: a point cloud needs one with `x y z`".into(),
-        ));
-    };
-    let element = declared.iter().find(|d| d.name == "vertex");
-    let element_line = element.map_or(end_line, |d| d.line);
-    let property_line = |name: &str| {
-        element
-            .and_then(|d| d.properties.iter().find(|(p, _)| p == name))
-            .map_or(element_line, |(_, line)| *line)
-    };
-    for p in vertex.properties.values() {
-        if slot(&p.name).is_some() && matches!(p.data_type, PropertyType::List(..)) {
-            return Err((
-                At::Line(property_line(&p.name)),
-                format!("`vertex` property `{}` must be a scalar, not a list", p.name),
-            ));
-        }
-    }
+fn check_header(ply: &Ply<Point>) -> Result<Layout, Fail> {
+    let vertex = ply.vertex(
+        "the header declares no `vertex` element: a point cloud needs one with `x y z`",
+        |name| slot(name).is_some(),
+        |name| ply.property_line("vertex", name),
+    )?;
     let has = |name: &str| vertex.properties.get(name).is_some();
-    for name in ["x", "y", "z"] {
-        if !has(name) {
-            return Err((
-                At::Line(element_line),
-                format!("element `vertex` has no property `{name}`"),
-            ));
-        }
-    }
     Ok(Layout {
         normals: ["nx", "ny", "nz"].iter().all(|n| has(n)),
-        colors: COLOR_NAMES.iter().all(|names| names.iter().any(|n| has(n))),
+        colors: COLOR_NAMES[..3].iter().all(|names| names.iter().any(|n| has(n))),
         radii: has("radius"),
     })
-}
-
-fn scalar_size(t: &ScalarType) -> u64 {
-    match t {
-        ScalarType::Char | ScalarType::UChar => 1,
-        ScalarType::Short | ScalarType::UShort => 2,
-        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
-        ScalarType::Double => 8,
-    }
-}
-
-/// The fewest bytes an element can take in the body.
-fn min_size(def: &ElementDef, encoding: Encoding) -> u64 {
-    if encoding == Encoding::Ascii {
-        // Each value is at least one character and a separator (space or newline).
-        return 2 * def.properties.len() as u64;
-    }
-    def.properties
-        .values()
-        .map(|p| match &p.data_type {
-            PropertyType::Scalar(t) | PropertyType::List(t, _) => scalar_size(t),
-        })
-        .sum()
-}
-
-/// How many elements of `def` can fit in `available` bytes: caps reservations, so that a header
-/// declaring billions of elements allocates nothing before the body runs out.
-fn capacity(def: &ElementDef, encoding: Encoding, available: u64) -> usize {
-    let fit = available / min_size(def, encoding).max(1) + 1;
-    def.count.min(usize::try_from(fit).unwrap_or(usize::MAX))
 }
 
 /// Accumulates the vertices while the body is read.
 #[derive(Default)]
 struct Body {
     layout: Layout,
+    /// Whether the element being read is `vertex` (the others are read past).
+    vertex: bool,
     positions: Vec<[f32; 3]>,
     normals: Vec<[f32; 3]>,
     colors: Vec<[u8; 3]>,
     radii: Vec<f32>,
 }
 
-impl Body {
-    fn reserve(&mut self, count: usize) {
-        self.positions.reserve(count);
+impl Sink for Body {
+    type Fields = Point;
+    const LAST: Option<&'static str> = Some("vertex");
+    const STRIP_CR: bool = true;
+
+    fn start(&mut self, def: &ElementDef, capacity: usize) {
+        self.vertex = def.name == "vertex";
+        if !self.vertex {
+            return;
+        }
+        self.positions.reserve(capacity);
         if self.layout.normals {
-            self.normals.reserve(count);
+            self.normals.reserve(capacity);
         }
         if self.layout.colors {
-            self.colors.reserve(count);
+            self.colors.reserve(capacity);
         }
         if self.layout.radii {
-            self.radii.reserve(count);
+            self.radii.reserve(capacity);
         }
     }
 
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-    fn add(&mut self, e: &Values, index: usize, at: At) -> Result<(), Fail> {
+    fn add(&mut self, e: Point, index: usize, at: At) -> Result<(), Fail> {
+        if !self.vertex {
+            return Ok(());
+        }
         let v = &e.values;
         let p = [v[X], v[X + 1], v[X + 2]];
         if !p.iter().all(|c| c.is_finite()) {
@@ -470,7 +282,9 @@ impl Body {
         }
         Ok(())
     }
+}
 
+impl Body {
     fn into_cloud(self) -> PointCloud {
         PointCloud {
             positions: self.positions,
@@ -496,183 +310,6 @@ fn unit_or_zero(n: [f32; 3]) -> [f32; 3] {
         return n;
     }
     (d / len2.sqrt()).to_array().map(|c| c as f32)
-}
-
-/// The index of the `vertex` element among the elements, and the elements before it (which
-/// must be read past, as their sizes are only known by reading them).
-fn vertex_position(header: &Header) -> usize {
-    header.elements.values().position(|d| d.name == "vertex").unwrap_or(usize::MAX)
-}
-
-/// Reads an ASCII body up to the end of the `vertex` element, one element per non-blank line;
-/// `first_line` is the line after `end_header`.
-fn read_ascii(
-    parser: &Parser<Values>,
-    header: &Header,
-    bytes: &[u8],
-    body_start: u64,
-    first_line: usize,
-    body: &mut Body,
-) -> Result<(), Fail> {
-    let start = usize::try_from(body_start).unwrap_or(bytes.len());
-    let mut lines = bytes[start..]
-        .split(|&b| b == b'\n')
-        .enumerate()
-        .map(|(n, text)| (first_line + n, text))
-        .filter(|(_, text)| !text.iter().all(u8::is_ascii_whitespace));
-    let mut last_line = first_line;
-    let vertex_at = vertex_position(header);
-    for (k, def) in header.elements.values().enumerate().take(vertex_at.saturating_add(1)) {
-        if def.properties.is_empty() {
-            continue;
-        }
-        let is_vertex = k == vertex_at;
-        if is_vertex {
-            body.reserve(capacity(def, header.encoding, bytes.len() as u64 - body_start));
-        }
-        for i in 0..def.count {
-            let Some((line, raw)) = lines.next() else {
-                let end = bytes[start..].split(|&b| b == b'\n').count() + first_line - 1;
-                return Err((
-                    At::Line(end.max(last_line)),
-                    format!(
-                        "file ends after {i} of the {} `{}` elements the header declares",
-                        def.count, def.name
-                    ),
-                ));
-            };
-            last_line = line;
-            let at = At::Line(line);
-            let text = std::str::from_utf8(raw).map_err(|_| (at, "not valid UTF-8".to_string()))?;
-            let text = text.trim_end_matches('\r');
-            let element = parser.read_ascii_element(text, def).map_err(|e| {
-                let found: String = text.trim().chars().take(60).collect();
-                (
-                    at,
-                    format!(
-                        "`{}` {i}: {}; expected {}, found `{found}`",
-                        def.name,
-                        crate_message(&e),
-                        describe(def)
-                    ),
-                )
-            })?;
-            // The crate ignores values past the declared ones; a longer line means the header
-            // does not describe the data.
-            let values = text.split_ascii_whitespace().count();
-            let declared = def.properties.len() + element.list_values;
-            if values != declared {
-                return Err((
-                    at,
-                    format!(
-                        "`{}` {i}: found {values} values, but the header declares {declared} \
-                         ({})",
-                        def.name,
-                        describe(def)
-                    ),
-                ));
-            }
-            if is_vertex {
-                body.add(&element, i, at)?;
-            }
-        }
-    }
-    Ok(())
-}
-
-/// Reads a binary body up to the end of the `vertex` element from a cursor, whose position
-/// names the byte where the failing element starts.
-fn read_binary(
-    parser: &Parser<Values>,
-    header: &Header,
-    bytes: &[u8],
-    body_start: u64,
-    body: &mut Body,
-) -> Result<(), Fail> {
-    let mut cursor = Cursor::new(bytes);
-    cursor.set_position(body_start);
-    let big = header.encoding == Encoding::BinaryBigEndian;
-    let vertex_at = vertex_position(header);
-    for (k, def) in header.elements.values().enumerate().take(vertex_at.saturating_add(1)) {
-        if def.properties.is_empty() {
-            continue;
-        }
-        let is_vertex = k == vertex_at;
-        if is_vertex {
-            body.reserve(capacity(def, header.encoding, bytes.len() as u64 - body_start));
-        }
-        for i in 0..def.count {
-            let offset = cursor.position();
-            let at = At::Byte(offset);
-            let element = if big {
-                parser.read_big_endian_element(&mut cursor, def)
-            } else {
-                parser.read_little_endian_element(&mut cursor, def)
-            };
-            let element = element.map_err(|e| {
-                let message = if e.kind() == std::io::ErrorKind::UnexpectedEof {
-                    format!(
-                        "file ends inside `{}` {i} of {} (the file has {} bytes); expected {}",
-                        def.name,
-                        def.count,
-                        bytes.len(),
-                        describe(def)
-                    )
-                } else {
-                    format!("`{}` {i}: {}; expected {}", def.name, crate_message(&e), describe(def))
-                };
-                (at, message)
-            })?;
-            if is_vertex {
-                body.add(&element, i, at)?;
-            }
-        }
-    }
-    Ok(())
-}
-
-/// The crate's message without its debugging detail.
-fn crate_message(e: &ParseError) -> String {
-    let text = e.to_string();
-    let mut parts = text.split("\n\t");
-    let first = parts.next().unwrap_or("").trim();
-    let value = parts.find_map(|p| p.strip_prefix("Value: "));
-    let first = match first {
-        "Couldn't parse element line." => "not a list of numbers",
-        "Parse error." => "a value does not fit its type",
-        m if m.starts_with("Expected element of type") => "too few values",
-        m if m.starts_with("Couldn't parse element at index") => {
-            "a list value does not fit its type"
-        }
-        m => m.trim_end_matches('.'),
-    };
-    match value {
-        Some(v) => format!("{first} ({})", v.trim()),
-        None => first.to_string(),
-    }
-}
-
-/// An element's declared layout, as `float x, float y, list uchar int vertex_indices`.
-fn describe(def: &ElementDef) -> String {
-    let name = |t: &ScalarType| match t {
-        ScalarType::Char => "char",
-        ScalarType::UChar => "uchar",
-        ScalarType::Short => "short",
-        ScalarType::UShort => "ushort",
-        ScalarType::Int => "int",
-        ScalarType::UInt => "uint",
-        ScalarType::Float => "float",
-        ScalarType::Double => "double",
-    };
-    let parts: Vec<String> = def
-        .properties
-        .values()
-        .map(|p| match &p.data_type {
-            PropertyType::Scalar(t) => format!("{} {}", name(t), p.name),
-            PropertyType::List(c, t) => format!("list {} {} {}", name(c), name(t), p.name),
-        })
-        .collect();
-    parts.join(", ")
 }
 
 // ------------------------------------------------------------------------------------------
