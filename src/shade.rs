@@ -276,8 +276,7 @@ pub fn shade_triangle(
         }
         let (e1, e2) = setup.barycentric_numerators(cx, cy);
         let (e1, e2) = (e1 as f64, e2 as f64);
-        let z_centre = if n == 1 { z[0] } else { depth_at(depth, e1, e2) };
-        let Some(out) = fragment(px, py, e1, e2, z_centre) else { return };
+        let Some(out) = fragment(px, py, e1, e2, depth_at(depth, e1, e2)) else { return };
         for s in (0..n).filter(|s| passed & (1 << s) != 0) {
             target.depth[p * n + s] = z[s];
             target.color[p * n + s] = out.color;
