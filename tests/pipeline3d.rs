@@ -78,12 +78,14 @@ fn analytic(cam: &Camera, t: [Vec3; 3], px: u32, py: u32) -> Option<bool> {
     let margin = 2e-3;
     let near = -f64::from(cam.near);
     let depth_margin = (hit.z - near) / near.abs(); // > 0 means behind the near plane
+    let far = -f64::from(cam.far);
+    let far_margin = (far - hit.z) / far.abs(); // > 0 means beyond the far plane
     let behind_eye = hit.z >= 0.0;
     let worst = b0.min(b1).min(b2);
-    if behind_eye || worst < -margin || depth_margin > margin {
+    if behind_eye || worst < -margin || depth_margin > margin || far_margin > margin {
         return Some(false);
     }
-    if worst > margin && depth_margin < -margin {
+    if worst > margin && depth_margin < -margin && far_margin < -margin {
         return Some(true);
     }
     None
@@ -119,6 +121,32 @@ fn near_plane_clipping_renders_exactly_the_visible_part() {
         }
     }
     assert!(checked > 40 * (W * H) as usize * 9 / 10);
+}
+
+#[test]
+fn far_plane_clipping_renders_exactly_the_part_in_front_of_it() {
+    let mut rng = SmallRng::seed_from_u64(13);
+    let mut checked = 0;
+    for _ in 0..30 {
+        let mut cam = camera(0.2);
+        cam.far = rng.random_range(2.0..6.0);
+        // Triangles reaching from well inside the view volume to far beyond the far plane.
+        let t: [Vec3; 3] = std::array::from_fn(|_| {
+            let z = rng.random_range(-14.0..-0.5f32);
+            Vec3::new(rng.random_range(-0.4..0.4) * -z, rng.random_range(-0.3..0.3) * -z, z)
+        });
+        let (ids, _) = render(&cam, &[t], &[[0.0; 3]]);
+        for py in 0..H {
+            for px in 0..W {
+                let got = ids[(py * W + px) as usize] == 0;
+                if let Some(want) = analytic(&cam, t, px, py) {
+                    assert_eq!(got, want, "pixel ({px}, {py}) of {t:?}, far {}", cam.far);
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert!(checked > 30 * (W * H) as usize * 9 / 10);
 }
 
 #[test]
