@@ -14,6 +14,16 @@ pub enum Error {
         /// Requested height.
         height: u32,
     },
+    /// The target's buffers could not be allocated.
+    #[error("not enough memory for a {width}x{height} target with {samples} sample(s) per pixel")]
+    TargetMemory {
+        /// Requested width.
+        width: u32,
+        /// Requested height.
+        height: u32,
+        /// Samples per pixel.
+        samples: usize,
+    },
     /// A vertex lies outside the fixed-point range.
     #[error(
         "triangle {triangle}: vertex {vertex} at ({x}, {y}) is outside the supported window \

@@ -45,12 +45,21 @@ impl Target {
             return Err(Error::TargetSize { width, height });
         }
         let n = width as usize * height as usize * samples.count();
+        // A 16384 x 16384 target at 8x takes 17 GB: report what cannot be had instead of
+        // aborting the process.
+        let too_large = |_| Error::TargetMemory { width, height, samples: samples.count() };
+        let mut color = Vec::new();
+        color.try_reserve_exact(n).map_err(too_large)?;
+        color.resize(n, DEFAULT_CLEAR_COLOR);
+        let mut depth = Vec::new();
+        depth.try_reserve_exact(n).map_err(too_large)?;
+        depth.resize(n, 1.0);
         Ok(Self {
             width,
             height,
             samples,
-            color: vec![DEFAULT_CLEAR_COLOR; n],
-            depth: vec![1.0; n],
+            color,
+            depth,
             ids: None,
             overdraw: None,
             normals: None,
