@@ -63,14 +63,18 @@ impl From<Rejection> for Skipped {
 /// Runs the front end over a batch in parallel: `prepare(k)` gives the pieces of the batch's
 /// triangle `k`. Returns the prepared triangles in submission order and the counts of what
 /// was skipped; skipped triangles take no memory.
-pub fn prepare_batch<T, It, F>(len: usize, prepare: F) -> (Vec<Prepared<T>>, DrawStats)
+///
+/// `out` is cleared and refilled: callers keep it across batches, so its memory is reused
+/// instead of being returned to the system and faulted in again for every batch.
+pub fn prepare_batch<T, It, F>(len: usize, out: &mut Vec<Prepared<T>>, prepare: F) -> DrawStats
 where
     T: Send,
     It: IntoIterator<Item = Result<Prepared<T>, Skipped>>,
     F: Fn(usize) -> It + Sync,
 {
     // Fixed chunks collected in order, then joined once: no merge tree, no per-item slots.
-    const CHUNK: usize = 512;
+    // Small enough that a chunk's buffer (~75 KB) comes from the allocator's arenas.
+    const CHUNK: usize = 256;
     let parts: Vec<(Vec<Prepared<T>>, DrawStats)> = (0..len.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
@@ -90,13 +94,13 @@ where
             (out, stats)
         })
         .collect();
-    let mut prepared = Vec::with_capacity(parts.iter().map(|p| p.0.len()).sum());
+    out.clear();
     let mut stats = DrawStats::default();
     for (part, counts) in parts {
-        prepared.extend(part);
+        out.extend(part);
         stats = stats.merged(&counts);
     }
-    (prepared, stats)
+    stats
 }
 
 /// Per-tile lists of triangle indices, in submission order.
@@ -112,17 +116,29 @@ impl Bins {
     /// and merged in chunk order, so lists stay in submission order.
     #[must_use]
     pub fn build(bounds: &[Option<PixelRect>], width: u32, height: u32) -> Self {
+        Self::build_with(bounds.len(), |k| bounds[k], width, height)
+    }
+
+    /// [`Bins::build`] with the bounds of triangle `k` given by `bound(k)`, so that no
+    /// intermediate array is allocated per batch.
+    #[must_use]
+    pub fn build_with(
+        len: usize,
+        bound: impl Fn(usize) -> Option<PixelRect> + Sync,
+        width: u32,
+        height: u32,
+    ) -> Self {
         let tiles_x = width.div_ceil(TILE) as usize;
         let tiles_y = height.div_ceil(TILE) as usize;
         let tiles = tiles_x * tiles_y;
-        let chunk = bounds.len().div_ceil(rayon::current_num_threads() * 4).max(1024);
-        let partial: Vec<Vec<Vec<u32>>> = bounds
-            .par_chunks(chunk)
-            .enumerate()
+        let chunk = len.div_ceil(rayon::current_num_threads() * 4).max(1024);
+        let partial: Vec<Vec<Vec<u32>>> = (0..len.div_ceil(chunk))
+            .into_par_iter()
+            .map(|c| (c, (c * chunk..((c + 1) * chunk).min(len)).map(&bound)))
             .map(|(c, part)| {
                 let mut lists = vec![Vec::new(); tiles];
                 let target = PixelRect::of_target(width, height);
-                for (k, r) in part.iter().enumerate() {
+                for (k, r) in part.enumerate() {
                     let Some(r) = r.and_then(|r| r.intersect(&target)) else { continue };
                     let index = (c * chunk + k) as u32;
                     let (tx0, tx1) = (r.x0 as u32 / TILE, r.x1 as u32 / TILE);
@@ -204,10 +220,13 @@ where
     F: Fn(&T, i32, i32, f64, f64, f32) -> Option<FragmentOutput> + Sync,
 {
     let multisampled = target.samples().count() > 1;
-    let bounds: Vec<Option<PixelRect>> =
-        prepared.par_iter().map(|p| coverage_bounds(&p.setup, multisampled, clip)).collect();
     let (width, height) = (target.width(), target.height());
-    let bins = Bins::build(&bounds, width, height);
+    let bins = Bins::build_with(
+        prepared.len(),
+        |k| coverage_bounds(&prepared[k].setup, multisampled, clip),
+        width,
+        height,
+    );
     let tiles_x = width.div_ceil(TILE) as usize;
     target
         .bands(TILE)

@@ -245,6 +245,7 @@ impl Pipeline {
             }
             Backend::Tiled => {
                 let mut window = Vec::new();
+                let mut prepared = Vec::new();
                 for (b, batch) in triangles.chunks(BATCH).enumerate() {
                     // Vertices of a large mesh: the batch's index range shaded into a scratch
                     // window when it is compact (meshes are mostly stored with locality),
@@ -273,7 +274,7 @@ impl Pipeline {
                             shade_vertex(&vertices[i as usize])
                         }
                     };
-                    let (prepared, counts) = bin::prepare_batch(batch.len(), |k| {
+                    let counts = bin::prepare_batch(batch.len(), &mut prepared, |k| {
                         front.prepare(batch[k].map(fetch), b * BATCH + k)
                     });
                     stats = stats.merged(&counts);

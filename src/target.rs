@@ -54,16 +54,7 @@ impl Target {
         let mut depth = Vec::new();
         depth.try_reserve_exact(n).map_err(too_large)?;
         depth.resize(n, 1.0);
-        Ok(Self {
-            width,
-            height,
-            samples,
-            color,
-            depth,
-            ids: None,
-            overdraw: None,
-            normals: None,
-        })
+        Ok(Self { width, height, samples, color, depth, ids: None, overdraw: None, normals: None })
     }
 
     /// Adds a triangle-id buffer, cleared to -1.
