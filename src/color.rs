@@ -39,7 +39,8 @@ pub fn linear_to_srgb8(l: f32) -> u8 {
             .collect()
     });
     let l = if l.is_nan() { 0.0 } else { l.clamp(0.0, 1.0) };
-    table[(l.sqrt() * (N - 1) as f32).round() as usize]
+    // `x + 0.5` truncated is `round(x)` for x >= 0, without a libm call in the pixel loop.
+    table[(l.sqrt() * (N - 1) as f32 + 0.5) as usize]
 }
 
 /// Linear to 8-bit for an alpha channel (no transfer function).
@@ -47,7 +48,7 @@ pub fn linear_to_srgb8(l: f32) -> u8 {
 #[must_use]
 pub fn unorm8(a: f32) -> u8 {
     let a = if a.is_nan() { 0.0 } else { a.clamp(0.0, 1.0) };
-    (a * 255.0).round() as u8
+    (a * 255.0 + 0.5) as u8
 }
 
 #[cfg(test)]
