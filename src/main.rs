@@ -421,8 +421,11 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         }];
         mesh.triangle_materials = Some(vec![0; mesh.triangles.len()]);
     }
-    for w in &mesh.warnings {
-        eprintln!("trirast: warning: {w}");
+    warn_about(&mesh);
+    if let (Some(eye), Some(look)) = (args.eye, args.target) {
+        if eye == look {
+            return Err(usage("--eye and --target must differ".into()));
+        }
     }
     let textures = MaterialTextures::load(&mesh);
     for w in &textures.warnings {
@@ -770,11 +773,24 @@ fn splat_bench(points: &[usize], threads: Option<usize>, frames: usize) -> Resul
     Ok(())
 }
 
-fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Error> {
-    let mesh = trirast::mesh::load(file)?;
+/// Prints what loading left to say about a mesh: the reader's warnings, and a hint when a
+/// file has vertices but no faces (a point cloud given to a mesh command).
+fn warn_about(mesh: &Mesh) {
     for w in &mesh.warnings {
         eprintln!("trirast: warning: {w}");
     }
+    if mesh.triangles.is_empty() && !mesh.positions.is_empty() {
+        eprintln!(
+            "trirast: warning: the file has {} vertices but no faces; for a point cloud use \
+             `trirast splat`",
+            mesh.positions.len()
+        );
+    }
+}
+
+fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Error> {
+    let mesh = trirast::mesh::load(file)?;
+    warn_about(&mesh);
     let textures = MaterialTextures::load(&mesh);
     let start = std::time::Instant::now();
     let cloud = trirast::splat::cloud::sample_mesh(&mesh, &textures, points, seed);
