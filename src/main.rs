@@ -422,10 +422,10 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         mesh.triangle_materials = Some(vec![0; mesh.triangles.len()]);
     }
     warn_about(&mesh);
-    if let (Some(eye), Some(look)) = (args.eye, args.target) {
-        if eye == look {
-            return Err(usage("--eye and --target must differ".into()));
-        }
+    if let (Some(eye), Some(look)) = (args.eye, args.target)
+        && eye == look
+    {
+        return Err(usage("--eye and --target must differ".into()));
     }
     let textures = MaterialTextures::load(&mesh);
     for w in &textures.warnings {
