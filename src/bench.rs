@@ -111,7 +111,7 @@ fn prepare(
     Ok(match scene {
         BenchScene::Bunny => {
             let path = Path::new("../shared/models/stanford-bunny.obj");
-            let (mesh, source) = if path.exists() {
+            let (mut mesh, source) = if path.exists() {
                 (crate::mesh::load(path)?, format!("{}", path.display()))
             } else {
                 (
@@ -119,6 +119,8 @@ fn prepare(
                     "generated sphere of 69,451 triangles (bunny not found)".into(),
                 )
             };
+            // Normals computed once, as `trirast render` does, not in every timed frame.
+            model::with_vertex_normals(&mut mesh);
             let (centre, radius) = camera::bounding_sphere(&mesh.positions);
             let projection = Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y };
             let camera = Camera::framing_sphere(centre, radius, 0.5, 0.35, 16.0 / 9.0, projection);

@@ -427,6 +427,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     {
         return Err(usage("--eye and --target must differ".into()));
     }
+    model::with_vertex_normals(&mut mesh);
     let textures = MaterialTextures::load(&mesh);
     for w in &textures.warnings {
         eprintln!("trirast: warning: {w}");

@@ -179,10 +179,18 @@ pub fn vertex_normals(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Vec<[f3
     slots.iter().map(|&s| sum[s].normalize_or_zero().to_array()).collect()
 }
 
+/// Fills in `mesh.normals` with [`vertex_normals`] when the file had none, so that rendering
+/// many frames (turntables, benchmarks) does not recompute them every frame.
+pub fn with_vertex_normals(mesh: &mut Mesh) {
+    if mesh.normals.is_none() {
+        mesh.normals = Some(vertex_normals(&mesh.positions, &mesh.triangles));
+    }
+}
+
 /// Per-vertex data the model shaders read, resolved once.
 struct Surface<'a> {
     mesh: &'a Mesh,
-    normals: Vec<[f32; 3]>,
+    normals: std::borrow::Cow<'a, [[f32; 3]]>,
     textures: &'a MaterialTextures,
     /// Linear RGBA per vertex (white when the mesh has no colours).
     colors: Option<Vec<Vec4>>,
@@ -264,16 +272,23 @@ pub fn render_mesh(
     let view = local_camera.view();
     let view_proj = camera.projection(aspect) * view;
     let normal_matrix = Mat3::from_mat4(view).inverse().transpose();
-    let normals = match &mesh.normals {
-        Some(n) => n.clone(),
-        None => vertex_normals(&mesh.positions, &mesh.triangles),
+    // Borrowed when the mesh has normals (callers drawing many frames should fill them once,
+    // see `with_vertex_normals`); computed here otherwise.
+    let normals: std::borrow::Cow<'_, [[f32; 3]]> = match &mesh.normals {
+        Some(n) => std::borrow::Cow::Borrowed(n),
+        None => std::borrow::Cow::Owned(vertex_normals(&mesh.positions, &mesh.triangles)),
     };
     let colors = mesh.colors.as_ref().map(|c| {
         c.iter()
             .map(|&[r, g, b, a]| Vec4::new(srgb_decode(r), srgb_decode(g), srgb_decode(b), a))
             .collect()
     });
-    let face_normals = face_normals(mesh, &view, origin);
+    // Only flat lighting reads face normals.
+    let face_normals = if options.lighting == Lighting::Flat {
+        face_normals(mesh, &view, origin)
+    } else {
+        Vec::new()
+    };
     let surface = Surface { mesh, normals, textures, colors, face_normals };
 
     let light = options.light;
