@@ -7,12 +7,15 @@
 //! Everything is generated in code: the tests need nothing outside the repository (the real
 //! models in `../shared/models` are loaded too when that directory exists).
 
+mod common;
+
 use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::fs;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 
+use common::xorshift::XorShift;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use trirast::mesh::{self, Mesh};
@@ -850,24 +853,6 @@ fn malformed_files_name_the_file_and_position() {
 // ---------------------------------------------------------------------------------------------
 // Mutation fuzz
 
-/// Marsaglia's xorshift64*.
-struct XorShift(u64);
-
-impl XorShift {
-    fn next(&mut self) -> u64 {
-        let mut x = self.0;
-        x ^= x >> 12;
-        x ^= x << 25;
-        x ^= x >> 27;
-        self.0 = x;
-        x.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-}
-
 const TOKENS: &[&[u8]] = &[
     b"4000000000",
     b"4294967295",
@@ -942,7 +927,7 @@ fn fuzz(
     // `TRIRAST_FUZZ_ITERS` and `TRIRAST_FUZZ_SEED` override the defaults for a longer local run.
     let env = |name: &str| std::env::var(name).ok().and_then(|v| v.parse::<u64>().ok());
     let iterations = env("TRIRAST_FUZZ_ITERS").map_or(iterations, |n| n as usize);
-    let mut rng = XorShift(env("TRIRAST_FUZZ_SEED").unwrap_or(0x5eed_1e55_f00d_cafe).max(1));
+    let mut rng = XorShift::new(env("TRIRAST_FUZZ_SEED").unwrap_or(0x5eed_1e55_f00d_cafe));
     let path = Path::new("fuzz.input");
     let (mut accepted, mut rejected) = (0, 0);
     for i in 0..iterations {

@@ -12,40 +12,17 @@
 //! `TRIRAST_FUZZ_ITERS` and `TRIRAST_FUZZ_SEED` override the iteration count and the seed for a
 //! longer local run; a failure prints the offending input as an escaped byte string.
 
+mod common;
+
 use std::panic::{AssertUnwindSafe, catch_unwind};
+
+use common::xorshift::XorShift;
 
 use trirast::mesh::{ObjMesh, obj, window_triangles};
 use trirast::{Algorithm, RenderOptions, Target};
 
 const DEFAULT_ITERS: usize = 20_000;
 const DEFAULT_SEED: u64 = 0x0b1e_c7f0_2257_a11d;
-
-/// Marsaglia's xorshift64*.
-struct XorShift(u64);
-
-impl XorShift {
-    fn new(seed: u64) -> Self {
-        Self(seed.max(1))
-    }
-
-    fn next(&mut self) -> u64 {
-        let mut x = self.0;
-        x ^= x >> 12;
-        x ^= x << 25;
-        x ^= x >> 27;
-        self.0 = x;
-        x.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-
-    /// Uniform in `[0, n)`, `n > 0`.
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-
-    fn pick<'a, T>(&mut self, items: &'a [T]) -> &'a T {
-        &items[self.below(items.len())]
-    }
-}
 
 const SEEDS: &[&[u8]] = &[
     // Every corner form, negative indices, comments, skipped statements.

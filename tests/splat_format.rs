@@ -12,43 +12,27 @@
 //!
 //! Set `TSPLAT_STATS=1` to print the measured quantization errors.
 
+mod common;
+
 use std::collections::VecDeque;
 use std::f64::consts::PI;
 
+use common::xorshift::XorShift;
 use trirast::Error;
 use trirast::splat::format::{
     self, BYTES_PER_NODE, CONE_BUCKETS, FormatError, FormatErrorKind, HEADER_BYTES,
 };
 use trirast::splat::{PointCloud, SplatNode, SplatTree};
 
-/// Marsaglia's xorshift64*.
-struct Rng(u64);
+/// The shared fixed-seed generator, plus the random directions these trees need.
+type Rng = XorShift;
 
-impl Rng {
-    fn new(seed: u64) -> Self {
-        Self(seed.max(1))
-    }
-
-    fn next(&mut self) -> u64 {
-        let mut x = self.0;
-        x ^= x >> 12;
-        x ^= x << 25;
-        x ^= x >> 27;
-        self.0 = x;
-        x.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-
-    /// Uniform in `[0, 1)`.
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform in `[0, n)`, `n > 0`.
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-
+trait Directions {
     /// A uniformly random unit vector.
+    fn direction(&mut self) -> [f64; 3];
+}
+
+impl Directions for Rng {
     fn direction(&mut self) -> [f64; 3] {
         loop {
             let v = [0, 1, 2].map(|_| 2.0 * self.unit() - 1.0);

@@ -1,6 +1,8 @@
 //! Shared generators and an independent coverage oracle for the property tests.
 #![allow(dead_code)]
 
+pub mod xorshift;
+
 use rand::Rng;
 use trirast::raster::{self, Algorithm, Span};
 use trirast::{CullMode, PixelRect, TriangleSetup};
