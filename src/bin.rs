@@ -28,7 +28,10 @@ use crate::target::Target;
 pub const TILE: u32 = 64;
 
 /// Triangles per batch: bounds the memory of set-up triangles and bins (a few tens of MB).
-pub const BATCH: usize = 1 << 14;
+pub const BATCH: usize = 1 << 16;
+
+/// How many triangles ahead of the one being drawn the tile loop prefetches.
+const PREFETCH_AHEAD: usize = 4;
 
 /// A triangle ready for the back end: coverage setup, depth plane, id, and whatever the
 /// fragment function needs (`payload`).
@@ -60,47 +63,92 @@ impl From<Rejection> for Skipped {
     }
 }
 
-/// Runs the front end over a batch in parallel: `prepare(k)` gives the pieces of the batch's
-/// triangle `k`. Returns the prepared triangles in submission order and the counts of what
-/// was skipped; skipped triangles take no memory.
-///
-/// `out` is cleared and refilled: callers keep it across batches, so its memory is reused
-/// instead of being returned to the system and faulted in again for every batch.
-pub fn prepare_batch<T, It, F>(len: usize, out: &mut Vec<Prepared<T>>, prepare: F) -> DrawStats
-where
-    T: Send,
-    It: IntoIterator<Item = Result<Prepared<T>, Skipped>>,
-    F: Fn(usize) -> It + Sync,
-{
-    // Fixed chunks collected in order, then joined once: no merge tree, no per-item slots.
-    // Small enough that a chunk's buffer (~75 KB) comes from the allocator's arenas.
-    const CHUNK: usize = 256;
-    let parts: Vec<(Vec<Prepared<T>>, DrawStats)> = (0..len.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|c| {
-            let mut out = Vec::with_capacity(CHUNK);
-            let mut stats = DrawStats::default();
-            for k in c * CHUNK..((c + 1) * CHUNK).min(len) {
-                for piece in prepare(k) {
-                    match piece {
-                        Ok(p) => {
-                            stats.rasterized += 1;
-                            out.push(p);
+/// Input triangles per front-end chunk: a chunk is set up by one task into its own buffer.
+const CHUNK: usize = 256;
+
+/// Bits of a prepared triangle's index that number it within its chunk: room for every
+/// piece a chunk's triangles can be clipped into (a clipped triangle is a fan of at most
+/// 3 + 7 planes - 2 = 8 triangles, so a chunk holds at most 2048 pieces).
+const PIECE_BITS: u32 = 12;
+
+/// A batch of prepared triangles, kept as the per-chunk buffers the parallel front end wrote
+/// (never joined: joining copied every ~300-byte record once more). Piece `k` of chunk `c`
+/// has index `c << 12 | k`, so indices grow in submission order. The buffers are reused from
+/// batch to batch, so their pages are faulted in once per draw call, not once per batch.
+#[derive(Debug)]
+pub struct PreparedBatch<T> {
+    chunks: Vec<Vec<Prepared<T>>>,
+    used: usize,
+}
+
+impl<T> Default for PreparedBatch<T> {
+    fn default() -> Self {
+        Self { chunks: Vec::new(), used: 0 }
+    }
+}
+
+impl<T: Send> PreparedBatch<T> {
+    /// Runs the front end over a batch of `len` triangles in parallel: `prepare(k)` gives the
+    /// pieces of the batch's triangle `k`. Replaces the previous contents; returns the counts
+    /// of what was skipped (skipped triangles take no memory).
+    pub fn prepare<It, F>(&mut self, len: usize, prepare: F) -> DrawStats
+    where
+        It: IntoIterator<Item = Result<Prepared<T>, Skipped>>,
+        F: Fn(usize) -> It + Sync,
+    {
+        self.used = len.div_ceil(CHUNK);
+        if self.chunks.len() < self.used {
+            self.chunks.resize_with(self.used, || Vec::with_capacity(CHUNK));
+        }
+        self.chunks[..self.used]
+            .par_iter_mut()
+            .enumerate()
+            .map(|(c, out)| {
+                out.clear();
+                let mut stats = DrawStats::default();
+                for k in c * CHUNK..((c + 1) * CHUNK).min(len) {
+                    for piece in prepare(k) {
+                        match piece {
+                            Ok(p) => {
+                                stats.rasterized += 1;
+                                out.push(p);
+                            }
+                            Err(why) => stats.skip(why),
                         }
-                        Err(why) => stats.skip(why),
                     }
                 }
-            }
-            (out, stats)
-        })
-        .collect();
-    out.clear();
-    let mut stats = DrawStats::default();
-    for (part, counts) in parts {
-        out.extend(part);
-        stats = stats.merged(&counts);
+                debug_assert!(out.len() <= 1 << PIECE_BITS, "more pieces than index slots");
+                stats
+            })
+            .reduce(DrawStats::default, |a, b| a.merged(&b))
     }
-    stats
+}
+
+impl<T> PreparedBatch<T> {
+    /// The triangle at `index` (as listed by [`PreparedBatch::indexed`]).
+    #[inline]
+    #[must_use]
+    pub fn get(&self, index: u32) -> &Prepared<T> {
+        &self.chunks[(index >> PIECE_BITS) as usize][(index & ((1 << PIECE_BITS) - 1)) as usize]
+    }
+
+    /// The triangles of chunks `chunks` with their indices, in submission order.
+    fn indexed(&self, chunks: std::ops::Range<usize>) -> impl Iterator<Item = (u32, &Prepared<T>)> {
+        chunks.flat_map(move |c| {
+            let base = (c as u32) << PIECE_BITS;
+            self.chunks[c].iter().enumerate().map(move |(k, p)| (base | k as u32, p))
+        })
+    }
+
+    /// Number of chunks in use.
+    fn chunk_count(&self) -> usize {
+        self.used
+    }
+
+    /// All triangles, in submission order.
+    pub fn iter(&self) -> impl Iterator<Item = &Prepared<T>> {
+        self.chunks[..self.used].iter().flatten()
+    }
 }
 
 /// Per-tile lists of triangle indices, in submission order.
@@ -128,19 +176,61 @@ impl Bins {
         width: u32,
         height: u32,
     ) -> Self {
+        let chunk = len.div_ceil(rayon::current_num_threads() * 4).max(1024);
+        let bound = &bound;
+        Self::build_groups(
+            len.div_ceil(chunk),
+            |g| (g * chunk..((g + 1) * chunk).min(len)).map(move |k| (k as u32, bound(k))),
+            width,
+            height,
+        )
+    }
+
+    /// Bins the triangles of a prepared batch by their coverage bounds within `clip`.
+    fn of_batch<T: Sync>(
+        batch: &PreparedBatch<T>,
+        multisampled: bool,
+        clip: &PixelRect,
+        width: u32,
+        height: u32,
+    ) -> Self {
+        let chunks = batch.chunk_count();
+        let per_group = chunks.div_ceil(rayon::current_num_threads() * 4).max(4);
+        Self::build_groups(
+            chunks.div_ceil(per_group),
+            |g| {
+                let range = g * per_group..((g + 1) * per_group).min(chunks);
+                batch
+                    .indexed(range)
+                    .map(|(i, p)| (i, coverage_bounds(&p.setup, multisampled, clip)))
+            },
+            width,
+            height,
+        )
+    }
+
+    /// The shared binning loop: group `g` (in submission order) lists `(index, bounds)`;
+    /// groups are binned in parallel and merged in group order, so lists stay in submission
+    /// order.
+    fn build_groups<I>(
+        groups: usize,
+        group: impl Fn(usize) -> I + Sync,
+        width: u32,
+        height: u32,
+    ) -> Self
+    where
+        I: Iterator<Item = (u32, Option<PixelRect>)>,
+    {
         let tiles_x = width.div_ceil(TILE) as usize;
         let tiles_y = height.div_ceil(TILE) as usize;
         let tiles = tiles_x * tiles_y;
-        let chunk = len.div_ceil(rayon::current_num_threads() * 4).max(1024);
-        let partial: Vec<Vec<Vec<u32>>> = (0..len.div_ceil(chunk))
+        let target = PixelRect::of_target(width, height);
+        let partial: Vec<Vec<Vec<u32>>> = (0..groups)
             .into_par_iter()
-            .map(|c| (c, (c * chunk..((c + 1) * chunk).min(len)).map(&bound)))
-            .map(|(c, part)| {
+            .map(|g| {
                 let mut lists = vec![Vec::new(); tiles];
-                let target = PixelRect::of_target(width, height);
-                for (k, r) in part.enumerate() {
+                for (index, r) in group(g) {
                     let Some(r) = r.and_then(|r| r.intersect(&target)) else { continue };
-                    let index = (c * chunk + k) as u32;
                     let (tx0, tx1) = (r.x0 as u32 / TILE, r.x1 as u32 / TILE);
                     let (ty0, ty1) = (r.y0 as u32 / TILE, r.y1 as u32 / TILE);
                     for ty in ty0..=ty1 {
@@ -208,7 +298,7 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 #[allow(clippy::too_many_arguments)]
 pub fn draw_binned<T, K, F>(
     target: &mut Target,
-    prepared: &[Prepared<T>],
+    prepared: &PreparedBatch<T>,
     depth_test: DepthTest,
     clip: &PixelRect,
     kernel: K,
@@ -221,12 +311,7 @@ where
 {
     let multisampled = target.samples().count() > 1;
     let (width, height) = (target.width(), target.height());
-    let bins = Bins::build_with(
-        prepared.len(),
-        |k| coverage_bounds(&prepared[k].setup, multisampled, clip),
-        width,
-        height,
-    );
+    let bins = Bins::of_batch(prepared, multisampled, clip, width, height);
     let tiles_x = width.div_ceil(TILE) as usize;
     target
         .bands(TILE)
@@ -242,8 +327,12 @@ where
                     y1: band.rect().y1,
                 };
                 let Some(tile) = tile.intersect(clip) else { continue };
-                for &i in bins.tile(tx, ty) {
-                    let p = &prepared[i as usize];
+                let list = bins.tile(tx, ty);
+                for (j, &i) in list.iter().enumerate() {
+                    if let Some(&ahead) = list.get(j + PREFETCH_AHEAD) {
+                        crate::simd::prefetch(prepared.get(ahead));
+                    }
+                    let p = prepared.get(i);
                     covered += shade::shade_triangle(
                         &mut band,
                         &p.setup,

@@ -245,7 +245,7 @@ impl Pipeline {
             }
             Backend::Tiled => {
                 let mut window = Vec::new();
-                let mut prepared = Vec::new();
+                let mut prepared = bin::PreparedBatch::default();
                 for (b, batch) in triangles.chunks(BATCH).enumerate() {
                     // Vertices of a large mesh: the batch's index range shaded into a scratch
                     // window when it is compact (meshes are mostly stored with locality),
@@ -274,7 +274,7 @@ impl Pipeline {
                             shade_vertex(&vertices[i as usize])
                         }
                     };
-                    let counts = bin::prepare_batch(batch.len(), &mut prepared, |k| {
+                    let counts = prepared.prepare(batch.len(), |k| {
                         front.prepare(batch[k].map(fetch), b * BATCH + k)
                     });
                     stats = stats.merged(&counts);
@@ -364,11 +364,12 @@ impl FrontEnd {
         if bin::coverage_bounds(&setup, self.multisampled, &self.clip).is_none() {
             return Err(Skipped::Empty);
         }
-        let depth = PlaneEquation::new(win.map(|v| f64::from(v.z)), &setup);
+        let inv_area2 = 1.0 / setup.area2 as f64;
+        let depth = PlaneEquation::with_inv_area2(win.map(|v| f64::from(v.z)), inv_area2);
         let payload = TriangleData {
             varyings: tri.map(|v| v.varyings),
             inv_w: win.map(|v| f64::from(v.inv_w)),
-            inv_area2: 1.0 / setup.area2 as f64,
+            inv_area2,
             front_facing: !setup.clockwise,
             primitive: id as u32,
         };

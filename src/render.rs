@@ -168,9 +168,9 @@ pub fn draw(
         let multisampled = target.samples().count() > 1;
         // With the scissor off the target nothing is visible, but setup still counts.
         let visible = clip.unwrap_or(PixelRect::EMPTY);
-        let mut prepared = Vec::new();
+        let mut prepared = bin::PreparedBatch::default();
         for (b, batch) in triangles.chunks(BATCH).enumerate() {
-            let counts = bin::prepare_batch(batch.len(), &mut prepared, |k| {
+            let counts = prepared.prepare(batch.len(), |k| {
                 let tri = &batch[k];
                 let piece = TriangleSetup::new(tri, options.cull).map_err(Skipped::from).and_then(
                     |setup| {

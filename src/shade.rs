@@ -5,10 +5,11 @@
 //! functions: with `E_1`, `E_2` the unbiased edge values opposite vertices 1 and 2 and
 //! `area2 = E_i(v_i)`, the barycentric weights are `E_i / area2`, so
 //! `a(P) = a_0 + E_1(P) * (a_1 - a_0) / area2 + E_2(P) * (a_2 - a_0) / area2`.
-//! `E_1`, `E_2` are integers below 2^49 (see [`crate::fixed`]), exact in `f64`; the plane is
-//! evaluated in `f64` in exactly this order, so at a vertex that sits on a pixel centre the
-//! weights are exactly (1, 0, 0) up to one rounding of `1/area2`, and the result rounds back
-//! to the vertex's own `f32` depth and `u8` colour. A fast path must evaluate the same
+//! `E_1`, `E_2` are integers below 2^49 (see [`crate::fixed`]), exact in `f64`; the gradients
+//! are `(a_i - a_0) * (1 / area2)` (one division per triangle) and the plane is evaluated in
+//! `f64` in exactly this order, so at a vertex that sits on a pixel centre the weights are
+//! (1, 0, 0) up to two roundings (`1/area2` and the product), about 1e-16 relative, and the
+//! result rounds back to the vertex's own `f32` depth and `u8` colour. A fast path must evaluate the same
 //! expression in the same order to stay bit-identical.
 //!
 //! Depth is interpolated linearly in screen space and clamped to [0, 1]. Colours are
@@ -71,8 +72,16 @@ impl PlaneEquation {
     /// The plane through the values `a` at the triangle's three vertices.
     #[must_use]
     pub fn new(a: [f64; 3], setup: &TriangleSetup) -> Self {
-        let area2 = setup.area2 as f64;
-        Self { a0: a[0], g1: (a[1] - a[0]) / area2, g2: (a[2] - a[0]) / area2 }
+        Self::with_inv_area2(a, 1.0 / setup.area2 as f64)
+    }
+
+    /// The plane through the values `a`, given `1 / area2` of the triangle: one division
+    /// per triangle, shared by all its planes (`new` is defined through this, so both give
+    /// the same bits).
+    #[inline]
+    #[must_use]
+    pub fn with_inv_area2(a: [f64; 3], inv_area2: f64) -> Self {
+        Self { a0: a[0], g1: (a[1] - a[0]) * inv_area2, g2: (a[2] - a[0]) * inv_area2 }
     }
 
     /// The attribute at a sample with barycentric numerators `(e1, e2)`.
@@ -156,13 +165,14 @@ impl TriangleShader {
     /// Prepares the planes of a triangle with vertices `v` and setup `setup`.
     #[must_use]
     pub fn new(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> Self {
-        let depth = PlaneEquation::new(v.map(|p| f64::from(p.z)), setup);
+        let inv_area2 = 1.0 / setup.area2 as f64;
+        let depth = PlaneEquation::with_inv_area2(v.map(|p| f64::from(p.z)), inv_area2);
         let channel = |c: usize| v.map(|p| f64::from(p.color[c]));
         let color = match shading {
             Shading::Flat => ColorSource::Flat(flat_color(v)),
-            Shading::Smooth => {
-                ColorSource::Smooth(std::array::from_fn(|c| PlaneEquation::new(channel(c), setup)))
-            }
+            Shading::Smooth => ColorSource::Smooth(
+                [0, 1, 2, 3].map(|c| PlaneEquation::with_inv_area2(channel(c), inv_area2)),
+            ),
             Shading::Perspective => {
                 let inv_w = v.map(|p| f64::from(p.inv_w));
                 ColorSource::Perspective(Box::new(std::array::from_fn(|c| {
