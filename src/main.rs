@@ -11,6 +11,11 @@ use trirast::mesh::Mesh;
 use trirast::model::{self, Lighting, MaterialTextures, ModelOptions};
 use trirast::pipeline::FaceCull;
 use trirast::sample::SampleCount;
+
+/// mimalloc keeps freed pages for reuse, where glibc's malloc returns large blocks to the
+/// system and the next frame's buffers are faulted in (and zeroed) again, page by page.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 use trirast::scene::{self, Demo};
 use trirast::texture::{Filter, Wrap};
 use trirast::{Algorithm, CullMode, DepthTest, Error, RenderOptions, Shading, Target, Vertex};
@@ -200,8 +205,8 @@ struct SplatArgs {
     /// Image size, WIDTHxHEIGHT.
     #[arg(long, default_value = "800x600", value_parser = parse_size)]
     size: (u32, u32),
-    /// Stop refining at nodes whose projected diameter is below this many pixels (0 draws
-    /// every point).
+    /// Stop refining at nodes whose points spread over less than this many pixels on screen
+    /// (0 draws every point).
     #[arg(long, default_value_t = 1.0)]
     threshold: f32,
     /// Time budget: draw coarse-to-fine levels while the next is expected to fit; the image

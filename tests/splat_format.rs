@@ -185,7 +185,7 @@ fn build(pts: &[Point], seed: u64) -> (SplatTree, Vec<usize>) {
         leaf_point.push(t.point);
         queue.extend(t.children);
     }
-    (SplatTree { nodes }, leaf_point)
+    (SplatTree::new(nodes), leaf_point)
 }
 
 fn parents(tree: &SplatTree) -> Vec<usize> {
@@ -445,12 +445,10 @@ fn golden_two_node_file() {
         first_child,
         child_count,
     };
-    let tree = SplatTree {
-        nodes: vec![
-            node([0.0, 0.0, 0.0], 1.0, [0.0, 0.0, 1.0], [255, 0, 0], 1, 1),
-            node([0.5, 0.0, 0.0], 0.25, [1.0, 0.0, 0.0], [0, 255, 0], 0, 0),
-        ],
-    };
+    let tree = SplatTree::new(vec![
+        node([0.0, 0.0, 0.0], 1.0, [0.0, 0.0, 1.0], [255, 0, 0], 1, 1),
+        node([0.5, 0.0, 0.0], 0.25, [1.0, 0.0, 0.0], [0, 255, 0], 0, 0),
+    ]);
     let expected: Vec<u8> = [
         "5453504c41540000",         // magic
         "01000000",                 // version 1
@@ -592,16 +590,14 @@ fn encoder_never_panics_on_bad_trees() {
     };
     let trees = [
         SplatTree::default(),
-        SplatTree { nodes: vec![node([f32::NAN, 1.0, f32::INFINITY], -1.0, 0, 0)] },
+        SplatTree::new(vec![node([f32::NAN, 1.0, f32::INFINITY], -1.0, 0, 0)]),
         // Child ranges out of bounds, pointing back to the root, more than 4 children.
-        SplatTree {
-            nodes: vec![
-                node([0.0; 3], 1.0, 0, 9),
-                node([1e30, 0.0, 0.0], f32::INFINITY, 7, 200),
-                node([f32::MAX, -f32::MAX, 0.0], f32::MAX, u32::MAX, 255),
-            ],
-        },
-        SplatTree { nodes: (0..10).map(|i| node([i as f32, 0.0, 0.0], 0.5, i + 1, 6)).collect() },
+        SplatTree::new(vec![
+            node([0.0; 3], 1.0, 0, 9),
+            node([1e30, 0.0, 0.0], f32::INFINITY, 7, 200),
+            node([f32::MAX, -f32::MAX, 0.0], f32::MAX, u32::MAX, 255),
+        ]),
+        SplatTree::new((0..10).map(|i| node([i as f32, 0.0, 0.0], 0.5, i + 1, 6)).collect()),
     ];
     for tree in &trees {
         let bytes = format::encode(tree);

@@ -453,7 +453,7 @@ pub fn decode(bytes: &[u8]) -> Result<SplatTree, FormatError> {
             nodes[c].radius = s.radius;
         }
     }
-    Ok(SplatTree { nodes })
+    Ok(SplatTree::new(nodes))
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -2,22 +2,28 @@
 //!
 //! A node is culled when its sphere lies outside a frustum plane, or when every normal in its
 //! cone faces away from the eye (with a margin for the sphere's angular size). It is drawn as
-//! a splat when it is a leaf or its projected radius is below the threshold (pixels): a
-//! square or disk of that radius around its projected centre, at the depth of its centre,
-//! lit by its normal with the same light as meshes. Otherwise its children are visited.
+//! a splat when it is a leaf or when the points it stands for spread over less than the
+//! threshold (pixels): its projected diameter less that of the smallest splat
+//! ([`SplatTree::min_leaf_radius`]), since every sphere is inflated by its points' splat radii
+//! and testing the inflated size would refine nodes whose points all fall within one pixel.
+//! The splat is a square or disk of the node's full projected radius around its projected
+//! centre, at the depth of its centre, lit by its normal with the same light as meshes.
+//! Otherwise its children are visited.
 //!
-//! Traversal runs on several threads over disjoint subtrees and splats are concatenated in
-//! tree order; drawing then goes band by band ([`Target::bands`], the triangles' machinery),
-//! each band drawing its splats in that order with the depth test. So the image does not
-//! depend on the thread count.
+//! Traversal goes level by level, each level's nodes classified in parallel chunks and
+//! concatenated in index order; drawing then uses the triangles' machinery: splats binned into
+//! 64 x 64 tiles ([`Bins`]) in that order, rows of tiles ([`Target::bands`]) drawn in parallel
+//! with the depth test. So the image does not depend on the thread count.
 
 use glam::{Mat3, Mat4, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::tree::SplatTree;
+use crate::bin::{Bins, TILE};
 use crate::camera::Camera;
 use crate::color::{linear_to_srgb8, srgb_to_linear};
 use crate::model::Light;
+use crate::setup::PixelRect;
 use crate::target::{Target, TargetBand};
 
 /// The footprint of a splat.
@@ -35,8 +41,8 @@ pub enum SplatShape {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
 pub struct SplatOptions {
-    /// Stop descending at nodes whose projected diameter is below this many pixels (0: draw
-    /// every leaf).
+    /// Stop descending at nodes whose points spread over less than this many pixels on
+    /// screen (0: draw every leaf); see the module documentation.
     pub threshold: f32,
     /// Splat footprint.
     pub shape: SplatShape,
@@ -111,6 +117,8 @@ struct Splat {
     depth: f32,
     color: [u8; 4],
     id: i32,
+    /// The pixels it may write, on the target ([`footprint`]); `None` when off it.
+    rect: Option<PixelRect>,
 }
 
 /// Everything traversal needs, derived once from the camera and target.
@@ -125,6 +133,7 @@ struct View<'a> {
     /// Pixels per world unit at w = 1 (vertically).
     pixels_per_unit: f32,
     half_size: [f32; 2],
+    screen: PixelRect,
     view_normal: Mat3,
     light_dir: Vec3,
 }
@@ -159,7 +168,11 @@ impl View<'_> {
             return if leaf { Visit::Culled } else { Visit::Refine };
         }
         let radius_px = r * self.pixels_per_unit / p.w;
-        if leaf || 2.0 * radius_px < self.options.threshold {
+        // The size test is on the detail the node stands for (its points' spread), not on
+        // the disk drawn for it, which adds a splat radius: otherwise a node whose points all
+        // fall within a pixel would still be refined down to its leaves.
+        let spread_px = (r - self.tree.min_leaf_radius()).max(0.0) * self.pixels_per_unit / p.w;
+        if leaf || 2.0 * spread_px < self.options.threshold {
             // Two-sided, as for meshes: a normal facing away (a scan's flipped triangle, or a
             // node kept by the conservative cone test) is lit as its visible side.
             let mut normal = Vec3::from(n.normal);
@@ -168,13 +181,17 @@ impl View<'_> {
                 normal = -normal;
             }
             let lit = self.shade(n.color, normal);
+            let (x, y) =
+                ((p.x / p.w + 1.0) * self.half_size[0], (1.0 - p.y / p.w) * self.half_size[1]);
+            let half = radius_px.max(0.5);
             return Visit::Draw(Splat {
-                x: (p.x / p.w + 1.0) * self.half_size[0],
-                y: (1.0 - p.y / p.w) * self.half_size[1],
-                half: radius_px.max(0.5),
+                x,
+                y,
+                half,
                 depth: p.z / p.w,
                 color: lit,
                 id: i as i32,
+                rect: footprint(x, y, half, &self.screen),
             });
         }
         Visit::Refine
@@ -191,24 +208,6 @@ impl View<'_> {
             _ => albedo,
         };
         [linear_to_srgb8(lit.x), linear_to_srgb8(lit.y), linear_to_srgb8(lit.z), 255]
-    }
-
-    /// Depth-first from `i`, appending splats in tree order.
-    fn traverse(&self, i: usize, out: &mut Vec<Splat>, stats: &mut SplatStats) {
-        stats.visited += 1;
-        match self.classify(i) {
-            Visit::Culled => stats.culled += 1,
-            Visit::Draw(s) => {
-                stats.drawn += 1;
-                stats.leaves_drawn += usize::from(self.tree.nodes[i].child_count == 0);
-                out.push(s);
-            }
-            Visit::Refine => {
-                for k in self.tree.children(i) {
-                    self.traverse(k, out, stats);
-                }
-            }
-        }
     }
 }
 
@@ -253,114 +252,140 @@ pub fn render(
         perspective: matches!(camera.projection, crate::camera::Projection::Perspective { .. }),
         pixels_per_unit: projection.y_axis.y * h / 2.0,
         half_size: [w / 2.0, h / 2.0],
+        screen: target.rect(),
         view_normal: Mat3::from_mat4(view).inverse().transpose(),
         light_dir,
     };
-    // Expand a frontier breadth-first (in tree order) so subtrees can be traversed in
-    // parallel; drawn nodes met on the way keep their place in the order.
+    // Level by level: the frontier holds one depth's nodes in ascending index order (the
+    // layout is breadth-first, so children of ascending parents ascend too), and each level
+    // reads the node array front to back: streaming, where a depth-first walk over this
+    // layout waited on a cache miss for almost every node. Chunks of a level are classified
+    // in parallel and their splats and children concatenated in chunk order, so the splat
+    // order, and with it the image, does not depend on the thread count.
+    const CHUNK: usize = 4096;
+    const PREFETCH_AHEAD: usize = 16;
     let mut stats = SplatStats::default();
-    let mut frontier: Vec<Result<Splat, usize>> = vec![Err(0)];
-    while frontier.iter().filter(|f| f.is_err()).count() < 256 {
-        let mut next = Vec::with_capacity(frontier.len() * 4);
-        let mut grew = false;
-        for f in frontier {
-            match f {
-                Ok(s) => next.push(Ok(s)),
-                Err(i) => {
-                    stats.visited += 1;
+    let mut splats = Vec::new();
+    let mut frontier = vec![0u32];
+    while !frontier.is_empty() {
+        let parts: Vec<(Vec<Splat>, Vec<u32>, SplatStats)> = frontier
+            .par_chunks(CHUNK)
+            .map(|chunk| {
+                let (mut out, mut next, mut st) = (Vec::new(), Vec::new(), SplatStats::default());
+                for (j, &i) in chunk.iter().enumerate() {
+                    // The frontier says which nodes come next: ask for them early, since a
+                    // sparse level is a cache miss per node otherwise.
+                    if let Some(&ahead) = chunk.get(j + PREFETCH_AHEAD) {
+                        crate::simd::prefetch(&tree.nodes[ahead as usize]);
+                    }
+                    let i = i as usize;
+                    st.visited += 1;
                     match v.classify(i) {
-                        Visit::Culled => stats.culled += 1,
+                        Visit::Culled => st.culled += 1,
                         Visit::Draw(s) => {
-                            stats.drawn += 1;
-                            stats.leaves_drawn += usize::from(tree.nodes[i].child_count == 0);
-                            next.push(Ok(s));
+                            st.drawn += 1;
+                            st.leaves_drawn += usize::from(tree.nodes[i].child_count == 0);
+                            out.push(s);
                         }
-                        Visit::Refine => {
-                            grew = true;
-                            next.extend(tree.children(i).map(Err));
-                        }
+                        Visit::Refine => next.extend(tree.children(i).map(|k| k as u32)),
                     }
                 }
-            }
+                (out, next, st)
+            })
+            .collect();
+        frontier = Vec::with_capacity(parts.iter().map(|p| p.1.len()).sum());
+        splats.reserve(parts.iter().map(|p| p.0.len()).sum());
+        for (out, next, st) in parts {
+            splats.extend(out);
+            frontier.extend(next);
+            stats.visited += st.visited;
+            stats.drawn += st.drawn;
+            stats.leaves_drawn += st.leaves_drawn;
+            stats.culled += st.culled;
         }
-        frontier = next;
-        if !grew {
-            break;
-        }
-    }
-    let parts: Vec<(Vec<Splat>, SplatStats)> = frontier
-        .par_iter()
-        .map(|f| match *f {
-            Ok(s) => (vec![s], SplatStats::default()),
-            Err(i) => {
-                let mut out = Vec::new();
-                let mut st = SplatStats::default();
-                v.traverse(i, &mut out, &mut st);
-                (out, st)
-            }
-        })
-        .collect();
-    let mut splats = Vec::with_capacity(parts.iter().map(|p| p.0.len()).sum());
-    for (p, st) in parts {
-        splats.extend(p);
-        stats.visited += st.visited;
-        stats.drawn += st.drawn;
-        stats.leaves_drawn += st.leaves_drawn;
-        stats.culled += st.culled;
     }
     stats.pixels = draw_splats(target, &splats, options.shape);
     stats
 }
 
-/// Draws splats band by band (in parallel), each band in splat order; returns pixels written.
+/// Draws splats through the triangles' tiles: binned into 64 x 64 tiles in splat order, rows
+/// of tiles drawn in parallel, each tile's splats in order; returns pixels written.
 fn draw_splats(target: &mut Target, splats: &[Splat], shape: SplatShape) -> u64 {
-    const ROWS: u32 = 64;
-    let height = target.height();
-    let bands = height.div_ceil(ROWS) as usize;
-    // Splat indices per band, in order.
-    let mut lists: Vec<Vec<u32>> = vec![Vec::new(); bands];
-    for (k, s) in splats.iter().enumerate() {
-        let (y0, y1) = ((s.y - s.half).floor(), (s.y + s.half).ceil());
-        if y1 < 0.0 || y0 >= height as f32 || !s.x.is_finite() || !s.y.is_finite() {
-            continue;
-        }
-        let b0 = (y0.max(0.0) as u32 / ROWS) as usize;
-        let b1 = ((y1.min(height as f32 - 1.0)) as u32 / ROWS) as usize;
-        for list in &mut lists[b0..=b1.min(bands - 1)] {
-            list.push(k as u32);
-        }
-    }
+    let (width, height) = (target.width(), target.height());
+    let bins = Bins::build_with(splats.len(), |k| splats[k].rect, width, height);
+    let tiles_x = width.div_ceil(TILE) as usize;
     target
-        .bands(ROWS)
+        .bands(TILE)
         .into_par_iter()
-        .zip(lists.par_iter())
-        .map(|(mut band, list)| {
-            list.iter().map(|&k| draw_splat(&mut band, &splats[k as usize], shape)).sum::<u64>()
+        .enumerate()
+        .map(|(ty, mut band)| {
+            let mut written = 0;
+            for tx in 0..tiles_x {
+                let rows = band.rect();
+                let tile = PixelRect {
+                    x0: (tx as u32 * TILE) as i32,
+                    x1: ((tx as u32 + 1) * TILE).min(width) as i32 - 1,
+                    ..rows
+                };
+                for &k in bins.tile(tx, ty) {
+                    written += draw_splat(&mut band, &splats[k as usize], shape, &tile);
+                }
+            }
+            written
         })
         .sum()
+}
+
+/// The pixels a splat centred at `(x, y)` with half-size `half` may write, within `clip`:
+/// those whose centres lie in its square, and the pixel containing its centre.
+fn footprint(x: f32, y: f32, half: f32, clip: &PixelRect) -> Option<PixelRect> {
+    if !x.is_finite() || !y.is_finite() || !half.is_finite() {
+        return None;
+    }
+    // Far-off splats saturate in the casts and are then clipped away.
+    let (hx, hy) = (floor_i32(x), floor_i32(y));
+    PixelRect {
+        x0: ceil_i32(x - half - 0.5).min(hx),
+        x1: floor_i32(x + half - 0.5).max(hx),
+        y0: ceil_i32(y - half - 0.5).min(hy),
+        y1: floor_i32(y + half - 0.5).max(hy),
+    }
+    .intersect(clip)
+}
+
+/// `floor(x)` as an integer (saturating), without the libm call `f32::floor` is on x86_64's
+/// baseline instruction set.
+#[inline]
+fn floor_i32(x: f32) -> i32 {
+    let t = x as i32;
+    t.saturating_sub(i32::from((t as f32) > x))
+}
+
+/// `ceil(x)` as an integer (saturating); see [`floor_i32`].
+#[inline]
+fn ceil_i32(x: f32) -> i32 {
+    let t = x as i32;
+    t.saturating_add(i32::from((t as f32) < x))
 }
 
 /// Pixels whose centres lie in the splat's square (or disk) get it, where it passes LESS; so
 /// does the pixel containing the splat's centre, so that a splat smaller than a pixel still
 /// covers one (otherwise sub-pixel splats between pixel centres would leave holes).
-fn draw_splat(band: &mut TargetBand<'_>, s: &Splat, shape: SplatShape) -> u64 {
-    let r = band.rect();
-    let (hx, hy) = (s.x.floor() as i64, s.y.floor() as i64);
-    let x0 = ((s.x - s.half - 0.5).ceil() as i64).min(hx).max(i64::from(r.x0));
-    let x1 = ((s.x + s.half - 0.5).floor() as i64).max(hx).min(i64::from(r.x1));
-    let y0 = ((s.y - s.half - 0.5).ceil() as i64).min(hy).max(i64::from(r.y0));
-    let y1 = ((s.y + s.half - 0.5).floor() as i64).max(hy).min(i64::from(r.y1));
+fn draw_splat(band: &mut TargetBand<'_>, s: &Splat, shape: SplatShape, clip: &PixelRect) -> u64 {
+    let Some(r) = s.rect.and_then(|r| r.intersect(clip)) else { return 0 };
+    let (x0, x1, y0, y1) = (r.x0, r.x1, r.y0, r.y1);
+    let (hx, hy) = (floor_i32(s.x), floor_i32(s.y));
     let n = band.samples().count();
     let z = s.depth.clamp(0.0, 1.0);
     let mut written = 0;
     for py in y0..=y1 {
         for px in x0..=x1 {
             let (dx, dy) = (px as f32 + 0.5 - s.x, py as f32 + 0.5 - s.y);
-            let home = px == s.x.floor() as i64 && py == s.y.floor() as i64;
+            let home = px == hx && py == hy;
             if shape == SplatShape::Round && dx * dx + dy * dy > s.half * s.half && !home {
                 continue;
             }
-            let p = band.index(px as i32, py as i32);
+            let p = band.index(px, py);
             if let Some(o) = band.overdraw.as_deref_mut() {
                 o[p] += n as u32;
             }

@@ -30,9 +30,32 @@ pub struct SplatNode {
 pub struct SplatTree {
     /// Nodes in breadth-first order; `nodes[0]` is the root.
     pub nodes: Vec<SplatNode>,
+    /// The smallest leaf radius, computed by [`SplatTree::new`].
+    min_leaf_radius: f32,
 }
 
 impl SplatTree {
+    /// A tree over `nodes` (breadth-first, as described above).
+    #[must_use]
+    pub fn new(nodes: Vec<SplatNode>) -> Self {
+        let min_leaf_radius = nodes
+            .iter()
+            .filter(|n| n.child_count == 0 && n.radius.is_finite())
+            .map(|n| n.radius.max(0.0))
+            .reduce(f32::min)
+            .unwrap_or(0.0);
+        Self { nodes, min_leaf_radius }
+    }
+
+    /// The smallest splat (leaf) radius. A node's sphere contains its points' splats, so
+    /// its radius less this bounds how far its points themselves spread (exactly so where
+    /// spheres nest, as built trees' do): the detail a node stands for, as opposed to the
+    /// size of the disk drawn for it.
+    #[must_use]
+    pub fn min_leaf_radius(&self) -> f32 {
+        self.min_leaf_radius
+    }
+
     /// The children of node `i`.
     #[must_use]
     pub fn children(&self, i: usize) -> std::ops::Range<usize> {
@@ -121,13 +144,13 @@ impl SplatTree {
             next_child += u32::from(count);
         }
         let uniform = cloud.radii.is_none();
-        let mut tree = Self { nodes };
+        let mut tree = Self { nodes, min_leaf_radius: 0.0 };
         tree.fill_bottom_up(cloud, &index, &ranges, |i| cloud.radii.as_ref().map_or(0.0, |r| r[i]));
         if uniform {
             let radius = tree.estimate_spacing();
             tree.fill_bottom_up(cloud, &index, &ranges, |_| radius);
         }
-        tree
+        Self::new(tree.nodes)
     }
 
     /// Computes every node from its children (or, for a leaf, its point), last node first.
@@ -207,8 +230,13 @@ impl SplatTree {
         }
     }
 
-    /// A splat radius for clouds without radii: 3/4 of the median radius of the nodes whose
+    /// A splat radius for clouds without radii: 3/2 of the median radius of the nodes whose
     /// children are all leaves (computed with zero leaf radii, so it measures point spacing).
+    /// Such a node holds about 4 points, so its radius is about `2 / sqrt(pi * density)` and
+    /// this is `3 / sqrt(pi * density)`: the radius `cloud::sample_mesh` gives, at which
+    /// random disks leave about e^-9 of the surface uncovered. Disks that cover the surface
+    /// are what lets traversal stop at pixel-sized nodes without holes: a pixel centre inside
+    /// some point's disk is inside the disk of every node above that point.
     fn estimate_spacing(&self) -> f32 {
         let mut radii: Vec<f32> = (0..self.nodes.len())
             .filter(|&i| {
@@ -223,7 +251,7 @@ impl SplatTree {
         }
         let mid = radii.len() / 2;
         let (_, m, _) = radii.select_nth_unstable_by(mid, f32::total_cmp);
-        *m * 0.75
+        *m * 1.5
     }
 }
 
