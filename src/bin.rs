@@ -328,6 +328,9 @@ where
                 };
                 let Some(tile) = tile.intersect(clip) else { continue };
                 let list = bins.tile(tx, ty);
+                if !list.is_empty() {
+                    band.prefetch(&tile);
+                }
                 for (j, &i) in list.iter().enumerate() {
                     if let Some(&ahead) = list.get(j + PREFETCH_AHEAD) {
                         crate::simd::prefetch(prepared.get(ahead));

@@ -193,6 +193,24 @@ pub struct TargetBand<'a> {
 }
 
 impl TargetBand<'_> {
+    /// Starts loading the buffers' cache lines for the pixels of `rect` (within the band):
+    /// the tile loop calls it before a tile's triangles, which would otherwise wait on
+    /// memory row by row, one triangle after another.
+    pub fn prefetch(&self, rect: &PixelRect) {
+        let n = self.samples.count();
+        for y in rect.y0..=rect.y1 {
+            let (a, b) = (self.index(rect.x0, y), self.index(rect.x1, y) + 1);
+            crate::simd::prefetch_slice(&self.depth[a * n..b * n]);
+            crate::simd::prefetch_slice(&self.color[a * n..b * n]);
+            if let Some(ids) = &self.ids {
+                crate::simd::prefetch_slice(&ids[a * n..b * n]);
+            }
+            if let Some(o) = &self.overdraw {
+                crate::simd::prefetch_slice(&o[a..b]);
+            }
+        }
+    }
+
     /// The band's pixels: full width, its rows.
     #[must_use]
     pub fn rect(&self) -> PixelRect {
