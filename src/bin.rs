@@ -87,14 +87,37 @@ impl<T> Default for PreparedBatch<T> {
     }
 }
 
+/// Where the front end puts the pieces of one triangle: prepared ones into the chunk's buffer,
+/// skipped ones into the counts. Passing a sink down (rather than returning pieces) builds
+/// each ~200-300-byte record once, in place, instead of moving it through `Result`s and
+/// iterators, which cost a full copy per triangle even for the many that are skipped.
+#[derive(Debug)]
+pub struct Sink<'a, T> {
+    out: &'a mut Vec<Prepared<T>>,
+    stats: &'a mut DrawStats,
+}
+
+impl<T> Sink<'_, T> {
+    /// Takes one piece.
+    #[inline]
+    pub fn take(&mut self, piece: Result<Prepared<T>, Skipped>) {
+        match piece {
+            Ok(p) => {
+                self.stats.rasterized += 1;
+                self.out.push(p);
+            }
+            Err(why) => self.stats.skip(why),
+        }
+    }
+}
+
 impl<T: Send> PreparedBatch<T> {
-    /// Runs the front end over a batch of `len` triangles in parallel: `prepare(k)` gives the
-    /// pieces of the batch's triangle `k`. Replaces the previous contents; returns the counts
-    /// of what was skipped (skipped triangles take no memory).
-    pub fn prepare<It, F>(&mut self, len: usize, prepare: F) -> DrawStats
+    /// Runs the front end over a batch of `len` triangles in parallel: `prepare(k, sink)`
+    /// gives the pieces of the batch's triangle `k` to `sink`. Replaces the previous contents;
+    /// returns the counts of what was skipped (skipped triangles take no memory).
+    pub fn prepare<F>(&mut self, len: usize, prepare: F) -> DrawStats
     where
-        It: IntoIterator<Item = Result<Prepared<T>, Skipped>>,
-        F: Fn(usize) -> It + Sync,
+        F: Fn(usize, &mut Sink<'_, T>) + Sync,
     {
         self.used = len.div_ceil(CHUNK);
         if self.chunks.len() < self.used {
@@ -106,18 +129,11 @@ impl<T: Send> PreparedBatch<T> {
             .map(|(c, out)| {
                 out.clear();
                 let mut stats = DrawStats::default();
+                let mut sink = Sink { out, stats: &mut stats };
                 for k in c * CHUNK..((c + 1) * CHUNK).min(len) {
-                    for piece in prepare(k) {
-                        match piece {
-                            Ok(p) => {
-                                stats.rasterized += 1;
-                                out.push(p);
-                            }
-                            Err(why) => stats.skip(why),
-                        }
-                    }
+                    prepare(k, &mut sink);
                 }
-                debug_assert!(out.len() <= 1 << PIECE_BITS, "more pieces than index slots");
+                debug_assert!(sink.out.len() <= 1 << PIECE_BITS, "more pieces than index slots");
                 stats
             })
             .reduce(DrawStats::default, |a, b| a.merged(&b))

@@ -27,11 +27,16 @@ pub struct ClipVertex<V> {
     pub varyings: V,
 }
 
-/// The planes a target of `width x height` pixels clips against: `dot(plane, position) >= 0`.
+/// The planes a target of `width x height` pixels clips against, inside where
+/// [`ClipVolume::outcode`]'s distances are `>= 0`: near `z >= 0`, far `z <= w`, `w >= MIN_W`,
+/// and the guard band `|x| <= gx w`, `|y| <= gy w`.
 #[derive(Clone, Copy, Debug)]
 pub struct ClipVolume {
-    planes: [Vec4; 7],
+    guard: [f32; 2],
 }
+
+/// Number of clip planes.
+const PLANES: usize = 7;
 
 /// Smallest `w` allowed after clipping: keeps the perspective divide finite for vertices that
 /// sit on the camera plane (w = 0) in projections without a near plane.
@@ -44,31 +49,35 @@ impl ClipVolume {
         // Window x = (ndc + 1) * W / 2 stays within [W - L, L] for |ndc| <= 2L/W - 1.
         let gx = 2.0 * GUARD_BAND_PIXELS / width as f32 - 1.0;
         let gy = 2.0 * GUARD_BAND_PIXELS / height as f32 - 1.0;
-        Self {
-            planes: [
-                Vec4::new(0.0, 0.0, 1.0, 0.0),  // near: z >= 0
-                Vec4::new(0.0, 0.0, -1.0, 1.0), // far: z <= w
-                Vec4::new(0.0, 0.0, 0.0, 1.0),  // w >= MIN_W (offset below)
-                Vec4::new(1.0, 0.0, 0.0, gx),   // x >= -gx w
-                Vec4::new(-1.0, 0.0, 0.0, gx),  // x <= gx w
-                Vec4::new(0.0, 1.0, 0.0, gy),   // y >= -gy w
-                Vec4::new(0.0, -1.0, 0.0, gy),  // y <= gy w
-            ],
+        Self { guard: [gx, gy] }
+    }
+
+    /// Signed distance (unnormalised) of `p` from `plane`, inside `>= 0`. Written out per
+    /// plane rather than as a dot product with mostly-zero coefficients: the same value for
+    /// finite positions (adding products with zero changes nothing but the sign of a zero),
+    /// at a quarter of the cost, in the per-vertex path.
+    #[inline]
+    fn distance(&self, plane: usize, p: Vec4) -> f32 {
+        let [gx, gy] = self.guard;
+        match plane {
+            0 => p.z,
+            1 => p.w - p.z,
+            2 => p.w - MIN_W,
+            3 => p.x + gx * p.w,
+            4 => gx * p.w - p.x,
+            5 => p.y + gy * p.w,
+            _ => gy * p.w - p.y,
         }
     }
 
-    fn distance(&self, plane: usize, p: Vec4) -> f32 {
-        let d = self.planes[plane].dot(p);
-        if plane == 2 { d - MIN_W } else { d }
-    }
-
-    /// Bit `i` set iff the vertex is outside plane `i`. NaN positions are outside everything.
+    /// Bit `i` set iff the vertex is outside plane `i`. Non-finite positions are outside
+    /// everything.
     #[must_use]
     pub fn outcode(&self, p: Vec4) -> u8 {
-        (0..7).fold(0, |code, i| {
-            let d = self.distance(i, p);
-            if d >= 0.0 { code } else { code | (1 << i) }
-        })
+        if !p.is_finite() {
+            return (1 << PLANES) - 1;
+        }
+        (0..PLANES).fold(0, |code, i| code | (u8::from(self.distance(i, p) < 0.0) << i))
     }
 
     /// Clips a triangle; returns the convex polygon that remains (empty, or 3 to 10 vertices),
@@ -81,7 +90,7 @@ impl ClipVolume {
         let mut poly = tri.to_vec();
         let crossing = codes[0] | codes[1] | codes[2];
         let mut next = Vec::with_capacity(10);
-        for plane in (0..7).filter(|&i| crossing & (1 << i) != 0) {
+        for plane in (0..PLANES).filter(|&i| crossing & (1 << i) != 0) {
             next.clear();
             for i in 0..poly.len() {
                 let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);

@@ -38,6 +38,7 @@ use crate::bin::{self, BATCH, Prepared, Skipped};
 use crate::clip::{ClipVertex, ClipVolume};
 use crate::color::{linear_to_srgb8, unorm8};
 use crate::error::Error;
+use crate::fixed;
 use crate::raster::Algorithm;
 use crate::render::{Backend, DrawStats};
 use crate::setup::{CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
@@ -172,15 +173,9 @@ impl Pipeline {
                 vertices: vertices.len(),
             });
         }
-        let shade_vertex = |v: &I| {
-            let (position, varyings) = vertex_shader.shade(v);
-            ClipVertex { position, varyings }
-        };
         // Small meshes: every vertex shaded once, up front. Large ones: per batch of
         // triangles (below), so memory stays bounded whatever the mesh size.
         let whole = vertices.len() <= VERTEX_CACHE;
-        let shaded: Vec<ClipVertex<VS::Varyings>> =
-            if whole { vertices.par_iter().map(shade_vertex).collect() } else { Vec::new() };
         let front = FrontEnd {
             multisampled: target.samples().count() > 1,
             clip: target.rect(),
@@ -194,6 +189,12 @@ impl Pipeline {
                 FaceCull::Front => CullMode::CounterClockwise,
             },
         };
+        let shade_vertex = |v: &I| {
+            let (position, varyings) = vertex_shader.shade(v);
+            front.vertex(ClipVertex { position, varyings })
+        };
+        let shaded: Vec<ShadedVertex<VS::Varyings>> =
+            if whole { vertices.par_iter().map(shade_vertex).collect() } else { Vec::new() };
         let want_normal = target.normals.is_some();
         let shade = |t: &TriangleData<VS::Varyings>, x, y, e1: f64, e2: f64, z| {
             let w = perspective_weights(e1 * t.inv_area2, e2 * t.inv_area2, t.inv_w);
@@ -226,9 +227,9 @@ impl Pipeline {
                     let input = tri.map(|i| {
                         if whole { shaded[i as usize] } else { shade_vertex(&vertices[i as usize]) }
                     });
-                    for r in front.prepare(input, id) {
+                    front.prepare(input, id, |r| {
                         count(&mut stats, &r);
-                        let Ok(p) = r else { continue };
+                        let Ok(p) = r else { return };
                         stats.fragments += shade::shade_triangle(
                             &mut target.band(),
                             &p.setup,
@@ -240,7 +241,7 @@ impl Pipeline {
                             None,
                             |x, y, e1, e2, z| shade(&p.payload, x, y, e1, e2, z),
                         );
-                    }
+                    });
                 }
             }
             Backend::Tiled => {
@@ -274,8 +275,8 @@ impl Pipeline {
                             shade_vertex(&vertices[i as usize])
                         }
                     };
-                    let counts = prepared.prepare(batch.len(), |k| {
-                        front.prepare(batch[k].map(fetch), b * BATCH + k)
+                    let counts = prepared.prepare(batch.len(), |k, sink| {
+                        front.prepare(batch[k].map(fetch), b * BATCH + k, |p| sink.take(p));
                     });
                     stats = stats.merged(&counts);
                     stats.fragments += bin::draw_binned(
@@ -316,42 +317,75 @@ struct FrontEnd {
     cull: CullMode,
 }
 
-/// The triangles one input triangle becomes: itself, nothing, or a clipped fan.
-enum Pieces<T> {
-    One(Option<T>),
-    Fan(std::vec::IntoIter<T>),
-}
-
-impl<T> Iterator for Pieces<T> {
-    type Item = T;
-    fn next(&mut self) -> Option<T> {
-        match self {
-            Self::One(t) => t.take(),
-            Self::Fan(it) => it.next(),
-        }
-    }
+/// A vertex out of the vertex shader with what every triangle using it needs, computed once
+/// per vertex rather than once per corner: its outcode and, inside the clip volume, its
+/// window position snapped to the fixed-point grid.
+#[derive(Clone, Copy, Debug)]
+struct ShadedVertex<V> {
+    clip: ClipVertex<V>,
+    outcode: u8,
+    /// Snapped window `x`, `y` (valid when `outcode == 0` and `snapped`).
+    xy: [i32; 2],
+    /// Window depth and `1/w` (valid when `outcode == 0`).
+    z: f32,
+    inv_w: f32,
+    /// The window position was finite and in the fixed-point range (always, inside the clip
+    /// volume; kept so that a violation is a rejection, not a wrong picture).
+    snapped: bool,
 }
 
 impl FrontEnd {
-    /// Clip, viewport and setup of triangle `id`: `Err` pieces count as rejected.
+    /// Outcode, viewport and snap of one shaded vertex.
+    fn vertex<V: Varyings>(&self, clip: ClipVertex<V>) -> ShadedVertex<V> {
+        let outcode = self.volume.outcode(clip.position);
+        let mut v = ShadedVertex { clip, outcode, xy: [0; 2], z: 0.0, inv_w: 0.0, snapped: false };
+        if outcode == 0 {
+            let w = self.viewport.map(clip.position);
+            if let (Some(x), Some(y), true) =
+                (fixed::snap(w.x), fixed::snap(w.y), w.z.is_finite() && w.inv_w.is_finite())
+            {
+                (v.xy, v.z, v.inv_w, v.snapped) = ([x, y], w.z, w.inv_w, true);
+            }
+        }
+        v
+    }
+
+    /// Clip, viewport and setup of triangle `id`: each piece (the triangle, nothing, or a
+    /// clipped fan) goes to `emit`; `Err` pieces count as rejected.
     fn prepare<V: Varyings>(
         &self,
-        input: [ClipVertex<V>; 3],
+        input: [ShadedVertex<V>; 3],
         id: usize,
-    ) -> Pieces<Result<Prepared<TriangleData<V>>, Skipped>> {
-        let codes = input.map(|v| self.volume.outcode(v.position));
-        if codes == [0; 3] {
-            return Pieces::One(Some(self.setup(input, id)));
+        mut emit: impl FnMut(Result<Prepared<TriangleData<V>>, Skipped>),
+    ) {
+        if input.iter().all(|v| v.outcode == 0) {
+            emit(self.setup_inside(&input, id));
+            return;
         }
-        let polygon = self.volume.clip(input);
+        let polygon = self.volume.clip(input.map(|v| v.clip));
         if polygon.is_empty() {
             // Entirely outside the view volume: counted with the culled.
-            return Pieces::One(Some(Err(Skipped::Rejected(Rejection::Culled))));
+            emit(Err(Skipped::Rejected(Rejection::Culled)));
+            return;
         }
-        let fan: Vec<_> = (1..polygon.len() - 1)
-            .map(|k| self.setup([polygon[0], polygon[k], polygon[k + 1]], id))
-            .collect();
-        Pieces::Fan(fan.into_iter())
+        for k in 1..polygon.len() - 1 {
+            emit(self.setup([polygon[0], polygon[k], polygon[k + 1]], id));
+        }
+    }
+
+    /// Setup of a triangle inside the clip volume, from its vertices' snapped positions: the
+    /// same result as [`FrontEnd::setup`] (which snaps the same window coordinates).
+    fn setup_inside<V: Varyings>(
+        &self,
+        tri: &[ShadedVertex<V>; 3],
+        id: usize,
+    ) -> Result<Prepared<TriangleData<V>>, Skipped> {
+        if !tri.iter().all(|v| v.snapped) {
+            return Err(Skipped::Rejected(Rejection::NonFinite));
+        }
+        let xy = tri.map(|v| v.xy.map(i64::from));
+        let setup = TriangleSetup::from_snapped(xy, self.cull)?;
+        self.finish(setup, tri.map(|v| v.clip.varyings), tri.map(|v| [v.z, v.inv_w]), id)
     }
 
     fn setup<V: Varyings>(
@@ -361,14 +395,26 @@ impl FrontEnd {
     ) -> Result<Prepared<TriangleData<V>>, Skipped> {
         let win = tri.map(|v| self.viewport.map(v.position));
         let setup = TriangleSetup::new(&win, self.cull)?;
+        self.finish(setup, tri.map(|v| v.varyings), win.map(|v| [v.z, v.inv_w]), id)
+    }
+
+    /// Planes and payload of a set-up triangle; `z_inv_w` holds each vertex's window depth
+    /// and `1/w`.
+    fn finish<V: Varyings>(
+        &self,
+        setup: TriangleSetup,
+        varyings: [V; 3],
+        z_inv_w: [[f32; 2]; 3],
+        id: usize,
+    ) -> Result<Prepared<TriangleData<V>>, Skipped> {
         if bin::coverage_bounds(&setup, self.multisampled, &self.clip).is_none() {
             return Err(Skipped::Empty);
         }
         let inv_area2 = 1.0 / setup.area2 as f64;
-        let depth = PlaneEquation::with_inv_area2(win.map(|v| f64::from(v.z)), inv_area2);
+        let depth = PlaneEquation::with_inv_area2(z_inv_w.map(|v| f64::from(v[0])), inv_area2);
         let payload = TriangleData {
-            varyings: tri.map(|v| v.varyings),
-            inv_w: win.map(|v| f64::from(v.inv_w)),
+            varyings,
+            inv_w: z_inv_w.map(|v| f64::from(v[1])),
             inv_area2,
             front_facing: !setup.clockwise,
             primitive: id as u32,

@@ -170,9 +170,9 @@ pub fn draw(
         let visible = clip.unwrap_or(PixelRect::EMPTY);
         let mut prepared = bin::PreparedBatch::default();
         for (b, batch) in triangles.chunks(BATCH).enumerate() {
-            let counts = prepared.prepare(batch.len(), |k| {
+            let counts = prepared.prepare(batch.len(), |k, sink| {
                 let tri = &batch[k];
-                let piece = TriangleSetup::new(tri, options.cull).map_err(Skipped::from).and_then(
+                sink.take(TriangleSetup::new(tri, options.cull).map_err(Skipped::from).and_then(
                     |setup| {
                         if bin::coverage_bounds(&setup, multisampled, &visible).is_none() {
                             return Err(Skipped::Empty);
@@ -181,8 +181,7 @@ pub fn draw(
                         let id = (b * BATCH + k) as i32;
                         Ok(Prepared { setup, depth: *shader.depth_plane(), id, payload: shader })
                     },
-                );
-                std::iter::once(piece)
+                ));
             });
             stats = stats.merged(&counts);
             if let Some(clip) = clip {
