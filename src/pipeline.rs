@@ -224,9 +224,11 @@ impl Pipeline {
         match self.backend {
             Backend::Reference => {
                 for (id, tri) in triangles.iter().enumerate() {
-                    let input = tri.map(|i| {
-                        if whole { shaded[i as usize] } else { shade_vertex(&vertices[i as usize]) }
-                    });
+                    let owned = (!whole).then(|| tri.map(|i| shade_vertex(&vertices[i as usize])));
+                    let input = match &owned {
+                        Some(v) => v.each_ref(),
+                        None => tri.map(|i| &shaded[i as usize]),
+                    };
                     front.prepare(input, id, |r| {
                         count(&mut stats, &r);
                         let Ok(p) = r else { return };
@@ -266,17 +268,18 @@ impl Pipeline {
                             vertices[lo as usize..=hi as usize].par_iter().map(shade_vertex),
                         );
                     }
-                    let fetch = |i: u32| {
-                        if whole {
-                            shaded[i as usize]
-                        } else if windowed {
-                            window[(i - lo) as usize]
-                        } else {
-                            shade_vertex(&vertices[i as usize])
-                        }
-                    };
+                    // Vertices by reference: a triangle reads its corners in place.
                     let counts = prepared.prepare(batch.len(), |k, sink| {
-                        front.prepare(batch[k].map(fetch), b * BATCH + k, |p| sink.take(p));
+                        let (tri, id) = (batch[k], b * BATCH + k);
+                        if whole {
+                            front.prepare(tri.map(|i| &shaded[i as usize]), id, |p| sink.take(p));
+                        } else if windowed {
+                            let input = tri.map(|i| &window[(i - lo) as usize]);
+                            front.prepare(input, id, |p| sink.take(p));
+                        } else {
+                            let owned = tri.map(|i| shade_vertex(&vertices[i as usize]));
+                            front.prepare(owned.each_ref(), id, |p| sink.take(p));
+                        }
                     });
                     stats = stats.merged(&counts);
                     stats.fragments += bin::draw_binned(
@@ -354,12 +357,12 @@ impl FrontEnd {
     /// clipped fan) goes to `emit`; `Err` pieces count as rejected.
     fn prepare<V: Varyings>(
         &self,
-        input: [ShadedVertex<V>; 3],
+        input: [&ShadedVertex<V>; 3],
         id: usize,
         mut emit: impl FnMut(Result<Prepared<TriangleData<V>>, Skipped>),
     ) {
         if input.iter().all(|v| v.outcode == 0) {
-            emit(self.setup_inside(&input, id));
+            emit(self.setup_inside(input, id));
             return;
         }
         let polygon = self.volume.clip(input.map(|v| v.clip));
@@ -377,7 +380,7 @@ impl FrontEnd {
     /// same result as [`FrontEnd::setup`] (which snaps the same window coordinates).
     fn setup_inside<V: Varyings>(
         &self,
-        tri: &[ShadedVertex<V>; 3],
+        tri: [&ShadedVertex<V>; 3],
         id: usize,
     ) -> Result<Prepared<TriangleData<V>>, Skipped> {
         if !tri.iter().all(|v| v.snapped) {
