@@ -179,9 +179,6 @@ mod x86 {
     use super::{SpanColor, SpanJob};
     use crate::shade::DepthTest;
 
-    /// 1.5 * 2^52: adding and subtracting it rounds half to even (see `quantize_channel`).
-    const MAGIC: f64 = 6_755_399_441_055_744.0;
-
     /// Four lanes of `(a0 + f1 * g1) + f2 * g2`.
     #[inline]
     #[target_feature(enable = "avx2")]
@@ -190,15 +187,15 @@ mod x86 {
         _mm256_add_pd(t, _mm256_mul_pd(f2, _mm256_set1_pd(p[2])))
     }
 
-    /// `quantize_channel` on four lanes, as i32.
+    /// `quantize_channel` on four lanes, as i32, in three instructions: `max(v, 0)` returns its
+    /// second operand when `v` is NaN, which maps NaN to 0 as the scalar code does, and the
+    /// conversion rounds in the default mode, half to even, as the scalar magic-number trick
+    /// does.
     #[inline]
     #[target_feature(enable = "avx2")]
     fn quantize(v: __m256d) -> __m128i {
-        let nan = _mm256_cmp_pd::<_CMP_UNORD_Q>(v, v);
-        let v = _mm256_andnot_pd(nan, v);
-        let v = _mm256_min_pd(_mm256_set1_pd(255.0), _mm256_max_pd(_mm256_setzero_pd(), v));
-        let magic = _mm256_set1_pd(MAGIC);
-        _mm256_cvtpd_epi32(_mm256_sub_pd(_mm256_add_pd(v, magic), magic))
+        let v = _mm256_min_pd(_mm256_set1_pd(255.0), _mm256_max_pd(v, _mm256_setzero_pd()));
+        _mm256_cvtpd_epi32(v)
     }
 
     /// The AVX2 kernel: four pixels per step; the last `n % 4` pixels go through the scalar
@@ -297,7 +294,7 @@ mod tests {
 
     /// Every available kernel against the scalar one on random spans: lengths 0..40 (tails),
     /// every depth test, flat and smooth colours, planes that leave [0, 1] and [0, 255]
-    /// (clamping), a `-0.0` depth, and stored depths that tie.
+    /// (clamping), NaN and infinite colour planes, a `-0.0` depth, and stored depths that tie.
     #[test]
     fn kernels_match_scalar_bit_for_bit() {
         let mut rng = SmallRng::seed_from_u64(1);
@@ -317,7 +314,12 @@ mod tests {
             let color = if rng.random() {
                 SpanColor::Flat([rng.random(), rng.random(), rng.random(), rng.random()])
             } else {
-                SpanColor::Smooth(std::array::from_fn(|_| plane(&mut rng, 255.0)))
+                let mut planes: [[f64; 3]; 4] = std::array::from_fn(|_| plane(&mut rng, 255.0));
+                // Non-finite channels (the quantizers map NaN to 0 and clamp infinities).
+                if round % 89 == 0 {
+                    planes[round % 4][0] = [f64::NAN, f64::INFINITY, -f64::INFINITY][round % 3];
+                }
+                SpanColor::Smooth(planes)
             };
             let depth_test = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always][round % 3];
             let e1 = rng.random_range(-(1i64 << 40)..(1 << 40));
