@@ -296,12 +296,12 @@ pub fn coverage_bounds(
     r.intersect(clip)
 }
 
-/// The faster of the two (identical) rasterizers for a triangle: scanline spans cost a few
+/// The fastest of the (identical) rasterizers for a triangle: scanline spans cost a few
 /// divisions per row however wide the row, edge stepping a few additions per pixel of the
-/// bounding box; narrow triangles are cheaper to step.
+/// bounding box; narrow triangles are cheaper to step, as branch-free row masks.
 fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
-    if setup.bounds.x1 - setup.bounds.x0 < 8 {
-        Algorithm::EdgeFunctions
+    if setup.bounds.x1 - setup.bounds.x0 < crate::raster::edge::NARROW {
+        Algorithm::EdgeMasks
     } else {
         Algorithm::Scanline
     }

@@ -21,6 +21,7 @@ fn sample_coverage(t: &TriangleSetup, clip: &PixelRect, samples: SampleCount) ->
             };
             let (a, b) = (spans(Algorithm::EdgeFunctions), spans(Algorithm::Scanline));
             assert_eq!(a, b, "rasterizers disagree on sample {s} of {:?}", t.xy);
+            assert_eq!(a, spans(Algorithm::EdgeMasks), "edge masks, sample {s} of {:?}", t.xy);
             a
         })
         .collect()

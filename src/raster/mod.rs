@@ -49,6 +49,10 @@ pub enum Algorithm {
     EdgeFunctions,
     /// Scanline edge walking.
     Scanline,
+    /// Edge equations over the bounding box as per-row bit masks, without branches inside a
+    /// row (the fast path for narrow triangles; boxes wider than [`edge::NARROW`] pixels
+    /// fall back to [`Algorithm::EdgeFunctions`]).
+    EdgeMasks,
 }
 
 /// Calls `emit` with every span of `tri` inside `clip` (pixel centres), top to bottom.
@@ -73,6 +77,7 @@ pub fn rasterize_sample(
     match algorithm {
         Algorithm::EdgeFunctions => edge::rasterize(tri, clip, offset, emit),
         Algorithm::Scanline => scanline::rasterize(tri, clip, offset, emit),
+        Algorithm::EdgeMasks => edge::rasterize_narrow(tri, clip, offset, emit),
     }
 }
 

@@ -59,11 +59,13 @@ pub fn setup(v: [P; 3]) -> Option<TriangleSetup> {
     TriangleSetup::from_snapped(v, CullMode::None).ok()
 }
 
-/// Spans from both rasterizers, asserted equal.
+/// Spans from both rasterizers (and the edge functions' row-mask variant), asserted equal.
 pub fn agreed_spans(t: &TriangleSetup, clip: &PixelRect) -> Vec<Span> {
     let a = raster::spans(Algorithm::EdgeFunctions, t, clip);
     let b = raster::spans(Algorithm::Scanline, t, clip);
     assert_eq!(a, b, "edge functions and scanline disagree on {:?}", t.xy);
+    let c = raster::spans(Algorithm::EdgeMasks, t, clip);
+    assert_eq!(a, c, "edge functions and edge masks disagree on {:?}", t.xy);
     a
 }
 
