@@ -154,7 +154,8 @@ pub fn flat_color(v: &[Vertex; 3]) -> [u8; 4] {
 #[must_use]
 pub fn quantize_channel(c: f64) -> u8 {
     // NaN (possible only from a 0/0 perspective division) maps to 0: `max` returns the
-    // other operand when one is NaN.
+    // other operand when one is NaN (`clamp` would keep the NaN).
+    #[allow(clippy::manual_clamp)]
     let c = c.max(0.0).min(255.0);
     // Adding and removing 1.5 * 2^52 rounds to an integer in the current (nearest-even)
     // rounding mode: round half to even, without a libm call. Exact for |c| < 2^51.
