@@ -193,7 +193,10 @@ fn splat_sphere_covers_what_the_triangle_sphere_covers() {
         PointCloud { normals: Some(positions.clone()), positions, colors: None, radii: None };
     let tree = SplatTree::build(&cloud);
     let mut splat_target = Target::new(w, h).unwrap().with_ids();
-    render::render(&mut splat_target, &tree, &camera, &SplatOptions::default());
+    let stats = render::render(&mut splat_target, &tree, &camera, &SplatOptions::default());
+    // About 30 points per pixel: traversal must stop well above the leaves (the threshold
+    // tests the points' spread, not the inflated splat), yet leave no holes (below).
+    assert!(stats.leaves_drawn * 4 < stats.drawn, "{stats:?}");
     let covered = |t: &Target, x: i64, y: i64| {
         (0..w as i64).contains(&x)
             && (0..h as i64).contains(&y)

@@ -236,3 +236,53 @@ fn large_meshes_shade_vertices_in_batches() {
         assert!(reference.overdraw.as_ref().unwrap().iter().all(|&o| o == 1));
     }
 }
+
+/// Clipping can turn a chunk of input triangles into more pieces than triangles (prepared
+/// triangles are indexed by chunk and piece): here every triangle crosses the near plane and
+/// leaves through the guard band's sides, so each becomes a fan of several pieces, and the
+/// tiled backend must still draw them all, in order.
+#[test]
+fn clipped_fans_outnumbering_their_triangles_match_the_reference() {
+    let mut rng = SmallRng::seed_from_u64(17);
+    // Clip-space positions: one vertex behind the near plane (z < 0), two far to the sides
+    // (|x| beyond the guard band's w multiple), all with w > 0.
+    let mut vertices = Vec::new();
+    let triangles: Vec<[u32; 3]> = (0..900u32)
+        .map(|t| {
+            let w = rng.random_range(1.0..4.0f32);
+            let z = |rng: &mut SmallRng, lo: f32| rng.random_range(lo..0.9) * w;
+            vertices.push(Vec4::new(rng.random_range(-0.5..0.5) * w, 0.0, z(&mut rng, -2.0), w));
+            vertices.push(Vec4::new(
+                -800.0 * w,
+                rng.random_range(-1.0..1.0) * w,
+                z(&mut rng, 0.1),
+                w,
+            ));
+            vertices.push(Vec4::new(
+                800.0 * w,
+                rng.random_range(-1.0..1.0) * w,
+                z(&mut rng, 0.1),
+                w,
+            ));
+            [3 * t, 3 * t + 1, 3 * t + 2]
+        })
+        .collect();
+    let vs = |p: &Vec4| (*p, p.y);
+    let fs = |f: &Fragment<f32>| Some(Vec4::new(f.varyings * 0.5 + 0.5, 0.25, 0.75, 1.0));
+    let fresh = || Target::new(96, 64).unwrap().with_ids().with_overdraw();
+    let pipeline = Pipeline::default().with_cull(FaceCull::None);
+    let mut reference = fresh();
+    let ref_stats = pipeline
+        .with_backend(Backend::Reference)
+        .draw(&mut reference, &vs, &fs, &vertices, &triangles)
+        .unwrap();
+    // More pieces than triangles, so chunks overflow their 256 input slots.
+    assert!(ref_stats.rasterized > 2 * triangles.len(), "{ref_stats:?}");
+    for threads in [1, 2] {
+        let mut tiled = fresh();
+        let stats =
+            pool(threads).install(|| pipeline.draw(&mut tiled, &vs, &fs, &vertices, &triangles));
+        assert_eq!(stats.unwrap(), ref_stats);
+        assert_same(&reference, &tiled, &format!("clipped fans, {threads} threads"));
+    }
+}
