@@ -228,7 +228,7 @@ impl Bins {
     /// The shared binning loop: group `g` (in submission order) lists `(index, bounds)`;
     /// groups are binned in parallel and merged in group order, so lists stay in submission
     /// order.
-    fn build_groups<I>(
+    pub(crate) fn build_groups<I>(
         groups: usize,
         group: impl Fn(usize) -> I + Sync,
         width: u32,

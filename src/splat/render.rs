@@ -134,8 +134,9 @@ struct View<'a> {
     pixels_per_unit: f32,
     half_size: [f32; 2],
     screen: PixelRect,
-    view_normal: Mat3,
-    light_dir: Vec3,
+    /// The light direction in world space (the view-space light taken back through the
+    /// view's rotation).
+    light_world: Vec3,
 }
 
 impl View<'_> {
@@ -147,13 +148,19 @@ impl View<'_> {
         if self.planes.iter().any(|p| p.truncate().dot(c) + p.w < -r) {
             return Visit::Culled;
         }
-        if self.options.backface_cull && n.cone < std::f32::consts::FRAC_PI_2 {
-            let normal = Vec3::from(n.normal);
-            let to_eye = if self.perspective { self.eye - c } else { -self.direction };
+        let normal = Vec3::from(n.normal);
+        let to_eye = if self.perspective { self.eye - c } else { -self.direction };
+        let facing_dot = normal.dot(to_eye);
+        // Only a node whose normal faces away can be culled: test the sign before any root,
+        // division or trig.
+        if self.options.backface_cull
+            && n.cone < std::f32::consts::FRAC_PI_2
+            && facing_dot < 0.0
+            && normal != Vec3::ZERO
+        {
             let dist = to_eye.length();
-            // Only a node whose normal faces away can be culled: test that before any trig.
-            let cos_facing = normal.dot(to_eye) / dist.max(f32::MIN_POSITIVE);
-            if normal != Vec3::ZERO && dist > r && cos_facing < 0.0 {
+            if dist > r {
+                let cos_facing = facing_dot / dist.max(f32::MIN_POSITIVE);
                 let facing = cos_facing.clamp(-1.0, 1.0).acos();
                 let margin = (r / dist).clamp(0.0, 1.0).asin();
                 if facing > std::f32::consts::FRAC_PI_2 + n.cone + margin {
@@ -175,12 +182,7 @@ impl View<'_> {
         if leaf || 2.0 * spread_px < self.options.threshold {
             // Two-sided, as for meshes: a normal facing away (a scan's flipped triangle, or a
             // node kept by the conservative cone test) is lit as its visible side.
-            let mut normal = Vec3::from(n.normal);
-            let to_eye = if self.perspective { self.eye - c } else { -self.direction };
-            if normal.dot(to_eye) < 0.0 {
-                normal = -normal;
-            }
-            let lit = self.shade(n.color, normal);
+            let lit = self.shade(n.color, if facing_dot < 0.0 { -normal } else { normal });
             let (x, y) =
                 ((p.x / p.w + 1.0) * self.half_size[0], (1.0 - p.y / p.w) * self.half_size[1]);
             let half = radius_px.max(0.5);
@@ -201,8 +203,9 @@ impl View<'_> {
         let albedo = Vec3::from(color.map(srgb_to_linear));
         let lit = match self.options.light {
             Some(light) if normal != Vec3::ZERO => {
-                let n = (self.view_normal * normal).normalize_or_zero();
-                let d = light.ambient + light.diffuse * n.dot(self.light_dir).max(0.0);
+                // The light taken into world space once per frame: the view is a rotation, so
+                // `dot(R n, l) == dot(n, R^T l)` and unit normals stay unit.
+                let d = light.ambient + light.diffuse * normal.dot(self.light_world).max(0.0);
                 albedo * d
             }
             _ => albedo,
@@ -253,8 +256,7 @@ pub fn render(
         pixels_per_unit: projection.y_axis.y * h / 2.0,
         half_size: [w / 2.0, h / 2.0],
         screen: target.rect(),
-        view_normal: Mat3::from_mat4(view).inverse().transpose(),
-        light_dir,
+        light_world: (Mat3::from_mat4(view).transpose() * light_dir).normalize_or(Vec3::Z),
     };
     // Level by level: the frontier holds one depth's nodes in ascending index order (the
     // layout is breadth-first, so children of ascending parents ascend too), and each level
@@ -262,14 +264,15 @@ pub fn render(
     // layout waited on a cache miss for almost every node. Chunks of a level are classified
     // in parallel and their splats and children concatenated in chunk order, so the splat
     // order, and with it the image, does not depend on the thread count.
-    const CHUNK: usize = 4096;
     const PREFETCH_AHEAD: usize = 16;
     let mut stats = SplatStats::default();
-    let mut splats = Vec::new();
+    // Splats stay in the per-chunk vectors they were produced in (never concatenated: that
+    // copy was a tenth of the frame); splat `k` of part `p` has index `p << 12 | k`.
+    let mut splats: Vec<Vec<Splat>> = Vec::new();
     let mut frontier = vec![0u32];
     while !frontier.is_empty() {
         let parts: Vec<(Vec<Splat>, Vec<u32>, SplatStats)> = frontier
-            .par_chunks(CHUNK)
+            .par_chunks(1 << PART_BITS)
             .map(|chunk| {
                 let (mut out, mut next, mut st) = (Vec::new(), Vec::new(), SplatStats::default());
                 for (j, &i) in chunk.iter().enumerate() {
@@ -294,9 +297,10 @@ pub fn render(
             })
             .collect();
         frontier = Vec::with_capacity(parts.iter().map(|p| p.1.len()).sum());
-        splats.reserve(parts.iter().map(|p| p.0.len()).sum());
         for (out, next, st) in parts {
-            splats.extend(out);
+            if !out.is_empty() {
+                splats.push(out);
+            }
             frontier.extend(next);
             stats.visited += st.visited;
             stats.drawn += st.drawn;
@@ -308,11 +312,31 @@ pub fn render(
     stats
 }
 
+/// Traversal classifies a level's frontier in chunks of `1 << PART_BITS` nodes, each giving a
+/// part of at most that many splats, so `part << PART_BITS | k` indexes splat `k` of a part.
+const PART_BITS: u32 = 12;
+
 /// Draws splats through the triangles' tiles: binned into 64 x 64 tiles in splat order, rows
 /// of tiles drawn in parallel, each tile's splats in order; returns pixels written.
-fn draw_splats(target: &mut Target, splats: &[Splat], shape: SplatShape) -> u64 {
+fn draw_splats(target: &mut Target, splats: &[Vec<Splat>], shape: SplatShape) -> u64 {
+    debug_assert!(splats.iter().all(|p| p.len() <= 1 << PART_BITS));
     let (width, height) = (target.width(), target.height());
-    let bins = Bins::build_with(splats.len(), |k| splats[k].rect, width, height);
+    let per_group = splats.len().div_ceil(rayon::current_num_threads() * 4).max(1);
+    let bins = Bins::build_groups(
+        splats.len().div_ceil(per_group),
+        |g| {
+            let parts = g * per_group..((g + 1) * per_group).min(splats.len());
+            parts.flat_map(|p| {
+                splats[p]
+                    .iter()
+                    .enumerate()
+                    .map(move |(k, s)| ((p << PART_BITS | k) as u32, s.rect))
+            })
+        },
+        width,
+        height,
+    );
+    let splat = |i: u32| &splats[(i >> PART_BITS) as usize][(i & ((1 << PART_BITS) - 1)) as usize];
     let tiles_x = width.div_ceil(TILE) as usize;
     target
         .bands(TILE)
@@ -328,7 +352,7 @@ fn draw_splats(target: &mut Target, splats: &[Splat], shape: SplatShape) -> u64 
                     ..rows
                 };
                 for &k in bins.tile(tx, ty) {
-                    written += draw_splat(&mut band, &splats[k as usize], shape, &tile);
+                    written += draw_splat(&mut band, splat(k), shape, &tile);
                 }
             }
             written
