@@ -19,7 +19,7 @@ use rayon::prelude::*;
 
 use crate::raster::Algorithm;
 use crate::render::DrawStats;
-use crate::setup::{PixelRect, Rejection, TriangleSetup};
+use crate::setup::{self, PixelRect, Rejection, TriangleSetup};
 use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
 use crate::simd::{SimdLevel, SpanColor};
 use crate::target::Target;
@@ -286,12 +286,27 @@ pub fn coverage_bounds(
     multisampled: bool,
     clip: &PixelRect,
 ) -> Option<PixelRect> {
+    if multisampled {
+        extent_coverage_bounds(setup.extent(), true, clip)
+    } else {
+        setup.bounds.intersect(clip)
+    }
+}
+
+/// [`coverage_bounds`] from the snapped bounding box alone ([`setup::extent`]), so that a
+/// front end can drop a triangle covering no sample before setting it up.
+#[must_use]
+pub fn extent_coverage_bounds(
+    extent: [[i64; 2]; 2],
+    multisampled: bool,
+    clip: &PixelRect,
+) -> Option<PixelRect> {
     let r = if multisampled {
-        let lo = setup.sample_bounds([128, 128]);
-        let hi = setup.sample_bounds([-128, -128]);
+        let lo = setup::sample_bounds(extent, [128, 128]);
+        let hi = setup::sample_bounds(extent, [-128, -128]);
         PixelRect { x0: lo.x0, y0: lo.y0, x1: hi.x1, y1: hi.y1 }
     } else {
-        setup.bounds
+        setup::sample_bounds(extent, [0, 0])
     };
     r.intersect(clip)
 }

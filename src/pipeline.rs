@@ -41,7 +41,7 @@ use crate::error::Error;
 use crate::fixed;
 use crate::raster::Algorithm;
 use crate::render::{Backend, DrawStats};
-use crate::setup::{CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
+use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
 use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
 use crate::target::Target;
 use crate::varyings::Varyings;
@@ -387,6 +387,12 @@ impl FrontEnd {
             return Err(Skipped::Rejected(Rejection::NonFinite));
         }
         let xy = tri.map(|v| v.xy.map(i64::from));
+        // Zero area, culling and "covers no sample" first, from the corners alone: most
+        // triangles of a dense mesh stop here, before their edge functions are built.
+        TriangleSetup::signed_area2(xy, self.cull)?;
+        if bin::extent_coverage_bounds(setup::extent(xy), self.multisampled, &self.clip).is_none() {
+            return Err(Skipped::Empty);
+        }
         let setup = TriangleSetup::from_snapped(xy, self.cull)?;
         self.finish(setup, tri.map(|v| v.clip.varyings), tri.map(|v| [v.z, v.inv_w]), id)
     }

@@ -190,18 +190,9 @@ impl TriangleSetup {
 
     /// Sets up a triangle from already-snapped coordinates (each within `+-2^23`).
     pub fn from_snapped(xy: [[i64; 2]; 3], cull: CullMode) -> Result<Self, Rejection> {
-        let [p0, p1, p2] = xy;
-        // Twice the signed area; > 0 means clockwise on a y-down screen.
-        let signed = (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (p1[1] - p0[1]);
-        if signed == 0 {
-            return Err(Rejection::Degenerate);
-        }
+        let signed = Self::signed_area2(xy, cull)?;
         let clockwise = signed > 0;
-        match cull {
-            CullMode::Clockwise if clockwise => return Err(Rejection::Culled),
-            CullMode::CounterClockwise if !clockwise => return Err(Rejection::Culled),
-            _ => {}
-        }
+        let [p0, p1, p2] = xy;
         let sign = if clockwise { 1 } else { -1 };
         let edge = |a: [i64; 2], b: [i64; 2]| {
             let ea = sign * (a[1] - b[1]);
@@ -210,11 +201,24 @@ impl TriangleSetup {
             EdgeFunction { a: ea, b: eb, c: c + FillRule::bias(ea, eb) }
         };
         let edges = [edge(p1, p2), edge(p2, p0), edge(p0, p1)];
-        let min = |k: usize| p0[k].min(p1[k]).min(p2[k]);
-        let max = |k: usize| p0[k].max(p1[k]).max(p2[k]);
-        let extent = [[min(0), min(1)], [max(0), max(1)]];
-        let bounds = sample_bounds(extent, [0, 0]);
+        let bounds = sample_bounds(extent(xy), [0, 0]);
         Ok(Self { xy, edges, area2: signed.abs(), clockwise, bounds })
+    }
+
+    /// The checks of [`TriangleSetup::from_snapped`] that need no edge functions: twice the
+    /// signed area (`> 0`: clockwise on a y-down screen), or why the triangle is rejected
+    /// (zero area, culled). Lets a front end drop triangles before paying for a full setup.
+    pub fn signed_area2(xy: [[i64; 2]; 3], cull: CullMode) -> Result<i64, Rejection> {
+        let [p0, p1, p2] = xy;
+        let signed = (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (p1[1] - p0[1]);
+        if signed == 0 {
+            return Err(Rejection::Degenerate);
+        }
+        match cull {
+            CullMode::Clockwise if signed > 0 => Err(Rejection::Culled),
+            CullMode::CounterClockwise if signed < 0 => Err(Rejection::Culled),
+            _ => Ok(signed),
+        }
     }
 
     /// Pixels whose sample at fixed-point `offset` from the centre may be covered (the
@@ -227,10 +231,7 @@ impl TriangleSetup {
     /// The snapped bounding box in fixed point: `[[x_min, y_min], [x_max, y_max]]`.
     #[must_use]
     pub fn extent(&self) -> [[i64; 2]; 2] {
-        let [p0, p1, p2] = self.xy;
-        let min = |k: usize| p0[k].min(p1[k]).min(p2[k]);
-        let max = |k: usize| p0[k].max(p1[k]).max(p2[k]);
-        [[min(0), min(1)], [max(0), max(1)]]
+        extent(self.xy)
     }
 
     /// Does the triangle cover the centre of pixel `(px, py)`? The definition every
@@ -262,8 +263,18 @@ impl TriangleSetup {
     }
 }
 
+/// The bounding box of snapped points: `[[x_min, y_min], [x_max, y_max]]`.
+#[must_use]
+pub fn extent(xy: [[i64; 2]; 3]) -> [[i64; 2]; 2] {
+    let [p0, p1, p2] = xy;
+    let min = |k: usize| p0[k].min(p1[k]).min(p2[k]);
+    let max = |k: usize| p0[k].max(p1[k]).max(p2[k]);
+    [[min(0), min(1)], [max(0), max(1)]]
+}
+
 /// Pixels `p` whose sample position `256 p + 128 + offset` lies within `extent` on both axes.
-fn sample_bounds(extent: [[i64; 2]; 2], offset: [i64; 2]) -> PixelRect {
+#[must_use]
+pub fn sample_bounds(extent: [[i64; 2]; 2], offset: [i64; 2]) -> PixelRect {
     let [[x0, y0], [x1, y1]] = extent;
     let [ox, oy] = offset;
     PixelRect {
