@@ -261,7 +261,9 @@ impl Pipeline {
                             .flatten()
                             .fold((u32::MAX, 0), |(lo, hi), &i| (lo.min(i), hi.max(i)))
                     };
-                    let windowed = !whole && (hi - lo) as usize <= 4 * 3 * BATCH;
+                    // A window of at most VERTEX_CACHE vertices: a batch of 256k triangles
+                    // of a mesh stored with locality spans far fewer.
+                    let windowed = !whole && (hi - lo) as usize <= VERTEX_CACHE;
                     if windowed {
                         window.clear();
                         window.par_extend(
