@@ -162,11 +162,6 @@ impl<T> PreparedBatch<T> {
     fn chunk_count(&self) -> usize {
         self.used
     }
-
-    /// All triangles, in submission order.
-    pub fn iter(&self) -> impl Iterator<Item = &Prepared<T>> {
-        self.chunks[..self.used].iter().flatten()
-    }
 }
 
 /// Per-tile lists of triangle indices, in submission order.
