@@ -259,11 +259,11 @@ pub fn render(
         light_world: (Mat3::from_mat4(view).transpose() * light_dir).normalize_or(Vec3::Z),
     };
     // Level by level: the frontier holds one depth's nodes in ascending index order (the
-    // layout is breadth-first, so children of ascending parents ascend too), and each level
-    // reads the node array front to back: streaming, where a depth-first walk over this
-    // layout waited on a cache miss for almost every node. Chunks of a level are classified
-    // in parallel and their splats and children concatenated in chunk order, so the splat
-    // order, and with it the image, does not depend on the thread count.
+    // layout is breadth-first, so children of ascending parents ascend too), so each level
+    // reads the node array front to back, and the nodes to come are known in advance (they
+    // are prefetched). Chunks of a level are classified in parallel and their children
+    // concatenated in chunk order, so the splat order, and with it the image, does not
+    // depend on the thread count.
     const PREFETCH_AHEAD: usize = 16;
     let mut stats = SplatStats::default();
     // Splats stay in the per-chunk vectors they were produced in (never concatenated: that
