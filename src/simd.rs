@@ -1,4 +1,5 @@
-//! SIMD span kernels: the only module with `unsafe` and `core::arch`.
+//! SIMD span kernels (and cache prefetch hints): the only module with `unsafe` and
+//! `core::arch`.
 //!
 //! A kernel shades one 1x span of a window-space triangle with flat or smooth colour: the same
 //! arithmetic as the reference per-pixel loop in [`crate::shade`], lane by lane, so the output
