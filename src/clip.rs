@@ -55,7 +55,7 @@ impl ClipVolume {
     /// Signed distance (unnormalised) of `p` from `plane`, inside `>= 0`. Written out per
     /// plane rather than as a dot product with mostly-zero coefficients: the same value for
     /// finite positions (adding products with zero changes nothing but the sign of a zero),
-    /// at a quarter of the cost, in the per-vertex path.
+    /// with a fraction of the arithmetic, in the per-vertex path.
     #[inline]
     fn distance(&self, plane: usize, p: Vec4) -> f32 {
         let [gx, gy] = self.guard;
