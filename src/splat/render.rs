@@ -139,15 +139,65 @@ struct View<'a> {
     light_world: Vec3,
 }
 
+impl<'a> View<'a> {
+    /// The view of `tree` from `camera` on a `width x height` target.
+    fn new(
+        tree: &'a SplatTree,
+        camera: &Camera,
+        options: &'a SplatOptions,
+        width: u32,
+        height: u32,
+    ) -> Self {
+        let (w, h) = (width as f32, height as f32);
+        let projection = camera.projection(w / h);
+        let view = camera.view();
+        let clip = projection * view;
+        let rows = [clip.row(0), clip.row(1), clip.row(2), clip.row(3)];
+        let planes = [
+            rows[3] + rows[0],
+            rows[3] - rows[0],
+            rows[3] + rows[1],
+            rows[3] - rows[1],
+            rows[2],
+            rows[3] - rows[2],
+        ]
+        .map(|p| p / p.truncate().length().max(1e-30));
+        let light_dir = options.light.map_or(Vec3::Z, |l| l.direction.normalize_or(Vec3::Z));
+        View {
+            tree,
+            options,
+            clip,
+            planes,
+            eye: camera.eye,
+            direction: (camera.target - camera.eye).normalize_or(Vec3::NEG_Z),
+            perspective: matches!(camera.projection, crate::camera::Projection::Perspective { .. }),
+            pixels_per_unit: projection.y_axis.y * h / 2.0,
+            half_size: [w / 2.0, h / 2.0],
+            screen: PixelRect::of_target(width, height),
+            light_world: (Mat3::from_mat4(view).transpose() * light_dir).normalize_or(Vec3::Z),
+        }
+    }
+}
+
 impl View<'_> {
-    /// Culled, drawn, or to be refined.
-    fn classify(&self, i: usize) -> Visit {
+    /// Culled, drawn, or to be refined. `parent_inside`: the parent's sphere lies inside every
+    /// frustum plane, so this node's cannot lie wholly outside one (it contains at least one
+    /// of the parent's points) and the plane tests are skipped.
+    fn classify(&self, i: usize, parent_inside: bool) -> Visit {
         let n = &self.tree.nodes[i];
         let c = Vec3::from(n.centre);
         let r = n.radius;
-        if self.planes.iter().any(|p| p.truncate().dot(c) + p.w < -r) {
-            return Visit::Culled;
-        }
+        let inside = parent_inside || {
+            let mut inside = true;
+            for p in &self.planes {
+                let d = p.truncate().dot(c) + p.w;
+                if d < -r {
+                    return Visit::Culled;
+                }
+                inside &= d >= r;
+            }
+            inside
+        };
         let normal = Vec3::from(n.normal);
         let to_eye = if self.perspective { self.eye - c } else { -self.direction };
         let facing_dot = normal.dot(to_eye);
@@ -172,31 +222,33 @@ impl View<'_> {
         let leaf = n.child_count == 0;
         if p.w <= r * 1e-3 || (self.perspective && p.w - r <= 0.0) {
             // Straddles the camera plane: no projection; refine, or drop a leaf.
-            return if leaf { Visit::Culled } else { Visit::Refine };
+            return if leaf { Visit::Culled } else { Visit::Refine { inside } };
         }
-        let radius_px = r * self.pixels_per_unit / p.w;
+        // One division per node: everything below scales by 1/w.
+        let inv_w = 1.0 / p.w;
+        let radius_px = r * self.pixels_per_unit * inv_w;
         // The size test is on the detail the node stands for (its points' spread), not on
         // the disk drawn for it, which adds a splat radius: otherwise a node whose points all
         // fall within a pixel would still be refined down to its leaves.
-        let spread_px = (r - self.tree.min_leaf_radius()).max(0.0) * self.pixels_per_unit / p.w;
+        let spread_px = (r - self.tree.min_leaf_radius()).max(0.0) * self.pixels_per_unit * inv_w;
         if leaf || 2.0 * spread_px < self.options.threshold {
             // Two-sided, as for meshes: a normal facing away (a scan's flipped triangle, or a
             // node kept by the conservative cone test) is lit as its visible side.
             let lit = self.shade(n.color, if facing_dot < 0.0 { -normal } else { normal });
             let (x, y) =
-                ((p.x / p.w + 1.0) * self.half_size[0], (1.0 - p.y / p.w) * self.half_size[1]);
+                ((p.x * inv_w + 1.0) * self.half_size[0], (1.0 - p.y * inv_w) * self.half_size[1]);
             let half = radius_px.max(0.5);
             return Visit::Draw(Splat {
                 x,
                 y,
                 half,
-                depth: p.z / p.w,
+                depth: p.z * inv_w,
                 color: lit,
                 id: i as i32,
                 rect: footprint(x, y, half, &self.screen),
             });
         }
-        Visit::Refine
+        Visit::Refine { inside }
     }
 
     fn shade(&self, color: [u8; 3], normal: Vec3) -> [u8; 4] {
@@ -217,7 +269,10 @@ impl View<'_> {
 enum Visit {
     Culled,
     Draw(Splat),
-    Refine,
+    /// Visit the children; `inside`: this node lies inside every frustum plane.
+    Refine {
+        inside: bool,
+    },
 }
 
 /// Renders `tree` seen by `camera` into `target` (which the caller clears).
@@ -230,34 +285,7 @@ pub fn render(
     if tree.nodes.is_empty() {
         return SplatStats::default();
     }
-    let (w, h) = (target.width() as f32, target.height() as f32);
-    let projection = camera.projection(w / h);
-    let view = camera.view();
-    let clip = projection * view;
-    let rows = [clip.row(0), clip.row(1), clip.row(2), clip.row(3)];
-    let planes = [
-        rows[3] + rows[0],
-        rows[3] - rows[0],
-        rows[3] + rows[1],
-        rows[3] - rows[1],
-        rows[2],
-        rows[3] - rows[2],
-    ]
-    .map(|p| p / p.truncate().length().max(1e-30));
-    let light_dir = options.light.map_or(Vec3::Z, |l| l.direction.normalize_or(Vec3::Z));
-    let v = View {
-        tree,
-        options,
-        clip,
-        planes,
-        eye: camera.eye,
-        direction: (camera.target - camera.eye).normalize_or(Vec3::NEG_Z),
-        perspective: matches!(camera.projection, crate::camera::Projection::Perspective { .. }),
-        pixels_per_unit: projection.y_axis.y * h / 2.0,
-        half_size: [w / 2.0, h / 2.0],
-        screen: target.rect(),
-        light_world: (Mat3::from_mat4(view).transpose() * light_dir).normalize_or(Vec3::Z),
-    };
+    let v = View::new(tree, camera, options, target.width(), target.height());
     // Level by level: the frontier holds one depth's nodes in ascending index order (the
     // layout is breadth-first, so children of ascending parents ascend too), so each level
     // reads the node array front to back, and the nodes to come are known in advance (they
@@ -269,6 +297,10 @@ pub fn render(
     // Splats stay in the per-chunk vectors they were produced in (never concatenated: that
     // copy was a tenth of the frame); splat `k` of part `p` has index `p << 12 | k`.
     let mut splats: Vec<Vec<Splat>> = Vec::new();
+    // Frontier entries are node indices with the top bit set when the parent lies inside
+    // the frustum (trees of 2^31 nodes or more go without the shortcut).
+    const INSIDE: u32 = 1 << 31;
+    let flag_fits = tree.nodes.len() <= INSIDE as usize;
     let mut frontier = vec![0u32];
     while !frontier.is_empty() {
         let parts: Vec<(Vec<Splat>, Vec<u32>, SplatStats)> = frontier
@@ -279,18 +311,23 @@ pub fn render(
                     // The frontier says which nodes come next: ask for them early, since a
                     // sparse level is a cache miss per node otherwise.
                     if let Some(&ahead) = chunk.get(j + PREFETCH_AHEAD) {
+                        let ahead = if flag_fits { ahead & !INSIDE } else { ahead };
                         crate::simd::prefetch(&tree.nodes[ahead as usize]);
                     }
-                    let i = i as usize;
+                    let parent_inside = flag_fits && i & INSIDE != 0;
+                    let i = if flag_fits { i & !INSIDE } else { i } as usize;
                     st.visited += 1;
-                    match v.classify(i) {
+                    match v.classify(i, parent_inside) {
                         Visit::Culled => st.culled += 1,
                         Visit::Draw(s) => {
                             st.drawn += 1;
                             st.leaves_drawn += usize::from(tree.nodes[i].child_count == 0);
                             out.push(s);
                         }
-                        Visit::Refine => next.extend(tree.children(i).map(|k| k as u32)),
+                        Visit::Refine { inside } => {
+                            let flag = if inside && flag_fits { INSIDE } else { 0 };
+                            next.extend(tree.children(i).map(|k| k as u32 | flag));
+                        }
                     }
                 }
                 (out, next, st)
@@ -477,5 +514,72 @@ impl Progressive {
         self.next += 1;
         target.clear(clear);
         Some((threshold, render(target, tree, camera, &options.with_threshold(threshold))))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
+
+    use super::*;
+    use crate::camera::Projection;
+    use crate::splat::PointCloud;
+
+    /// What a classification decides, without the `inside` hint it passes down.
+    fn decision(v: &Visit) -> String {
+        match v {
+            Visit::Culled => "culled".into(),
+            Visit::Draw(s) => format!("{s:?}"),
+            Visit::Refine { .. } => "refine".into(),
+        }
+    }
+
+    /// The frustum shortcut changes no decision: under every parent that lies inside all
+    /// planes, each child classifies the same with the plane tests skipped as with them, on
+    /// a sphere cut by the image's sides and by the far plane.
+    #[test]
+    fn skipping_plane_tests_under_an_inside_parent_changes_nothing() {
+        let mut rng = SmallRng::seed_from_u64(5);
+        let positions: Vec<[f32; 3]> = (0..20_000)
+            .map(|_| {
+                let v = Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                v.normalize_or(Vec3::X).to_array()
+            })
+            .collect();
+        let cloud =
+            PointCloud { normals: Some(positions.clone()), positions, colors: None, radii: None };
+        let tree = SplatTree::build(&cloud);
+        let camera = Camera {
+            eye: Vec3::new(0.0, 0.0, 2.2),
+            target: Vec3::new(0.8, 0.0, 0.0),
+            up: Vec3::Y,
+            projection: Projection::Perspective { fov_y: 0.7 },
+            near: 0.5,
+            far: 2.6,
+        };
+        let options = SplatOptions::default().with_threshold(0.0);
+        let view = View::new(&tree, &camera, &options, 160, 120);
+        let (mut checked, mut culled) = (0, 0);
+        for i in 0..tree.nodes.len() {
+            if let Visit::Refine { inside: true } = view.classify(i, false) {
+                for k in tree.children(i) {
+                    let full = view.classify(k, false);
+                    culled += usize::from(matches!(full, Visit::Culled));
+                    assert_eq!(decision(&view.classify(k, true)), decision(&full), "node {k}");
+                    checked += 1;
+                }
+            }
+        }
+        let outside = (0..tree.nodes.len())
+            .filter(|&i| matches!(view.classify(i, false), Visit::Culled))
+            .count();
+        assert!(checked > 1000 && outside > 1000, "{checked} checked, {outside} culled");
+        // Under an inside parent, only back faces are culled.
+        assert!(culled < checked);
     }
 }
