@@ -261,8 +261,8 @@ impl Pipeline {
                             .flatten()
                             .fold((u32::MAX, 0), |(lo, hi), &i| (lo.min(i), hi.max(i)))
                     };
-                    // A window of at most VERTEX_CACHE vertices: a batch of 256k triangles
-                    // of a mesh stored with locality spans far fewer.
+                    // A window of at most VERTEX_CACHE vertices: a batch of 512k triangles
+                    // of a mesh stored with locality spans fewer.
                     let windowed = !whole && (hi - lo) as usize <= VERTEX_CACHE;
                     if windowed {
                         window.clear();
