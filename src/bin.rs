@@ -22,7 +22,7 @@ use crate::render::DrawStats;
 use crate::setup::{self, PixelRect, Rejection, TriangleSetup};
 use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
 use crate::simd::{SimdLevel, SpanColor};
-use crate::target::Target;
+use crate::target::{Target, TargetBand};
 
 /// Tile side in pixels.
 pub const TILE: u32 = 64;
@@ -268,6 +268,41 @@ impl Bins {
         Self { tiles_x, lists }
     }
 
+    /// Runs `draw(band, tile, list)` for every tile with a non-empty bin, `tile` clipped to
+    /// `clip` and its buffer rows prefetched, rows of tiles in parallel (each a disjoint
+    /// [`TargetBand`]); returns the sum of what `draw` returns. The back end of both triangles
+    /// and splats.
+    pub fn draw(
+        &self,
+        target: &mut Target,
+        clip: &PixelRect,
+        draw: impl Fn(&mut TargetBand<'_>, &PixelRect, &[u32]) -> u64 + Sync,
+    ) -> u64 {
+        let width = target.width();
+        target
+            .bands(TILE)
+            .into_par_iter()
+            .enumerate()
+            .map(|(ty, mut band)| {
+                let mut sum = 0;
+                for tx in 0..self.tiles_x {
+                    let list = self.tile(tx, ty);
+                    let tile = PixelRect {
+                        x0: (tx as u32 * TILE) as i32,
+                        x1: ((tx as u32 + 1) * TILE).min(width) as i32 - 1,
+                        ..band.rect()
+                    };
+                    let Some(tile) = tile.intersect(clip).filter(|_| !list.is_empty()) else {
+                        continue;
+                    };
+                    band.prefetch(&tile);
+                    sum += draw(&mut band, &tile, list);
+                }
+                sum
+            })
+            .sum()
+    }
+
     /// The triangles of tile `(tx, ty)`.
     #[must_use]
     pub fn tile(&self, tx: usize, ty: usize) -> &[u32] {
@@ -340,44 +375,25 @@ where
     let multisampled = target.samples().count() > 1;
     let (width, height) = (target.width(), target.height());
     let bins = Bins::of_batch(prepared, multisampled, clip, width, height);
-    let tiles_x = width.div_ceil(TILE) as usize;
-    target
-        .bands(TILE)
-        .into_par_iter()
-        .enumerate()
-        .map(|(ty, mut band)| {
-            let mut covered = 0;
-            for tx in 0..tiles_x {
-                let tile = PixelRect {
-                    x0: (tx as u32 * TILE) as i32,
-                    y0: band.rect().y0,
-                    x1: ((tx as u32 + 1) * TILE).min(width) as i32 - 1,
-                    y1: band.rect().y1,
-                };
-                let Some(tile) = tile.intersect(clip) else { continue };
-                let list = bins.tile(tx, ty);
-                if !list.is_empty() {
-                    band.prefetch(&tile);
-                }
-                for (j, &i) in list.iter().enumerate() {
-                    if let Some(&ahead) = list.get(j + PREFETCH_AHEAD) {
-                        crate::simd::prefetch(prepared.get(ahead));
-                    }
-                    let p = prepared.get(i);
-                    covered += shade::shade_triangle(
-                        &mut band,
-                        &p.setup,
-                        coverage_algorithm(&p.setup),
-                        &tile,
-                        &p.depth,
-                        depth_test,
-                        p.id,
-                        kernel(&p.payload),
-                        |x, y, e1, e2, z| fragment(&p.payload, x, y, e1, e2, z),
-                    );
-                }
+    bins.draw(target, clip, |band, tile, list| {
+        let mut covered = 0;
+        for (j, &i) in list.iter().enumerate() {
+            if let Some(&ahead) = list.get(j + PREFETCH_AHEAD) {
+                crate::simd::prefetch(prepared.get(ahead));
             }
-            covered
-        })
-        .sum()
+            let p = prepared.get(i);
+            covered += shade::shade_triangle(
+                band,
+                &p.setup,
+                coverage_algorithm(&p.setup),
+                tile,
+                &p.depth,
+                depth_test,
+                p.id,
+                kernel(&p.payload),
+                |x, y, e1, e2, z| fragment(&p.payload, x, y, e1, e2, z),
+            );
+        }
+        covered
+    })
 }

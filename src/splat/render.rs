@@ -19,7 +19,7 @@ use glam::{Mat3, Mat4, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::tree::SplatTree;
-use crate::bin::{Bins, TILE};
+use crate::bin::Bins;
 use crate::camera::Camera;
 use crate::color::{linear_to_srgb8, srgb_to_linear};
 use crate::model::Light;
@@ -374,27 +374,9 @@ fn draw_splats(target: &mut Target, splats: &[Vec<Splat>], shape: SplatShape) ->
         height,
     );
     let splat = |i: u32| &splats[(i >> PART_BITS) as usize][(i & ((1 << PART_BITS) - 1)) as usize];
-    let tiles_x = width.div_ceil(TILE) as usize;
-    target
-        .bands(TILE)
-        .into_par_iter()
-        .enumerate()
-        .map(|(ty, mut band)| {
-            let mut written = 0;
-            for tx in 0..tiles_x {
-                let rows = band.rect();
-                let tile = PixelRect {
-                    x0: (tx as u32 * TILE) as i32,
-                    x1: ((tx as u32 + 1) * TILE).min(width) as i32 - 1,
-                    ..rows
-                };
-                for &k in bins.tile(tx, ty) {
-                    written += draw_splat(&mut band, splat(k), shape, &tile);
-                }
-            }
-            written
-        })
-        .sum()
+    bins.draw(target, &PixelRect::of_target(width, height), |band, tile, list| {
+        list.iter().map(|&k| draw_splat(band, splat(k), shape, tile)).sum()
+    })
 }
 
 /// The pixels a splat centred at `(x, y)` with half-size `half` may write, within `clip`:
