@@ -9,6 +9,29 @@ use super::Span;
 use crate::fixed;
 use crate::setup::{PIXEL_STEP, PixelRect, TriangleSetup};
 
+/// The edge values at the first sample of the clipped box and their steps per pixel and row.
+struct Stepper {
+    r: PixelRect,
+    row: [i64; 3],
+    step_x: [i64; 3],
+    step_y: [i64; 3],
+}
+
+impl Stepper {
+    /// `None` when no pixel of the box lies in `clip`.
+    fn start(tri: &TriangleSetup, clip: &PixelRect, offset: [i64; 2]) -> Option<Self> {
+        let r = tri.sample_bounds(offset).intersect(clip)?;
+        let x0 = fixed::pixel_centre(r.x0) + offset[0];
+        let y0 = fixed::pixel_centre(r.y0) + offset[1];
+        Some(Self {
+            r,
+            row: tri.edges.map(|e| e.eval(x0, y0)),
+            step_x: tri.edges.map(|e| e.a * PIXEL_STEP),
+            step_y: tri.edges.map(|e| e.b * PIXEL_STEP),
+        })
+    }
+}
+
 /// Emits the spans of pixels of `tri` within `clip` whose sample at fixed-point `offset` from
 /// the centre is covered, top to bottom.
 pub fn rasterize(
@@ -17,14 +40,9 @@ pub fn rasterize(
     offset: [i64; 2],
     mut emit: impl FnMut(Span),
 ) {
-    let Some(r) = tri.sample_bounds(offset).intersect(clip) else {
+    let Some(Stepper { r, mut row, step_x, step_y }) = Stepper::start(tri, clip, offset) else {
         return;
     };
-    let x0 = fixed::pixel_centre(r.x0) + offset[0];
-    let y0 = fixed::pixel_centre(r.y0) + offset[1];
-    let mut row = tri.edges.map(|e| e.eval(x0, y0));
-    let step_x = tri.edges.map(|e| e.a * PIXEL_STEP);
-    let step_y = tri.edges.map(|e| e.b * PIXEL_STEP);
     for y in r.y0..=r.y1 {
         let mut e = row;
         let mut start = None;
@@ -64,18 +82,13 @@ pub fn rasterize_narrow(
     offset: [i64; 2],
     mut emit: impl FnMut(Span),
 ) {
-    let Some(r) = tri.sample_bounds(offset).intersect(clip) else {
+    let Some(Stepper { r, mut row, step_x, step_y }) = Stepper::start(tri, clip, offset) else {
         return;
     };
     let width = r.x1 - r.x0 + 1;
     if width > NARROW {
         return rasterize(tri, clip, offset, emit);
     }
-    let x0 = fixed::pixel_centre(r.x0) + offset[0];
-    let y0 = fixed::pixel_centre(r.y0) + offset[1];
-    let mut row = tri.edges.map(|e| e.eval(x0, y0));
-    let step_x = tri.edges.map(|e| e.a * PIXEL_STEP);
-    let step_y = tri.edges.map(|e| e.b * PIXEL_STEP);
     // Only the box's own columns count.
     let columns = (1u32 << width) - 1;
     for y in r.y0..=r.y1 {
