@@ -396,7 +396,7 @@ impl FrontEnd {
             return Err(Skipped::Empty);
         }
         let setup = TriangleSetup::from_snapped(xy, self.cull)?;
-        self.finish(setup, tri.map(|v| v.clip.varyings), tri.map(|v| [v.z, v.inv_w]), id)
+        Ok(self.finish(setup, tri.map(|v| v.clip.varyings), tri.map(|v| [v.z, v.inv_w]), id))
     }
 
     fn setup<V: Varyings>(
@@ -406,21 +406,21 @@ impl FrontEnd {
     ) -> Result<Prepared<TriangleData<V>>, Skipped> {
         let win = tri.map(|v| self.viewport.map(v.position));
         let setup = TriangleSetup::new(&win, self.cull)?;
-        self.finish(setup, tri.map(|v| v.varyings), win.map(|v| [v.z, v.inv_w]), id)
+        if bin::coverage_bounds(&setup, self.multisampled, &self.clip).is_none() {
+            return Err(Skipped::Empty);
+        }
+        Ok(self.finish(setup, tri.map(|v| v.varyings), win.map(|v| [v.z, v.inv_w]), id))
     }
 
-    /// Planes and payload of a set-up triangle; `z_inv_w` holds each vertex's window depth
-    /// and `1/w`.
+    /// Planes and payload of a set-up triangle that covers a sample (callers have checked);
+    /// `z_inv_w` holds each vertex's window depth and `1/w`.
     fn finish<V: Varyings>(
         &self,
         setup: TriangleSetup,
         varyings: [V; 3],
         z_inv_w: [[f32; 2]; 3],
         id: usize,
-    ) -> Result<Prepared<TriangleData<V>>, Skipped> {
-        if bin::coverage_bounds(&setup, self.multisampled, &self.clip).is_none() {
-            return Err(Skipped::Empty);
-        }
+    ) -> Prepared<TriangleData<V>> {
         let inv_area2 = 1.0 / setup.area2 as f64;
         let depth = PlaneEquation::with_inv_area2(z_inv_w.map(|v| f64::from(v[0])), inv_area2);
         let payload = TriangleData {
@@ -430,7 +430,7 @@ impl FrontEnd {
             front_facing: !setup.clockwise,
             primitive: id as u32,
         };
-        Ok(Prepared { setup, depth, id: id as i32, payload })
+        Prepared { setup, depth, id: id as i32, payload }
     }
 }
 
