@@ -8,7 +8,7 @@ use rand::{Rng, SeedableRng};
 use trirast::Target;
 use trirast::camera::{Camera, Projection};
 use trirast::pipeline::{Fragment, Pipeline};
-use trirast::splat::render::{self, Progressive, SplatOptions};
+use trirast::splat::render::{self, Progressive, SplatOptions, SplatShape};
 use trirast::splat::{PointCloud, SplatTree};
 
 fn random_cloud(rng: &mut SmallRng, n: usize, radii: bool) -> PointCloud {
@@ -149,6 +149,33 @@ fn rendering_does_not_depend_on_threads_and_refinement_converges() {
     assert_eq!(steps, 4);
     assert!(p.is_done());
     assert!(t.color == a.color && t.ids == a.ids);
+}
+
+/// Splats drawn into colour and depth alone take a row-slice loop; with id and overdraw
+/// buffers, a per-pixel one. Both write the same colour and depth, for both shapes, and the
+/// overdraw counts every pixel that was written (a written pixel was covered).
+#[test]
+fn id_and_overdraw_buffers_do_not_change_the_image() {
+    let mut rng = SmallRng::seed_from_u64(6);
+    let cloud = random_cloud(&mut rng, 20_000, true);
+    let tree = SplatTree::build(&cloud);
+    let camera = framing(&cloud, 1.25);
+    for shape in [SplatShape::Round, SplatShape::Square] {
+        for threshold in [0.0, 1.0, 6.0] {
+            let opts = SplatOptions::default().with_shape(shape).with_threshold(threshold);
+            let mut plain = Target::new(150, 120).unwrap();
+            let mut full = Target::new(150, 120).unwrap().with_ids().with_overdraw();
+            let a = render::render(&mut plain, &tree, &camera, &opts);
+            let b = render::render(&mut full, &tree, &camera, &opts);
+            assert_eq!(a, b, "{shape:?} {threshold}");
+            assert!(a.pixels > 1000, "{shape:?} {threshold}: {a:?}");
+            assert!(plain.color == full.color, "{shape:?} {threshold}");
+            assert!(plain.depth.iter().zip(&full.depth).all(|(x, y)| x.to_bits() == y.to_bits()));
+            let overdraw = full.overdraw.as_ref().unwrap();
+            let ids = full.ids.as_ref().unwrap();
+            assert!(ids.iter().zip(overdraw).all(|(&id, &o)| id < 0 || o > 0));
+        }
+    }
 }
 
 /// A dense sampling of a sphere, splatted, covers the pixels the triangle render of that

@@ -15,15 +15,16 @@
 //! 64 x 64 tiles ([`Bins`]) in that order, rows of tiles ([`Target::bands`]) drawn in parallel
 //! with the depth test. So the image does not depend on the thread count.
 
-use glam::{Mat3, Mat4, Vec3, Vec4};
+use glam::{Mat3, Mat4, Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 
 use super::tree::SplatTree;
 use crate::bin::Bins;
 use crate::camera::Camera;
-use crate::color::{linear_to_srgb8, srgb_to_linear};
+use crate::color::{linear_to_srgb8_rgb, srgb_to_linear};
 use crate::model::Light;
 use crate::setup::PixelRect;
+use crate::simd::floor_i32x4;
 use crate::target::{Target, TargetBand};
 
 /// The footprint of a splat.
@@ -119,6 +120,8 @@ struct Splat {
     id: i32,
     /// The pixels it may write, on the target ([`footprint`]); `None` when off it.
     rect: Option<PixelRect>,
+    /// The pixel containing its centre, which it covers whatever its size.
+    home: [i32; 2],
 }
 
 /// Everything traversal needs, derived once from the camera and target.
@@ -238,6 +241,7 @@ impl View<'_> {
             let (x, y) =
                 ((p.x * inv_w + 1.0) * self.half_size[0], (1.0 - p.y * inv_w) * self.half_size[1]);
             let half = radius_px.max(0.5);
+            let (rect, home) = footprint(x, y, half, &self.screen);
             return Visit::Draw(Splat {
                 x,
                 y,
@@ -245,14 +249,15 @@ impl View<'_> {
                 depth: p.z * inv_w,
                 color: lit,
                 id: i as i32,
-                rect: footprint(x, y, half, &self.screen),
+                rect,
+                home,
             });
         }
         Visit::Refine { inside }
     }
 
     fn shade(&self, color: [u8; 3], normal: Vec3) -> [u8; 4] {
-        let albedo = Vec3::from(color.map(srgb_to_linear));
+        let albedo = Vec3A::from(color.map(srgb_to_linear));
         let lit = match self.options.light {
             Some(light) if normal != Vec3::ZERO => {
                 // The light taken into world space once per frame: the view is a rotation, so
@@ -262,7 +267,8 @@ impl View<'_> {
             }
             _ => albedo,
         };
-        [linear_to_srgb8(lit.x), linear_to_srgb8(lit.y), linear_to_srgb8(lit.z), 255]
+        let [r, g, b] = linear_to_srgb8_rgb(lit);
+        [r, g, b, 255]
     }
 }
 
@@ -306,7 +312,8 @@ pub fn render(
         let parts: Vec<(Vec<Splat>, Vec<u32>, SplatStats)> = frontier
             .par_chunks(1 << PART_BITS)
             .map(|chunk| {
-                let (mut out, mut next, mut st) = (Vec::new(), Vec::new(), SplatStats::default());
+                let (mut out, mut next, mut st) =
+                    (Vec::with_capacity(chunk.len()), Vec::new(), SplatStats::default());
                 for (j, &i) in chunk.iter().enumerate() {
                     // The frontier says which nodes come next: ask for them early, since a
                     // sparse level is a cache miss per node otherwise.
@@ -379,36 +386,20 @@ fn draw_splats(target: &mut Target, splats: &[Vec<Splat>], shape: SplatShape) ->
     })
 }
 
-/// The pixels a splat centred at `(x, y)` with half-size `half` may write, within `clip`:
-/// those whose centres lie in its square, and the pixel containing its centre.
-fn footprint(x: f32, y: f32, half: f32, clip: &PixelRect) -> Option<PixelRect> {
+/// The pixels a splat centred at `(x, y)` with half-size `half` may write, within `clip`
+/// (those whose centres lie in its square, and the pixel containing its centre), and that
+/// pixel.
+fn footprint(x: f32, y: f32, half: f32, clip: &PixelRect) -> (Option<PixelRect>, [i32; 2]) {
     if !x.is_finite() || !y.is_finite() || !half.is_finite() {
-        return None;
+        return (None, [0; 2]);
     }
-    // Far-off splats saturate in the casts and are then clipped away.
-    let (hx, hy) = (floor_i32(x), floor_i32(y));
-    PixelRect {
-        x0: ceil_i32(x - half - 0.5).min(hx),
-        x1: floor_i32(x + half - 0.5).max(hx),
-        y0: ceil_i32(y - half - 0.5).min(hy),
-        y1: floor_i32(y + half - 0.5).max(hy),
-    }
-    .intersect(clip)
-}
-
-/// `floor(x)` as an integer (saturating), without the libm call `f32::floor` is on x86_64's
-/// baseline instruction set.
-#[inline]
-fn floor_i32(x: f32) -> i32 {
-    let t = x as i32;
-    t.saturating_sub(i32::from((t as f32) > x))
-}
-
-/// `ceil(x)` as an integer (saturating); see [`floor_i32`].
-#[inline]
-fn ceil_i32(x: f32) -> i32 {
-    let t = x as i32;
-    t.saturating_add(i32::from((t as f32) < x))
+    // Far-off splats clamp in the conversion and are then clipped away. `ceil(t)` is
+    // `-floor(-t)`, negation being exact.
+    let (lo_x, lo_y) = (x - half - 0.5, y - half - 0.5);
+    let [hx, hy, nx0, ny0] = floor_i32x4([x, y, -lo_x, -lo_y]);
+    let [x1, y1, _, _] = floor_i32x4([x + half - 0.5, y + half - 0.5, 0.0, 0.0]);
+    let rect = PixelRect { x0: (-nx0).min(hx), x1: x1.max(hx), y0: (-ny0).min(hy), y1: y1.max(hy) };
+    (rect.intersect(clip), [hx, hy])
 }
 
 /// Pixels whose centres lie in the splat's square (or disk) get it, where it passes LESS; so
@@ -416,16 +407,36 @@ fn ceil_i32(x: f32) -> i32 {
 /// covers one (otherwise sub-pixel splats between pixel centres would leave holes).
 fn draw_splat(band: &mut TargetBand<'_>, s: &Splat, shape: SplatShape, clip: &PixelRect) -> u64 {
     let Some(r) = s.rect.and_then(|r| r.intersect(clip)) else { return 0 };
-    let (x0, x1, y0, y1) = (r.x0, r.x1, r.y0, r.y1);
-    let (hx, hy) = (floor_i32(s.x), floor_i32(s.y));
+    let [hx, hy] = s.home;
     let n = band.samples().count();
     let z = s.depth.clamp(0.0, 1.0);
+    let round = shape == SplatShape::Round;
+    let covers = |px: i32, py: i32| {
+        let (dx, dy) = (px as f32 + 0.5 - s.x, py as f32 + 0.5 - s.y);
+        !round || dx * dx + dy * dy <= s.half * s.half || (px == hx && py == hy)
+    };
     let mut written = 0;
-    for py in y0..=y1 {
-        for px in x0..=x1 {
-            let (dx, dy) = (px as f32 + 0.5 - s.x, py as f32 + 0.5 - s.y);
-            let home = px == hx && py == hy;
-            if shape == SplatShape::Round && dx * dx + dy * dy > s.half * s.half && !home {
+    if n == 1 && band.overdraw.is_none() && band.ids.is_none() {
+        // The common case, one sample and colour plus depth only: a row's pixels are
+        // contiguous, so the loop runs over row slices.
+        let len = (r.x1 - r.x0 + 1) as usize;
+        for py in r.y0..=r.y1 {
+            let row = band.index(r.x0, py);
+            let depth = &mut band.depth[row..row + len];
+            let color = &mut band.color[row..row + len];
+            for (k, (d, c)) in depth.iter_mut().zip(color).enumerate() {
+                if z < *d && covers(r.x0 + k as i32, py) {
+                    *d = z;
+                    *c = s.color;
+                    written += 1;
+                }
+            }
+        }
+        return written;
+    }
+    for py in r.y0..=r.y1 {
+        for px in r.x0..=r.x1 {
+            if !covers(px, py) {
                 continue;
             }
             let p = band.index(px, py);
