@@ -58,7 +58,11 @@ pub fn linear_to_srgb8_rgb(l: Vec3A) -> [u8; 3] {
     let table = encode_table();
     let l = Vec3A::select(l.is_nan_mask(), Vec3A::ZERO, l).clamp(Vec3A::ZERO, Vec3A::ONE);
     let i = l.sqrt() * (ENCODE_TABLE_LEN - 1) as f32 + 0.5;
-    [table[i.x as usize], table[i.y as usize], table[i.z as usize]]
+    // Indices lie in [0.5, 4095.5], where floor is truncation; the mask only spares the
+    // bounds checks.
+    let [r, g, b, _] = crate::simd::floor_i32x4([i.x, i.y, i.z, 0.0]);
+    let at = |k: i32| table[k as usize & (ENCODE_TABLE_LEN - 1)];
+    [at(r), at(g), at(b)]
 }
 
 /// Linear to 8-bit for an alpha channel (no transfer function).
