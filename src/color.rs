@@ -2,8 +2,6 @@
 
 use std::sync::OnceLock;
 
-use glam::Vec3A;
-
 /// sRGB-encoded 8-bit value to linear light in [0, 1].
 #[inline]
 #[must_use]
@@ -24,45 +22,61 @@ pub fn srgb_encode(l: f32) -> f32 {
     if l <= 0.003_130_8 { l * 12.92 } else { 1.055 * l.powf(1.0 / 2.4) - 0.055 }
 }
 
-/// Linear light (clamped to [0, 1]; NaN as 0) to an sRGB-encoded 8-bit value, rounded.
+/// Linear light (clamped to [0, 1]; NaN as 0) to an sRGB-encoded 8-bit value, rounded
+/// exactly (as `round(255 * encode(l))` computed in `f64`).
+///
+/// No root or power per call: linear light is bucketed by its float bits (exponent and top
+/// 8 mantissa bits, so buckets are 2^-8 of their value wide), and within one bucket the 8-bit
+/// output rises by at most one step (the curve's slope times the bucket width stays below a
+/// quarter of a step), so each bucket stores its first value and the bits at which the next
+/// begins: a table lookup and one comparison.
 #[inline]
 #[must_use]
 pub fn linear_to_srgb8(l: f32) -> u8 {
     let l = if l.is_nan() { 0.0 } else { l.clamp(0.0, 1.0) };
-    // `x + 0.5` truncated is `round(x)` for x >= 0, without a libm call in the pixel loop.
-    encode_table()[(l.sqrt() * (ENCODE_TABLE_LEN - 1) as f32 + 0.5) as usize]
+    // The sign bit is cleared for `-0.0`, which the clamp lets through.
+    let bits = l.to_bits() & 0x7fff_ffff;
+    let bucket = ((bits >> MANTISSA_SHIFT) as usize).saturating_sub(FIRST_BUCKET);
+    let entry = ENCODE_TABLE.get_or_init(encode_table)[bucket.min(ENCODE_BUCKETS - 1)];
+    (entry >> 16) as u8 + u8::from(bits & LOW_MASK >= entry & 0xffff)
 }
 
-/// Entries of the encoding table.
-const ENCODE_TABLE_LEN: usize = 4096;
+/// Mantissa bits below the bucket index.
+const MANTISSA_SHIFT: u32 = 15;
+/// Bits within a bucket.
+const LOW_MASK: u32 = (1 << MANTISSA_SHIFT) - 1;
+/// Exponents covered: below 2^-13, linear light encodes to 0 (it is under half a step on
+/// the curve's linear segment, 0.5 / (255 * 12.92) = 1.5e-4).
+const EXPONENTS: usize = 13;
+/// The bucket index of 2^-13, the first bucket; everything below maps there.
+const FIRST_BUCKET: usize = (127 - EXPONENTS) << (23 - MANTISSA_SHIFT);
+/// Buckets from 2^-13 up to and including 1.0.
+const ENCODE_BUCKETS: usize = (EXPONENTS << (23 - MANTISSA_SHIFT)) + 1;
 
-/// The encoding table, indexed by the square root of linear light. 4096 entries are finer
-/// than the 8-bit output everywhere except the steep start of the curve, which indexing by the
-/// square root spends entries on.
-fn encode_table() -> &'static [u8; ENCODE_TABLE_LEN] {
-    static TABLE: OnceLock<[u8; ENCODE_TABLE_LEN]> = OnceLock::new();
-    TABLE.get_or_init(|| {
-        std::array::from_fn(|i| {
-            let s = i as f32 / (ENCODE_TABLE_LEN - 1) as f32;
-            (srgb_encode(s * s) * 255.0).round() as u8
-        })
+static ENCODE_TABLE: OnceLock<[u32; ENCODE_BUCKETS]> = OnceLock::new();
+
+/// Per bucket: `value << 16 | threshold`, where the bucket's values encode to `value` below
+/// `threshold` (the low bits of the first one that rounds higher) and to `value + 1` from it
+/// on; a threshold of `1 << 15` is never reached.
+fn encode_table() -> [u32; ENCODE_BUCKETS] {
+    let exact = |bits: u32| (srgb_encode_f64(f64::from(f32::from_bits(bits))) * 255.0).round();
+    std::array::from_fn(|k| {
+        let first = ((k + FIRST_BUCKET) as u32) << MANTISSA_SHIFT;
+        let value = if k == 0 { 0.0 } else { exact(first) };
+        // Binary search for the first low-bits value rounding above `value` (the curve is
+        // increasing); 1 << 15 when none does.
+        let (mut lo, mut hi) = (0u32, 1u32 << MANTISSA_SHIFT);
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if exact(first | mid) > value { hi = mid } else { lo = mid + 1 }
+        }
+        (value as u32) << 16 | lo
     })
 }
 
-/// [`linear_to_srgb8`] of three channels at once: the same table and the same rounding steps,
-/// lane by lane, so the result is identical, but one vector square root instead of three (its
-/// latency was most of a splat's shading).
-#[inline]
-#[must_use]
-pub fn linear_to_srgb8_rgb(l: Vec3A) -> [u8; 3] {
-    let table = encode_table();
-    let l = Vec3A::select(l.is_nan_mask(), Vec3A::ZERO, l).clamp(Vec3A::ZERO, Vec3A::ONE);
-    let i = l.sqrt() * (ENCODE_TABLE_LEN - 1) as f32 + 0.5;
-    // Indices lie in [0.5, 4095.5], where floor is truncation; the mask only spares the
-    // bounds checks.
-    let [r, g, b, _] = crate::simd::floor_i32x4([i.x, i.y, i.z, 0.0]);
-    let at = |k: i32| table[k as usize & (ENCODE_TABLE_LEN - 1)];
-    [at(r), at(g), at(b)]
+/// [`srgb_encode`] in `f64`, the reference the 8-bit encoder rounds exactly.
+fn srgb_encode_f64(l: f64) -> f64 {
+    if l <= 0.003_130_8 { l * 12.92 } else { 1.055 * l.powf(1.0 / 2.4) - 0.055 }
 }
 
 /// Linear to 8-bit for an alpha channel (no transfer function).
@@ -84,21 +98,22 @@ mod tests {
         }
     }
 
-    /// The three-channel encoder is the scalar one lane by lane, on every 8-bit value's
-    /// neighbourhood, the clamped ends, NaN and infinities.
+    /// Every `f32` from 2^-13 to 1 (109 million; every 13th in a debug build) encodes to the
+    /// exactly rounded value, and so do smaller ones (sampled: all encode to 0), NaN and
+    /// values outside [0, 1].
     #[test]
-    fn three_channel_encoder_matches_the_scalar_one() {
-        let mut values = vec![f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1.0, -0.0, 2.0];
-        for i in 0..=40_000 {
-            values.push(i as f32 / 40_000.0);
+    fn encoder_is_exactly_rounded() {
+        let exact = |l: f32| (srgb_encode_f64(f64::from(l)) * 255.0).round() as u8;
+        let stride = if cfg!(debug_assertions) { 13 } else { 1 };
+        let first = 2f32.powi(-13).to_bits();
+        let mut bits = 0;
+        while bits <= 1.0f32.to_bits() {
+            let l = f32::from_bits(bits);
+            assert_eq!(linear_to_srgb8(l), exact(l), "{l:e} ({bits:#x})");
+            bits += if bits < first { 9973 } else { stride };
         }
-        for c in 0..=255u8 {
-            let l = srgb_to_linear(c);
-            values.extend([l, l.next_up(), l.next_down()]);
-        }
-        for w in values.windows(3) {
-            let got = linear_to_srgb8_rgb(Vec3A::new(w[0], w[1], w[2]));
-            assert_eq!(got, [w[0], w[1], w[2]].map(linear_to_srgb8), "{w:?}");
+        for l in [f32::NAN, -0.0, -1.0, f32::NEG_INFINITY, 2.0, f32::INFINITY] {
+            assert_eq!(linear_to_srgb8(l), exact(if l.is_nan() { 0.0 } else { l.clamp(0.0, 1.0) }));
         }
     }
 }
