@@ -35,9 +35,23 @@ pub fn srgb_encode(l: f32) -> f32 {
 pub fn linear_to_srgb8(l: f32) -> u8 {
     let l = if l.is_nan() { 0.0 } else { l.clamp(0.0, 1.0) };
     // The sign bit is cleared for `-0.0`, which the clamp lets through.
-    let bits = l.to_bits() & 0x7fff_ffff;
+    encode_bits(ENCODE_TABLE.get_or_init(encode_table), l.to_bits() & 0x7fff_ffff)
+}
+
+/// [`linear_to_srgb8`] of three channels: the same table lookups, after one vector clamp.
+#[inline]
+#[must_use]
+pub fn linear_to_srgb8_rgb(l: [f32; 3]) -> [u8; 3] {
+    let table = ENCODE_TABLE.get_or_init(encode_table);
+    let [r, g, b, _] = crate::simd::unit_clamped_bits([l[0], l[1], l[2], 0.0]);
+    [encode_bits(table, r), encode_bits(table, g), encode_bits(table, b)]
+}
+
+/// The table lookup, for the bits of a value in [0, 1].
+#[inline]
+fn encode_bits(table: &[u32; ENCODE_BUCKETS], bits: u32) -> u8 {
     let bucket = ((bits >> MANTISSA_SHIFT) as usize).saturating_sub(FIRST_BUCKET);
-    let entry = ENCODE_TABLE.get_or_init(encode_table)[bucket.min(ENCODE_BUCKETS - 1)];
+    let entry = table[bucket.min(ENCODE_BUCKETS - 1)];
     (entry >> 16) as u8 + u8::from(bits & LOW_MASK >= entry & 0xffff)
 }
 
@@ -112,7 +126,19 @@ mod tests {
             assert_eq!(linear_to_srgb8(l), exact(l), "{l:e} ({bits:#x})");
             bits += if bits < first { 9973 } else { stride };
         }
+        // The three-channel encoder lane by lane.
+        let mut rng = 0x9e37_79b9_7f4a_7c15u64;
+        for _ in 0..200_000 {
+            let mut next = || {
+                rng = rng.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+                f32::from_bits((rng >> 32) as u32 % 0x4000_0000)
+                    * if rng & 1 == 0 { 1.0 } else { -1.0 }
+            };
+            let l = [next(), next(), next()];
+            assert_eq!(linear_to_srgb8_rgb(l), l.map(linear_to_srgb8), "{l:?}");
+        }
         for l in [f32::NAN, -0.0, -1.0, f32::NEG_INFINITY, 2.0, f32::INFINITY] {
+            assert_eq!(linear_to_srgb8_rgb([l, 0.5, l]), [l, 0.5, l].map(linear_to_srgb8));
             assert_eq!(linear_to_srgb8(l), exact(if l.is_nan() { 0.0 } else { l.clamp(0.0, 1.0) }));
         }
     }

@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use super::tree::SplatTree;
 use crate::bin::Bins;
 use crate::camera::Camera;
-use crate::color::{linear_to_srgb8, srgb_to_linear};
+use crate::color::{linear_to_srgb8_rgb, srgb_to_linear};
 use crate::model::Light;
 use crate::setup::PixelRect;
 use crate::simd::floor_i32x4;
@@ -277,7 +277,8 @@ impl View<'_> {
             }
             _ => albedo,
         };
-        [linear_to_srgb8(lit.x), linear_to_srgb8(lit.y), linear_to_srgb8(lit.z), 255]
+        let [r, g, b] = linear_to_srgb8_rgb(lit.to_array());
+        [r, g, b, 255]
     }
 }
 
