@@ -19,7 +19,7 @@ use glam::{Mat3, Mat4, Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 
 use super::tree::SplatTree;
-use crate::bin::Bins;
+use crate::bin::{Bins, TILE};
 use crate::camera::Camera;
 use crate::color::{linear_to_srgb8_rgb, srgb_to_linear};
 use crate::model::Light;
@@ -109,9 +109,8 @@ pub struct SplatStats {
     pub pixels: u64,
 }
 
-/// One splat in window space: 32 bytes, two to a cache line, since the tile loop reads them
-/// in bin order from all over the frame's splats.
-#[derive(Clone, Copy, Debug)]
+/// One splat in window space: 32 bytes, two to a cache line.
+#[derive(Clone, Copy, Debug, Default)]
 struct Splat {
     x: f32,
     y: f32,
@@ -310,17 +309,18 @@ pub fn render(
     // depend on the thread count.
     const PREFETCH_AHEAD: usize = 16;
     let mut stats = SplatStats::default();
-    // Splats stay in the per-chunk vectors they were produced in (never concatenated: that
-    // copy was a tenth of the frame); splat `k` of part `p` has index `p << 12 | k`.
-    let mut splats: Vec<Vec<Splat>> = Vec::new();
+    let tiles = TileGrid::of(target);
+    // Splats stay in the per-chunk parts they were produced in (never concatenated: that copy
+    // was a tenth of the frame).
+    let mut parts: Vec<Part> = Vec::new();
     // Frontier entries are node indices with the top bit set when the parent lies inside
     // the frustum (trees of 2^31 nodes or more go without the shortcut).
     const INSIDE: u32 = 1 << 31;
     let flag_fits = tree.nodes.len() <= INSIDE as usize;
     let mut frontier = vec![0u32];
     while !frontier.is_empty() {
-        let parts: Vec<(Vec<Splat>, Vec<u32>, SplatStats)> = frontier
-            .par_chunks(1 << PART_BITS)
+        let level: Vec<(Part, Vec<u32>, SplatStats)> = frontier
+            .par_chunks(CHUNK)
             .map(|chunk| {
                 let (mut out, mut next, mut st) =
                     (Vec::with_capacity(chunk.len()), Vec::new(), SplatStats::default());
@@ -347,13 +347,13 @@ pub fn render(
                         }
                     }
                 }
-                (out, next, st)
+                (Part::sorted_by_tile(&out, &tiles), next, st)
             })
             .collect();
-        frontier = Vec::with_capacity(parts.iter().map(|p| p.1.len()).sum());
-        for (out, next, st) in parts {
-            if !out.is_empty() {
-                splats.push(out);
+        frontier = Vec::with_capacity(level.iter().map(|p| p.1.len()).sum());
+        for (part, next, st) in level {
+            if !part.runs.is_empty() {
+                parts.push(part);
             }
             frontier.extend(next);
             stats.visited += st.visited;
@@ -362,37 +362,157 @@ pub fn render(
             stats.culled += st.culled;
         }
     }
-    stats.pixels = draw_splats(target, &splats, options.shape);
+    stats.pixels = draw_splats(target, &parts, &tiles, options.shape);
     stats
 }
 
-/// Traversal classifies a level's frontier in chunks of `1 << PART_BITS` nodes, each giving a
-/// part of at most that many splats, so `part << PART_BITS | k` indexes splat `k` of a part.
-const PART_BITS: u32 = 12;
+/// Traversal classifies a level's frontier in chunks of this many nodes, in parallel.
+const CHUNK: usize = 4096;
 
-/// Draws splats through the triangles' tiles: binned into 64 x 64 tiles in splat order, rows
-/// of tiles drawn in parallel, each tile's splats in order; returns pixels written.
-fn draw_splats(target: &mut Target, splats: &[Vec<Splat>], shape: SplatShape) -> u64 {
-    debug_assert!(splats.iter().all(|p| p.len() <= 1 << PART_BITS));
+/// The target's 64 x 64 tiles ([`TILE`], as [`Bins`] lays them out).
+#[derive(Clone, Copy, Debug)]
+struct TileGrid {
+    tiles_x: u32,
+    screen: PixelRect,
+}
+
+impl TileGrid {
+    fn of(target: &Target) -> Self {
+        let (w, h) = (target.width(), target.height());
+        Self { tiles_x: w.div_ceil(TILE), screen: PixelRect::of_target(w, h) }
+    }
+
+    /// The pixels of tile `t`, on the target.
+    fn rect(&self, t: u32) -> PixelRect {
+        let (tx, ty) = ((t % self.tiles_x) as i32, (t / self.tiles_x) as i32);
+        let t = TILE as i32;
+        PixelRect { x0: tx * t, y0: ty * t, x1: tx * t + t - 1, y1: ty * t + t - 1 }
+            .intersect(&self.screen)
+            .expect("tile inside the target")
+    }
+
+    /// The first and last tile (in row-major order) a footprint on the target overlaps.
+    fn first_and_last(&self, r: &PixelRect) -> (u32, u32) {
+        let t = |v: i32| v as u32 / TILE;
+        (t(r.y0) * self.tiles_x + t(r.x0), t(r.y1) * self.tiles_x + t(r.x1))
+    }
+
+    /// Calls `f` with every tile a footprint on the target overlaps, in row-major order.
+    fn each_tile(&self, r: &PixelRect, mut f: impl FnMut(u32)) {
+        let t = |v: i32| v as u32 / TILE;
+        for ty in t(r.y0)..=t(r.y1) {
+            for tx in t(r.x0)..=t(r.x1) {
+                f(ty * self.tiles_x + tx);
+            }
+        }
+    }
+}
+
+/// One chunk's splats, sorted by tile as they are produced (a counting sort, stable, so each
+/// tile's splats keep traversal order; a splat overlapping several tiles is copied into each):
+/// bins then hold [`Run`]s, a few per part, instead of every splat, and the tile loop reads
+/// each run's splats front to back.
+#[derive(Debug, Default)]
+struct Part {
+    splats: Vec<Splat>,
+    runs: Vec<Run>,
+}
+
+/// The splats `start..end` of a part, all overlapping tile `tile`.
+#[derive(Clone, Copy, Debug)]
+struct Run {
+    tile: u32,
+    start: u32,
+    end: u32,
+}
+
+impl Part {
+    fn sorted_by_tile(splats: &[Splat], grid: &TileGrid) -> Self {
+        debug_assert!(splats.len() <= CHUNK);
+        // Each splat's tile, or `SEVERAL` for the few across tile borders (and for splats off
+        // the target, which have none).
+        const SEVERAL: u32 = u32::MAX;
+        let (mut lo, mut hi) = (u32::MAX, 0);
+        let keys: Vec<u32> = splats
+            .iter()
+            .map(|s| {
+                let Some(r) = s.rect() else { return SEVERAL };
+                let (first, last) = grid.first_and_last(&r);
+                (lo, hi) = (lo.min(first), hi.max(last));
+                if first == last { first } else { SEVERAL }
+            })
+            .collect();
+        if lo > hi {
+            return Self::default();
+        }
+        // A counting sort over the tiles this chunk touches (a chunk is a stretch of one
+        // breadth-first level: nearby nodes, few tiles): count, place, then copy the splats
+        // in the order found.
+        let mut starts = vec![0u32; (hi - lo + 2) as usize];
+        for (s, &key) in splats.iter().zip(&keys) {
+            if key != SEVERAL {
+                starts[(key - lo + 1) as usize] += 1;
+            } else if let Some(r) = s.rect() {
+                grid.each_tile(&r, |t| starts[(t - lo + 1) as usize] += 1);
+            }
+        }
+        let mut runs = Vec::new();
+        for t in 0..starts.len() - 1 {
+            let (start, count) = (starts[t], starts[t + 1]);
+            if count > 0 {
+                runs.push(Run { tile: lo + t as u32, start, end: start + count });
+            }
+            starts[t + 1] = start + count;
+        }
+        let mut order = vec![0u16; starts[starts.len() - 1] as usize];
+        for (k, (s, &key)) in splats.iter().zip(&keys).enumerate() {
+            let mut put = |t: u32| {
+                let at = &mut starts[(t - lo) as usize];
+                order[*at as usize] = k as u16;
+                *at += 1;
+            };
+            if key != SEVERAL {
+                put(key);
+            } else if let Some(r) = s.rect() {
+                grid.each_tile(&r, put);
+            }
+        }
+        Self { splats: order.iter().map(|&k| splats[usize::from(k)]).collect(), runs }
+    }
+}
+
+/// Draws splats through the triangles' tiles: runs binned into 64 x 64 tiles in part order,
+/// rows of tiles drawn in parallel, each tile's runs in order; returns pixels written. Per
+/// tile, that is every splat overlapping it in traversal order, as if binned one by one.
+fn draw_splats(target: &mut Target, parts: &[Part], grid: &TileGrid, shape: SplatShape) -> u64 {
     let (width, height) = (target.width(), target.height());
-    let per_group = splats.len().div_ceil(rayon::current_num_threads() * 4).max(1);
+    // Run `k` of all parts in order is `runs[k]`, as (part, run).
+    let runs: Vec<(u32, u32)> = parts
+        .iter()
+        .enumerate()
+        .flat_map(|(p, part)| (0..part.runs.len() as u32).map(move |k| (p as u32, k)))
+        .collect();
     let bins = Bins::build_groups(
-        splats.len().div_ceil(per_group),
-        |g| {
-            let parts = g * per_group..((g + 1) * per_group).min(splats.len());
-            parts.flat_map(|p| {
-                splats[p]
-                    .iter()
-                    .enumerate()
-                    .map(move |(k, s)| ((p << PART_BITS | k) as u32, s.rect()))
+        1,
+        |_| {
+            runs.iter().enumerate().map(|(k, &(p, r))| {
+                (k as u32, Some(grid.rect(parts[p as usize].runs[r as usize].tile)))
             })
         },
         width,
         height,
     );
-    let splat = |i: u32| &splats[(i >> PART_BITS) as usize][(i & ((1 << PART_BITS) - 1)) as usize];
     bins.draw(target, &PixelRect::of_target(width, height), |band, tile, list| {
-        list.iter().map(|&k| draw_splat(band, splat(k), shape, tile)).sum()
+        let mut sum = 0;
+        for &k in list {
+            let (p, r) = runs[k as usize];
+            let part = &parts[p as usize];
+            let run = part.runs[r as usize];
+            for s in &part.splats[run.start as usize..run.end as usize] {
+                sum += draw_splat(band, s, shape, tile);
+            }
+        }
+        sum
     })
 }
 
@@ -535,6 +655,64 @@ mod tests {
             Visit::Culled => "culled".into(),
             Visit::Draw(s) => format!("{s:?}"),
             Visit::Refine { .. } => "refine".into(),
+        }
+    }
+
+    /// Binning (splats sorted by tile per part, runs in bins) draws exactly what drawing
+    /// every splat over the whole target in traversal order draws. The cloud is a flat
+    /// square facing an orthographic camera, so every splat has the same depth and the first
+    /// one drawn keeps each pixel (depth LESS): any reordering shows. Splats straddle tile
+    /// borders (the target is several tiles wide, splats several pixels across).
+    #[test]
+    fn binned_drawing_matches_drawing_in_traversal_order() {
+        let mut rng = SmallRng::seed_from_u64(8);
+        let n = 30_000;
+        let positions: Vec<[f32; 3]> = (0..n)
+            .map(|_| [rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), 0.0])
+            .collect();
+        let colors = Some((0..n).map(|_| [rng.random(), rng.random(), rng.random()]).collect());
+        let cloud = PointCloud {
+            normals: Some(vec![[0.0, 0.0, 1.0]; n]),
+            positions,
+            colors,
+            radii: Some((0..n).map(|_| rng.random_range(0.002..0.03)).collect()),
+        };
+        let tree = SplatTree::build(&cloud);
+        let camera = Camera {
+            eye: Vec3::new(0.0, 0.0, 2.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            projection: Projection::Orthographic { height: 2.2 },
+            near: 0.5,
+            far: 4.0,
+        };
+        for (threshold, shape) in [(0.0, SplatShape::Round), (3.0, SplatShape::Square)] {
+            let options = SplatOptions::default().with_threshold(threshold).with_shape(shape);
+            let mut binned = Target::new(300, 200).unwrap().with_ids();
+            render(&mut binned, &tree, &camera, &options);
+            // The oracle: the same traversal, one splat at a time onto one band.
+            let mut ordered = Target::new(300, 200).unwrap().with_ids();
+            let view = View::new(&tree, &camera, &options, 300, 200);
+            let mut frontier = vec![0usize];
+            let mut drawn = 0;
+            while !frontier.is_empty() {
+                let mut next = Vec::new();
+                for &i in &frontier {
+                    match view.classify(i, false) {
+                        Visit::Culled => {}
+                        Visit::Draw(s) => {
+                            let mut band = ordered.band();
+                            let all = band.rect();
+                            drawn += usize::from(draw_splat(&mut band, &s, shape, &all) > 0);
+                        }
+                        Visit::Refine { .. } => next.extend(tree.children(i)),
+                    }
+                }
+                frontier = next;
+            }
+            assert!(drawn > 1000, "{drawn}");
+            assert!(binned.ids == ordered.ids, "threshold {threshold}");
+            assert!(binned.color == ordered.color);
         }
     }
 
