@@ -6,8 +6,14 @@ use std::sync::OnceLock;
 #[inline]
 #[must_use]
 pub fn srgb_to_linear(c: u8) -> f32 {
+    srgb_decode_table()[c as usize]
+}
+
+/// [`srgb_to_linear`] of every 8-bit value, for loops that decode many.
+#[must_use]
+pub fn srgb_decode_table() -> &'static [f32; 256] {
     static TABLE: OnceLock<[f32; 256]> = OnceLock::new();
-    TABLE.get_or_init(|| std::array::from_fn(|i| srgb_decode(i as f32 / 255.0)))[c as usize]
+    TABLE.get_or_init(|| std::array::from_fn(|i| srgb_decode(i as f32 / 255.0)))
 }
 
 /// The sRGB transfer function's inverse, on [0, 1].

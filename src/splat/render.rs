@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use super::tree::SplatTree;
 use crate::bin::{Bins, TILE};
 use crate::camera::Camera;
-use crate::color::{linear_to_srgb8_rgb, srgb_to_linear};
+use crate::color::{linear_to_srgb8_rgb, srgb_decode_table};
 use crate::model::Light;
 use crate::setup::PixelRect;
 use crate::simd::floor_i32x4;
@@ -149,6 +149,8 @@ struct View<'a> {
     /// The light direction in world space (the view-space light taken back through the
     /// view's rotation).
     light_world: Vec3,
+    /// sRGB decoding of node colours.
+    decode: &'static [f32; 256],
 }
 
 impl<'a> View<'a> {
@@ -187,6 +189,7 @@ impl<'a> View<'a> {
             half_size: [w / 2.0, h / 2.0],
             screen: PixelRect::of_target(width, height),
             light_world: (Mat3::from_mat4(view).transpose() * light_dir).normalize_or(Vec3::Z),
+            decode: srgb_decode_table(),
         }
     }
 }
@@ -266,7 +269,7 @@ impl View<'_> {
     }
 
     fn shade(&self, color: [u8; 3], normal: Vec3) -> [u8; 4] {
-        let albedo = Vec3A::from(color.map(srgb_to_linear));
+        let albedo = Vec3A::from(color.map(|c| self.decode[usize::from(c)]));
         let lit = match self.options.light {
             Some(light) if normal != Vec3::ZERO => {
                 // The light taken into world space once per frame: the view is a rotation, so
@@ -323,7 +326,7 @@ pub fn render(
             .par_chunks(CHUNK)
             .map(|chunk| {
                 let (mut out, mut next, mut st) =
-                    (Vec::with_capacity(chunk.len()), Vec::new(), SplatStats::default());
+                    (PartBuilder::new(chunk.len(), &tiles), Vec::new(), SplatStats::default());
                 for (j, &i) in chunk.iter().enumerate() {
                     // The frontier says which nodes come next: ask for them early, since a
                     // sparse level is a cache miss per node otherwise.
@@ -347,7 +350,7 @@ pub fn render(
                         }
                     }
                 }
-                (Part::sorted_by_tile(&out, &tiles), next, st)
+                (out.sorted_by_tile(), next, st)
             })
             .collect();
         frontier = Vec::with_capacity(level.iter().map(|p| p.1.len()).sum());
@@ -426,31 +429,51 @@ struct Run {
     end: u32,
 }
 
-impl Part {
-    fn sorted_by_tile(splats: &[Splat], grid: &TileGrid) -> Self {
-        debug_assert!(splats.len() <= CHUNK);
-        // Each splat's tile, or `SEVERAL` for the few across tile borders (and for splats off
-        // the target, which have none).
-        const SEVERAL: u32 = u32::MAX;
-        let (mut lo, mut hi) = (u32::MAX, 0);
-        let keys: Vec<u32> = splats
-            .iter()
-            .map(|s| {
-                let Some(r) = s.rect() else { return SEVERAL };
-                let (first, last) = grid.first_and_last(&r);
-                (lo, hi) = (lo.min(first), hi.max(last));
-                if first == last { first } else { SEVERAL }
-            })
-            .collect();
+/// A chunk's splats as traversal produces them, each with its tile.
+struct PartBuilder<'a> {
+    grid: &'a TileGrid,
+    splats: Vec<Splat>,
+    /// Each splat's tile, or [`PartBuilder::SEVERAL`] for the few across tile borders (and
+    /// for splats off the target, which have none).
+    keys: Vec<u32>,
+    /// The first and last tile any splat overlaps (`lo > hi`: none).
+    lo: u32,
+    hi: u32,
+}
+
+impl<'a> PartBuilder<'a> {
+    const SEVERAL: u32 = u32::MAX;
+
+    fn new(capacity: usize, grid: &'a TileGrid) -> Self {
+        let (splats, keys) = (Vec::with_capacity(capacity), Vec::with_capacity(capacity));
+        Self { grid, splats, keys, lo: u32::MAX, hi: 0 }
+    }
+
+    fn push(&mut self, s: Splat) {
+        let key = match s.rect() {
+            Some(r) => {
+                let (first, last) = self.grid.first_and_last(&r);
+                (self.lo, self.hi) = (self.lo.min(first), self.hi.max(last));
+                if first == last { first } else { Self::SEVERAL }
+            }
+            None => Self::SEVERAL,
+        };
+        self.splats.push(s);
+        self.keys.push(key);
+    }
+
+    /// A counting sort over the tiles this chunk touches (a chunk is a stretch of one
+    /// breadth-first level: nearby nodes, few tiles): count, place, then copy the splats in
+    /// the order found.
+    fn sorted_by_tile(self) -> Part {
+        debug_assert!(self.splats.len() <= CHUNK);
+        let (grid, lo, hi) = (self.grid, self.lo, self.hi);
         if lo > hi {
-            return Self::default();
+            return Part::default();
         }
-        // A counting sort over the tiles this chunk touches (a chunk is a stretch of one
-        // breadth-first level: nearby nodes, few tiles): count, place, then copy the splats
-        // in the order found.
         let mut starts = vec![0u32; (hi - lo + 2) as usize];
-        for (s, &key) in splats.iter().zip(&keys) {
-            if key != SEVERAL {
+        for (s, &key) in self.splats.iter().zip(&self.keys) {
+            if key != Self::SEVERAL {
                 starts[(key - lo + 1) as usize] += 1;
             } else if let Some(r) = s.rect() {
                 grid.each_tile(&r, |t| starts[(t - lo + 1) as usize] += 1);
@@ -465,19 +488,19 @@ impl Part {
             starts[t + 1] = start + count;
         }
         let mut order = vec![0u16; starts[starts.len() - 1] as usize];
-        for (k, (s, &key)) in splats.iter().zip(&keys).enumerate() {
+        for (k, (s, &key)) in self.splats.iter().zip(&self.keys).enumerate() {
             let mut put = |t: u32| {
                 let at = &mut starts[(t - lo) as usize];
                 order[*at as usize] = k as u16;
                 *at += 1;
             };
-            if key != SEVERAL {
+            if key != Self::SEVERAL {
                 put(key);
             } else if let Some(r) = s.rect() {
                 grid.each_tile(&r, put);
             }
         }
-        Self { splats: order.iter().map(|&k| splats[usize::from(k)]).collect(), runs }
+        Part { splats: order.iter().map(|&k| self.splats[usize::from(k)]).collect(), runs }
     }
 }
 
