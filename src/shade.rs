@@ -157,10 +157,11 @@ pub fn quantize_channel(c: f64) -> u8 {
     // other operand when one is NaN (`clamp` would keep the NaN).
     #[allow(clippy::manual_clamp)]
     let c = c.max(0.0).min(255.0);
-    // Adding and removing 1.5 * 2^52 rounds to an integer in the current (nearest-even)
-    // rounding mode: round half to even, without a libm call. Exact for |c| < 2^51.
+    // Adding 1.5 * 2^52 rounds to an integer in the current (nearest-even) rounding mode,
+    // round half to even, without a libm call, and leaves that integer in the low bits of the
+    // sum (its unit in the last place is 1): no subtraction or float-to-int conversion.
     const MAGIC: f64 = 6_755_399_441_055_744.0;
-    ((c + MAGIC) - MAGIC) as u8
+    (c + MAGIC).to_bits() as u8
 }
 
 impl TriangleShader {
@@ -223,9 +224,15 @@ impl TriangleShader {
                 quantize_channel(b.eval(e1, e2)),
                 quantize_channel(a.eval(e1, e2)),
             ],
-            ColorSource::Perspective(p) => p.map(|p| quantize_channel(p.eval(e1, e2))),
+            // Out of line, so the common cases above inline into the pixel loop.
+            ColorSource::Perspective(p) => perspective_color_at(p, e1, e2),
         }
     }
+}
+
+#[inline(never)]
+fn perspective_color_at(p: &[PerspectivePlane; 4], e1: f64, e2: f64) -> [u8; 4] {
+    p.map(|p| quantize_channel(p.eval(e1, e2)))
 }
 
 /// What a fragment writes once it has passed the depth test.
@@ -413,4 +420,25 @@ fn shade_single_sample(
         }
     });
     covered
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The quantizer rounds half to even after clamping, as `f64::round_ties_even` would, for
+    /// every half and quarter step over the range and beyond it, NaN and infinities.
+    #[test]
+    fn quantize_clamps_and_rounds_half_to_even() {
+        let expect =
+            |c: f64| if c.is_nan() { 0 } else { c.clamp(0.0, 255.0).round_ties_even() as u8 };
+        let mut values = vec![f64::NAN, f64::INFINITY, f64::NEG_INFINITY, -0.0, 1e300, -1e300];
+        for k in -400..1500 {
+            let c = f64::from(k) * 0.25;
+            values.extend([c, c.next_up(), c.next_down()]);
+        }
+        for c in values {
+            assert_eq!(quantize_channel(c), expect(c), "{c}");
+        }
+    }
 }
