@@ -36,7 +36,7 @@ use rayon::prelude::*;
 
 use crate::bin::{self, BATCH, Prepared, Skipped};
 use crate::clip::{ClipVertex, ClipVolume};
-use crate::color::{linear_to_srgb8, unorm8};
+use crate::color::{linear_to_srgb8_rgb, unorm8};
 use crate::error::Error;
 use crate::fixed;
 use crate::raster::Algorithm;
@@ -207,8 +207,8 @@ impl Pipeline {
                 primitive: t.primitive,
             };
             let c = fragment_shader.shade(&fragment)?;
-            let color =
-                [linear_to_srgb8(c.x), linear_to_srgb8(c.y), linear_to_srgb8(c.z), unorm8(c.w)];
+            let [r, g, b] = linear_to_srgb8_rgb([c.x, c.y, c.z]);
+            let color = [r, g, b, unorm8(c.w)];
             let normal = if want_normal {
                 fragment_shader.normal(&fragment).map(|n| n.to_array())
             } else {
