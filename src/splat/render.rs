@@ -558,6 +558,19 @@ fn footprint(x: f32, y: f32, half: f32, clip: &PixelRect) -> Option<PixelRect> {
 /// does the pixel containing the splat's centre, so that a splat smaller than a pixel still
 /// covers one (otherwise sub-pixel splats between pixel centres would leave holes).
 fn draw_splat(band: &mut TargetBand<'_>, s: &Splat, shape: SplatShape, clip: &PixelRect) -> u64 {
+    let [x0, y0, x1, y1] = s.rect;
+    let plain = band.samples().count() == 1 && band.overdraw.is_none() && band.ids.is_none();
+    if plain && x0 == x1 && y0 == y1 {
+        // Most splats at a 1-pixel threshold: the footprint is the pixel containing the
+        // centre, which a splat always covers (the run's tile holds it).
+        let i = band.index(i32::from(x0), i32::from(y0));
+        if s.depth < band.depth[i] {
+            band.depth[i] = s.depth;
+            band.color[i] = s.color;
+            return 1;
+        }
+        return 0;
+    }
     let Some(r) = s.rect().and_then(|r| r.intersect(clip)) else { return 0 };
     // The pixel containing the centre (inside the footprint, so not far off).
     let [hx, hy, _, _] = floor_i32x4([s.x, s.y, 0.0, 0.0]);
