@@ -111,6 +111,12 @@ impl<T> Sink<'_, T> {
             Err(why) => self.stats.skip(why),
         }
     }
+
+    /// Counts `n` pieces skipped for the same reason at once.
+    #[inline]
+    pub fn skip_many(&mut self, why: Skipped, n: usize) {
+        self.stats.skip_many(why, n);
+    }
 }
 
 impl<T: Send> PreparedBatch<T> {
@@ -120,6 +126,15 @@ impl<T: Send> PreparedBatch<T> {
     pub fn prepare<F>(&mut self, len: usize, prepare: F) -> DrawStats
     where
         F: Fn(usize, &mut Sink<'_, T>) + Sync,
+    {
+        self.prepare_ranges(len, |range, sink| range.for_each(|k| prepare(k, sink)))
+    }
+
+    /// [`PreparedBatch::prepare`] with the triangles handed over a chunk at a time:
+    /// `prepare(range, sink)` gives the pieces of the batch's triangles `range`, in order.
+    pub fn prepare_ranges<F>(&mut self, len: usize, prepare: F) -> DrawStats
+    where
+        F: Fn(std::ops::Range<usize>, &mut Sink<'_, T>) + Sync,
     {
         self.used = len.div_ceil(CHUNK);
         if self.chunks.len() < self.used {
@@ -132,9 +147,7 @@ impl<T: Send> PreparedBatch<T> {
                 out.clear();
                 let mut stats = DrawStats::default();
                 let mut sink = Sink { out, stats: &mut stats };
-                for k in c * CHUNK..((c + 1) * CHUNK).min(len) {
-                    prepare(k, &mut sink);
-                }
+                prepare(c * CHUNK..((c + 1) * CHUNK).min(len), &mut sink);
                 debug_assert!(sink.out.len() <= 1 << PIECE_BITS, "more pieces than index slots");
                 stats
             })

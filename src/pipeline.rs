@@ -34,7 +34,7 @@
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
-use crate::bin::{self, BATCH, Prepared, Skipped};
+use crate::bin::{self, BATCH, Prepared, Sink, Skipped};
 use crate::clip::{ClipVertex, ClipVolume};
 use crate::color::{linear_to_srgb8_rgb, unorm8};
 use crate::error::Error;
@@ -43,6 +43,7 @@ use crate::raster::Algorithm;
 use crate::render::{Backend, DrawStats};
 use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
 use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
+use crate::simd::{self, SimdLevel};
 use crate::target::Target;
 use crate::varyings::Varyings;
 
@@ -247,6 +248,7 @@ impl Pipeline {
                 }
             }
             Backend::Tiled => {
+                let level = SimdLevel::detect();
                 let mut window = Vec::new();
                 let mut prepared = bin::PreparedBatch::default();
                 for (b, batch) in triangles.chunks(BATCH).enumerate() {
@@ -271,16 +273,17 @@ impl Pipeline {
                         );
                     }
                     // Vertices by reference: a triangle reads its corners in place.
-                    let counts = prepared.prepare(batch.len(), |k, sink| {
-                        let (tri, id) = (batch[k], b * BATCH + k);
+                    let counts = prepared.prepare_ranges(batch.len(), |range, sink| {
+                        let first = b * BATCH;
                         if whole {
-                            front.prepare(tri.map(|i| &shaded[i as usize]), id, |p| sink.take(p));
+                            front.prepare_range(batch, range, first, (&shaded, 0), level, sink);
                         } else if windowed {
-                            let input = tri.map(|i| &window[(i - lo) as usize]);
-                            front.prepare(input, id, |p| sink.take(p));
+                            front.prepare_range(batch, range, first, (&window, lo), level, sink);
                         } else {
-                            let owned = tri.map(|i| shade_vertex(&vertices[i as usize]));
-                            front.prepare(owned.each_ref(), id, |p| sink.take(p));
+                            for k in range {
+                                let owned = batch[k].map(|i| shade_vertex(&vertices[i as usize]));
+                                front.prepare(owned.each_ref(), first + k, |p| sink.take(p));
+                            }
                         }
                     });
                     stats = stats.merged(&counts);
@@ -353,6 +356,53 @@ impl FrontEnd {
             }
         }
         v
+    }
+
+    /// [`FrontEnd::prepare`] for triangles `range` of `batch` (whose first has id
+    /// `first_id`), reading their corners from `vertices`, where vertex `i` is at
+    /// `i - base`. Triangles inside the clip volume take the corner tests eight at a time
+    /// ([`simd::corner_tests`]): in a dense mesh nearly all stop there, counted, and only the
+    /// rest go through `prepare` (which repeats the tests, with the same outcome).
+    fn prepare_range<V: Varyings>(
+        &self,
+        batch: &[[u32; 3]],
+        range: std::ops::Range<usize>,
+        first_id: usize,
+        (vertices, base): (&[ShadedVertex<V>], u32),
+        level: SimdLevel,
+        sink: &mut Sink<'_, TriangleData<V>>,
+    ) {
+        let corners = |k: usize| batch[k].map(|i| &vertices[(i - base) as usize]);
+        if self.multisampled {
+            // Sample boxes differ from the centre boxes the corner tests use.
+            for k in range {
+                self.prepare(corners(k), first_id + k, |p| sink.take(p));
+            }
+            return;
+        }
+        for start in range.clone().step_by(8) {
+            let group = start..(start + 8).min(range.end);
+            let mut xy = [[[0i32; 2]; 3]; 8];
+            let mut lanes = 0u8;
+            for (j, k) in group.clone().enumerate() {
+                let tri = corners(k);
+                if tri.iter().all(|v| v.outcode == 0 && v.snapped) {
+                    xy[j] = tri.map(|v| v.xy);
+                    lanes |= 1 << j;
+                }
+            }
+            let t = simd::corner_tests(level, &xy, lanes, self.cull, &self.clip);
+            let count = |bits: u8| bits.count_ones() as usize;
+            sink.skip_many(Skipped::Rejected(Rejection::Degenerate), count(t.degenerate));
+            sink.skip_many(Skipped::Rejected(Rejection::Culled), count(t.culled));
+            sink.skip_many(Skipped::Empty, count(t.empty));
+            let stopped = t.degenerate | t.culled | t.empty;
+            for (j, k) in group.enumerate() {
+                if stopped & (1 << j) == 0 {
+                    self.prepare(corners(k), first_id + k, |p| sink.take(p));
+                }
+            }
+        }
     }
 
     /// Clip, viewport and setup of triangle `id`: each piece (the triangle, nothing, or a

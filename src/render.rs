@@ -125,22 +125,27 @@ impl DrawStats {
 
     /// Counts a triangle the tiled front end skipped.
     pub fn skip(&mut self, why: Skipped) {
+        self.skip_many(why, 1);
+    }
+
+    /// Counts `n` triangles skipped for the same reason.
+    pub fn skip_many(&mut self, why: Skipped, n: usize) {
         match why {
-            Skipped::Rejected(r) => self.reject(r),
+            Skipped::Rejected(Rejection::NonFinite) => self.non_finite += n,
+            Skipped::Rejected(Rejection::Culled) => self.culled += n,
+            // Out-of-range vertices are an error before drawing in `draw`; where a clipped
+            // piece is involved they are a degenerate leftover of the guard band.
+            Skipped::Rejected(Rejection::Degenerate | Rejection::OutOfRange) => {
+                self.degenerate += n;
+            }
             // Set up like any other: it reached the rasterizer, which finds no sample.
-            Skipped::Empty => self.rasterized += 1,
+            Skipped::Empty => self.rasterized += n,
         }
     }
 
     /// Counts a triangle that setup rejected.
     pub fn reject(&mut self, why: Rejection) {
-        match why {
-            Rejection::NonFinite => self.non_finite += 1,
-            Rejection::Culled => self.culled += 1,
-            // Out-of-range vertices are an error before drawing in `draw`; where a clipped
-            // piece is involved they are a degenerate leftover of the guard band.
-            Rejection::Degenerate | Rejection::OutOfRange => self.degenerate += 1,
-        }
+        self.skip_many(Skipped::Rejected(why), 1);
     }
 }
 

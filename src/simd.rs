@@ -15,6 +15,8 @@
 //! The level is detected once per draw call ([`SimdLevel::detect`]) and can be forced (tests,
 //! comparisons) with [`crate::RenderOptions::simd`].
 
+use crate::bin::extent_coverage_bounds;
+use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup};
 use crate::shade::{DepthTest, quantize_channel};
 
 /// Instruction set used by the span kernels.
@@ -238,12 +240,139 @@ pub fn shade_span_scalar(mut job: SpanJob<'_>) {
     }
 }
 
+/// What the corner tests decide for eight triangles (bit `k`: triangle `k`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CornerTests {
+    /// Zero area.
+    pub degenerate: u8,
+    /// Nonzero area, removed by the cull mode.
+    pub culled: u8,
+    /// Kept by both tests above, but its box holds no pixel centre of the clip rectangle.
+    pub empty: u8,
+}
+
+/// The front end's first tests for eight triangles inside the clip volume, from their snapped
+/// corners alone (`xy[k][v]`: corner `v` of triangle `k`, fixed point): zero area and culling
+/// ([`TriangleSetup::signed_area2`]), then no pixel centre in the box
+/// ([`crate::bin::extent_coverage_bounds`], one sample per pixel), in that precedence. Lanes
+/// not in `lanes` report nothing. In a dense mesh nearly every triangle stops here; AVX2
+/// decides eight at once. Corners must lie in the snapped range (`|v| < 2^23`).
+#[must_use]
+pub fn corner_tests(
+    level: SimdLevel,
+    xy: &[[[i32; 2]; 3]; 8],
+    lanes: u8,
+    cull: CullMode,
+    clip: &PixelRect,
+) -> CornerTests {
+    match level {
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx2 if SimdLevel::Avx2.is_available() => {
+            // SAFETY: AVX2 support was just checked at run time.
+            unsafe { x86::corner_tests_avx2(xy, lanes, cull, clip) }
+        }
+        _ => corner_tests_scalar(xy, lanes, cull, clip),
+    }
+}
+
+/// [`corner_tests`] lane by lane, through the front end's own functions.
+#[must_use]
+pub fn corner_tests_scalar(
+    xy: &[[[i32; 2]; 3]; 8],
+    lanes: u8,
+    cull: CullMode,
+    clip: &PixelRect,
+) -> CornerTests {
+    let mut t = CornerTests::default();
+    for (k, tri) in xy.iter().enumerate().filter(|(k, _)| lanes & (1 << k) != 0) {
+        let corners = tri.map(|p| p.map(i64::from));
+        match TriangleSetup::signed_area2(corners, cull) {
+            Err(Rejection::Degenerate) => t.degenerate |= 1 << k,
+            Err(_) => t.culled |= 1 << k,
+            Ok(_) => {
+                if extent_coverage_bounds(setup::extent(corners), false, clip).is_none() {
+                    t.empty |= 1 << k;
+                }
+            }
+        }
+    }
+    t
+}
+
 #[cfg(target_arch = "x86_64")]
 mod x86 {
     use std::arch::x86_64::*;
 
-    use super::{SpanColor, SpanJob};
+    use super::{CornerTests, SpanColor, SpanJob};
+    use crate::setup::{CullMode, PixelRect};
     use crate::shade::DepthTest;
+
+    /// [`super::corner_tests`] for eight triangles at once: areas in two halves of four
+    /// `i64` lanes (corner differences are below 2^24, so products are exact), boxes and
+    /// their first and last pixel centres in eight `i32` lanes (`ceil((v - 128) / 256)` is
+    /// `(v + 127) >> 8`, `floor((v - 128) / 256)` is `(v - 128) >> 8`, arithmetic shifts).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn corner_tests_avx2(
+        xy: &[[[i32; 2]; 3]; 8],
+        lanes: u8,
+        cull: CullMode,
+        clip: &PixelRect,
+    ) -> CornerTests {
+        let col = |v: usize, a: usize| {
+            _mm256_setr_epi32(
+                xy[0][v][a],
+                xy[1][v][a],
+                xy[2][v][a],
+                xy[3][v][a],
+                xy[4][v][a],
+                xy[5][v][a],
+                xy[6][v][a],
+                xy[7][v][a],
+            )
+        };
+        let (x0, y0, x1, y1, x2, y2) =
+            (col(0, 0), col(0, 1), col(1, 0), col(1, 1), col(2, 0), col(2, 1));
+        // Signed area, twice: (x1 - x0)(y2 - y0) - (x2 - x0)(y1 - y0), as in `signed_area2`.
+        let (d1x, d1y) = (_mm256_sub_epi32(x1, x0), _mm256_sub_epi32(y1, y0));
+        let (d2x, d2y) = (_mm256_sub_epi32(x2, x0), _mm256_sub_epi32(y2, y0));
+        let half = |v: __m256i, high: bool| {
+            let h = if high { _mm256_extracti128_si256::<1>(v) } else { _mm256_castsi256_si128(v) };
+            _mm256_cvtepi32_epi64(h)
+        };
+        let (mut zero, mut positive, mut negative) = (0u8, 0u8, 0u8);
+        for (shift, high) in [(0, false), (4, true)] {
+            let area = _mm256_sub_epi64(
+                _mm256_mul_epi32(half(d1x, high), half(d2y, high)),
+                _mm256_mul_epi32(half(d2x, high), half(d1y, high)),
+            );
+            let bits = |m: __m256i| (_mm256_movemask_pd(_mm256_castsi256_pd(m)) as u8) << shift;
+            let z = _mm256_setzero_si256();
+            zero |= bits(_mm256_cmpeq_epi64(area, z));
+            positive |= bits(_mm256_cmpgt_epi64(area, z));
+            negative |= bits(_mm256_cmpgt_epi64(z, area));
+        }
+        // The box's first and last pixel centres, clipped.
+        let min3 = |a, b, c| _mm256_min_epi32(_mm256_min_epi32(a, b), c);
+        let max3 = |a, b, c| _mm256_max_epi32(_mm256_max_epi32(a, b), c);
+        let first = |v| _mm256_srai_epi32::<8>(_mm256_add_epi32(v, _mm256_set1_epi32(127)));
+        let last = |v| _mm256_srai_epi32::<8>(_mm256_sub_epi32(v, _mm256_set1_epi32(128)));
+        let px0 = _mm256_max_epi32(first(min3(x0, x1, x2)), _mm256_set1_epi32(clip.x0));
+        let px1 = _mm256_min_epi32(last(max3(x0, x1, x2)), _mm256_set1_epi32(clip.x1));
+        let py0 = _mm256_max_epi32(first(min3(y0, y1, y2)), _mm256_set1_epi32(clip.y0));
+        let py1 = _mm256_min_epi32(last(max3(y0, y1, y2)), _mm256_set1_epi32(clip.y1));
+        let empty = _mm256_or_si256(_mm256_cmpgt_epi32(px0, px1), _mm256_cmpgt_epi32(py0, py1));
+        let empty = _mm256_movemask_ps(_mm256_castsi256_ps(empty)) as u8;
+        let degenerate = zero & lanes;
+        let culled = match cull {
+            CullMode::None => 0,
+            CullMode::Clockwise => positive,
+            CullMode::CounterClockwise => negative,
+        } & lanes;
+        CornerTests { degenerate, culled, empty: empty & lanes & !degenerate & !culled }
+    }
 
     /// Four lanes of `(a0 + f1 * g1) + f2 * g2`.
     #[inline]
@@ -394,6 +523,58 @@ mod tests {
         for c in values.chunks_exact(4) {
             let v = [c[0], c[1], c[2], c[3]];
             assert_eq!(floor_i32x4(v), v.map(expect), "{v:?}");
+        }
+    }
+
+    /// The corner tests agree with the front end's functions lane by lane, at every level:
+    /// tiny triangles near pixel centres (corners on, beside and between centres), large
+    /// ones across the whole snapped range, collinear corners, both windings, every cull
+    /// mode, clip rectangles inside, at the edge of and off the triangles, partial lane sets.
+    #[test]
+    fn corner_tests_match_the_front_end() {
+        let mut rng = SmallRng::seed_from_u64(11);
+        let limit = (1 << 23) - 1;
+        // Lanes found degenerate, culled, empty, and kept.
+        let mut seen = [0u32; 4];
+        for round in 0..40_000 {
+            let mut xy = [[[0i32; 2]; 3]; 8];
+            for tri in &mut xy {
+                let kind = rng.random_range(0..4);
+                let base = [rng.random_range(-3000..3000), rng.random_range(-3000..3000)];
+                for (v, p) in tri.iter_mut().enumerate() {
+                    *p = match kind {
+                        // Within a few pixels, often on a centre or a centre +- 1.
+                        0 => base.map(|b| {
+                            256 * (b / 256) + 128 + rng.random_range(-3..4) * [1, 64, 255][v]
+                        }),
+                        1 => base.map(|b| b + rng.random_range(-600..600)),
+                        2 => [rng.random_range(-limit..=limit), rng.random_range(-limit..=limit)],
+                        // Collinear.
+                        _ => base.map(|b| b + 37 * v as i32),
+                    };
+                }
+            }
+            let lanes = if round % 5 == 0 { rng.random() } else { u8::MAX };
+            let cull = [CullMode::None, CullMode::Clockwise, CullMode::CounterClockwise][round % 3];
+            let (cx, cy) = (rng.random_range(-20..20), rng.random_range(-20..20));
+            let clip = PixelRect {
+                x0: cx,
+                y0: cy,
+                x1: cx + rng.random_range(-1..40),
+                y1: cy + rng.random_range(-1..40),
+            };
+            let expect = corner_tests_scalar(&xy, lanes, cull, &clip);
+            seen[0] += expect.degenerate.count_ones();
+            seen[1] += expect.culled.count_ones();
+            seen[2] += expect.empty.count_ones();
+            seen[3] += (lanes & !(expect.degenerate | expect.culled | expect.empty)).count_ones();
+            for level in SimdLevel::available() {
+                assert_eq!(
+                    corner_tests(level, &xy, lanes, cull, &clip),
+                    expect,
+                    "{level:?} {xy:?}"
+                );
+            }
         }
     }
 
