@@ -361,8 +361,9 @@ impl FrontEnd {
     /// [`FrontEnd::prepare`] for triangles `range` of `batch` (whose first has id
     /// `first_id`), reading their corners from `vertices`, where vertex `i` is at
     /// `i - base`. Triangles inside the clip volume take the corner tests eight at a time
-    /// ([`simd::corner_tests`]): in a dense mesh nearly all stop there, counted, and only the
-    /// rest go through `prepare` (which repeats the tests, with the same outcome).
+    /// ([`simd::corner_tests`]): in a dense mesh nearly all stop there, counted; those that
+    /// pass go straight to setup (as `setup_inside` would after the same tests), and those
+    /// needing clipping through `prepare`.
     fn prepare_range<V: Varyings>(
         &self,
         batch: &[[u32; 3]],
@@ -398,7 +399,18 @@ impl FrontEnd {
             sink.skip_many(Skipped::Empty, count(t.empty));
             let stopped = t.degenerate | t.culled | t.empty;
             for (j, k) in group.enumerate() {
-                if stopped & (1 << j) == 0 {
+                let bit = 1 << j;
+                if lanes & bit != 0 && stopped & bit == 0 {
+                    // Passed the corner tests: straight to setup.
+                    let tri = corners(k);
+                    let setup =
+                        TriangleSetup::from_snapped(tri.map(|v| v.xy.map(i64::from)), self.cull);
+                    sink.take(
+                        setup
+                            .map_err(Skipped::from)
+                            .map(|setup| self.finish_inside(setup, tri, first_id + k)),
+                    );
+                } else if lanes & bit == 0 {
                     self.prepare(corners(k), first_id + k, |p| sink.take(p));
                 }
             }
@@ -446,7 +458,17 @@ impl FrontEnd {
             return Err(Skipped::Empty);
         }
         let setup = TriangleSetup::from_snapped(xy, self.cull)?;
-        Ok(self.finish(setup, tri.map(|v| v.clip.varyings), tri.map(|v| [v.z, v.inv_w]), id))
+        Ok(self.finish_inside(setup, tri, id))
+    }
+
+    /// [`FrontEnd::finish`] for a triangle inside the clip volume, from its shaded vertices.
+    fn finish_inside<V: Varyings>(
+        &self,
+        setup: TriangleSetup,
+        tri: [&ShadedVertex<V>; 3],
+        id: usize,
+    ) -> Prepared<TriangleData<V>> {
+        self.finish(setup, tri.map(|v| v.clip.varyings), tri.map(|v| [v.z, v.inv_w]), id)
     }
 
     fn setup<V: Varyings>(
