@@ -256,7 +256,7 @@ pub struct CornerTests {
 /// ([`TriangleSetup::signed_area2`]), then no pixel centre in the box
 /// ([`crate::bin::extent_coverage_bounds`], one sample per pixel), in that precedence. Lanes
 /// not in `lanes` report nothing. In a dense mesh nearly every triangle stops here; AVX2
-/// decides eight at once. Corners must lie in the snapped range (`|v| < 2^23`).
+/// decides eight at once. Corners must be snapped coordinates (magnitude at most 2^23).
 #[must_use]
 pub fn corner_tests(
     level: SimdLevel,
