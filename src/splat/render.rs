@@ -466,10 +466,39 @@ impl<'a> PartBuilder<'a> {
     /// breadth-first level: nearby nodes, few tiles): count, place, then copy the splats in
     /// the order found.
     fn sorted_by_tile(self) -> Part {
+        // Counting over a tile range much wider than the chunk (a large target, splats far
+        // apart) would cost more than comparing.
+        let counting = self.lo > self.hi || (self.hi - self.lo) as usize <= 4 * CHUNK;
+        self.sorted(counting)
+    }
+
+    /// Sorted by counting over the touched tile range, or by comparison of `(tile, index)`
+    /// pairs; both give the same part.
+    fn sorted(self, counting: bool) -> Part {
         debug_assert!(self.splats.len() <= CHUNK);
         let (grid, lo, hi) = (self.grid, self.lo, self.hi);
         if lo > hi {
             return Part::default();
+        }
+        if !counting {
+            let mut pairs: Vec<(u32, u16)> = Vec::with_capacity(self.splats.len());
+            for (k, (s, &key)) in self.splats.iter().zip(&self.keys).enumerate() {
+                if key != Self::SEVERAL {
+                    pairs.push((key, k as u16));
+                } else if let Some(r) = s.rect() {
+                    grid.each_tile(&r, |t| pairs.push((t, k as u16)));
+                }
+            }
+            pairs.sort_unstable();
+            let mut runs: Vec<Run> = Vec::new();
+            for (i, &(tile, _)) in pairs.iter().enumerate() {
+                match runs.last_mut() {
+                    Some(run) if run.tile == tile => run.end += 1,
+                    _ => runs.push(Run { tile, start: i as u32, end: i as u32 + 1 }),
+                }
+            }
+            let splats = pairs.iter().map(|&(_, k)| self.splats[usize::from(k)]).collect();
+            return Part { splats, runs };
         }
         let mut starts = vec![0u32; (hi - lo + 2) as usize];
         for (s, &key) in self.splats.iter().zip(&self.keys) {
@@ -749,6 +778,41 @@ mod tests {
             assert!(drawn > 1000, "{drawn}");
             assert!(binned.ids == ordered.ids, "threshold {threshold}");
             assert!(binned.color == ordered.color);
+        }
+    }
+
+    /// Both ways of sorting a chunk by tile give the same part: on a 16384 x 16384 grid,
+    /// splats scattered over it (some across tile borders, some off it) and bunched in a
+    /// corner.
+    #[test]
+    fn counting_and_comparison_sorts_agree() {
+        let mut rng = SmallRng::seed_from_u64(9);
+        let screen = PixelRect::of_target(16384, 16384);
+        let grid = TileGrid { tiles_x: 16384 / TILE, screen };
+        for spread in [16384.0, 300.0] {
+            let mut a = PartBuilder::new(CHUNK, &grid);
+            let mut b = PartBuilder::new(CHUNK, &grid);
+            for k in 0..3000 {
+                let (x, y) = (rng.random_range(-50.0..spread), rng.random_range(-50.0..spread));
+                let half = rng.random_range(0.5..90.0);
+                let rect = footprint(x, y, half, &screen)
+                    .map_or([1, 0, 0, 0], |r| [r.x0, r.y0, r.x1, r.y1].map(|v| v as u16));
+                let s = Splat {
+                    x,
+                    y,
+                    half_squared: half * half,
+                    depth: 0.5,
+                    color: [0; 4],
+                    id: k,
+                    rect,
+                };
+                a.push(s);
+                b.push(s);
+            }
+            let (a, b) = (a.sorted(true), b.sorted(false));
+            assert!(a.runs.len() > 10 && a.splats.len() > 3000, "{}", a.runs.len());
+            assert_eq!(format!("{:?}", a.runs), format!("{:?}", b.runs));
+            assert!(a.splats.iter().zip(&b.splats).all(|(s, t)| s.id == t.id));
         }
     }
 
