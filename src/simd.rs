@@ -1,5 +1,6 @@
-//! SIMD span kernels (and cache prefetch hints): the only module with `unsafe` and
-//! `core::arch`.
+//! SIMD span kernels, the front end's corner tests for eight triangles at once, and small
+//! SSE2 helpers (four floors, a unit clamp, cache prefetch hints): the only module with
+//! `unsafe` and `core::arch`. Each has a scalar path it is tested against.
 //!
 //! A kernel shades one 1x span of a window-space triangle with flat or smooth colour: the same
 //! arithmetic as the reference per-pixel loop in [`crate::shade`], lane by lane, so the output
@@ -13,7 +14,7 @@
 //!   `f32::clamp`.
 //!
 //! The level is detected once per draw call ([`SimdLevel::detect`]) and can be forced (tests,
-//! comparisons) with [`crate::RenderOptions::simd`].
+//! comparisons) with [`crate::RenderOptions::simd`] or `TRIRAST_SIMD`.
 
 use crate::bin::extent_coverage_bounds;
 use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup};
