@@ -156,7 +156,7 @@ impl<T: Send> PreparedBatch<T> {
 }
 
 impl<T> PreparedBatch<T> {
-    /// The triangle at `index` (as listed by [`PreparedBatch::indexed`]).
+    /// The triangle at `index` (as listed by `PreparedBatch::indexed`).
     #[inline]
     #[must_use]
     pub fn get(&self, index: u32) -> &Prepared<T> {
