@@ -5,6 +5,8 @@
 //! node, leaves have none. Every node's sphere contains every input point below it; its
 //! normal is the (normalised) average of its points' normals and `cone` bounds the angle
 //! between it and any normal below, so a node whose whole cone faces away can be culled.
+//! Built trees have single-child nodes where a node is much smaller than its parent (see
+//! `with_chains`: they keep decoded `.tsplat` spheres close to their size).
 
 /// One node of the hierarchy.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -150,7 +152,7 @@ impl SplatTree {
             let radius = tree.estimate_spacing();
             tree.fill_bottom_up(cloud, &index, &ranges, |_| radius);
         }
-        Self::new(tree.nodes)
+        Self::new(with_chains(tree.nodes))
     }
 
     /// Computes every node from its children (or, for a leaf, its point), last node first.
@@ -308,4 +310,69 @@ fn angle(a: [f32; 3], b: [f32; 3]) -> f32 {
     let d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let c = [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
     (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt().atan2(d)
+}
+
+/// A node whose parent's sphere is more than this many times its own gets single-child nodes
+/// above it ([`with_chains`]).
+const CHAIN_RATIO: f32 = 4.0;
+
+/// How many single-child nodes go above a node whose parent is `ratio` times its size: radii
+/// doubling from the node's up to below the parent's.
+fn chain_length(ratio: f32) -> u8 {
+    if ratio.is_nan() || ratio <= CHAIN_RATIO {
+        return 0;
+    }
+    (ratio.log2().ceil() as u8).saturating_sub(1).clamp(1, 40)
+}
+
+/// `nodes` (breadth-first) with single-child nodes inserted above every node (of non-zero
+/// radius) whose parent's sphere is more than [`CHAIN_RATIO`] times its own (isolated points
+/// or clumps under a large parent): [`chain_length`] of them, centred on the node, their
+/// radii doubling from the node's towards the parent's, each with the node's normal, cone
+/// and colour.
+///
+/// Why: `.tsplat` quantizes a child's sphere against its parent's decoded one (centres in
+/// steps of a sixth of the parent's radius), so a decoded sphere is its own size plus about
+/// a quarter of its parent's; a node much smaller than its parent decodes many times too big,
+/// and so does everything below it, a leaf being drawn whatever its size: blobs. With every
+/// step at most 4x (usually 2x in a built tree), decoded sizes stay within a small factor.
+/// The inserted spheres contain every point below them, as the invariant asks.
+fn with_chains(nodes: Vec<SplatNode>) -> Vec<SplatNode> {
+    let children =
+        |n: &SplatNode| n.first_child as usize..n.first_child as usize + usize::from(n.child_count);
+    let mut chain = vec![0u8; nodes.len()];
+    for n in &nodes {
+        for k in children(n) {
+            if nodes[k].radius > 0.0 {
+                chain[k] = chain_length(n.radius / nodes[k].radius);
+            }
+        }
+    }
+    let extra: usize = chain.iter().map(|&c| usize::from(c)).sum();
+    if extra == 0 {
+        return nodes;
+    }
+    // Level by level over (node, chain nodes still to emit above it).
+    let mut out: Vec<SplatNode> = Vec::with_capacity(nodes.len() + extra);
+    let mut level = vec![(0usize, 0u8)];
+    while !level.is_empty() {
+        let mut next = Vec::new();
+        let mut next_first = (out.len() + level.len()) as u32;
+        for &(i, pending) in &level {
+            let n = nodes[i];
+            if pending > 0 {
+                let radius = n.radius * (1u64 << pending.min(60)) as f32;
+                out.push(SplatNode { radius, first_child: next_first, child_count: 1, ..n });
+                next.push((i, pending - 1));
+                next_first += 1;
+            } else {
+                let first_child = if n.child_count > 0 { next_first } else { 0 };
+                out.push(SplatNode { first_child, ..n });
+                next.extend(children(&n).map(|k| (k, chain[k])));
+                next_first += u32::from(n.child_count);
+            }
+        }
+        level = next;
+    }
+    out
 }
