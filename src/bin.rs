@@ -177,6 +177,41 @@ impl<T> PreparedBatch<T> {
     }
 }
 
+/// The `TILE x TILE` tiles of a target: tile `ty * tiles_x + tx` holds the pixels
+/// `TILE * tx ..` by `TILE * ty ..`. The one place tile indices are computed, for [`Bins`] and
+/// for splats sorted by tile as they are produced.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TileGrid {
+    tiles_x: u32,
+    tiles: u32,
+    screen: PixelRect,
+}
+
+impl TileGrid {
+    /// The tiles of a `width x height` target.
+    pub(crate) fn of_size(width: u32, height: u32) -> Self {
+        let tiles_x = width.div_ceil(TILE);
+        let tiles = tiles_x * height.div_ceil(TILE);
+        Self { tiles_x, tiles, screen: PixelRect::of_target(width, height) }
+    }
+
+    /// The first and last tile (in row-major order) a rectangle on the target overlaps.
+    pub(crate) fn first_and_last(&self, r: &PixelRect) -> (u32, u32) {
+        let t = |v: i32| v as u32 / TILE;
+        (t(r.y0) * self.tiles_x + t(r.x0), t(r.y1) * self.tiles_x + t(r.x1))
+    }
+
+    /// Calls `f` with every tile a rectangle on the target overlaps, in row-major order.
+    pub(crate) fn each_tile(&self, r: &PixelRect, mut f: impl FnMut(u32)) {
+        let t = |v: i32| v as u32 / TILE;
+        for ty in t(r.y0)..=t(r.y1) {
+            for tx in t(r.x0)..=t(r.x1) {
+                f(ty * self.tiles_x + tx);
+            }
+        }
+    }
+}
+
 /// Per-tile lists of triangle indices, in submission order.
 #[derive(Debug, Default)]
 pub struct Bins {
@@ -247,23 +282,15 @@ impl Bins {
     where
         I: Iterator<Item = (u32, Option<PixelRect>)>,
     {
-        let tiles_x = width.div_ceil(TILE) as usize;
-        let tiles_y = height.div_ceil(TILE) as usize;
-        let tiles = tiles_x * tiles_y;
-        let target = PixelRect::of_target(width, height);
+        let grid = TileGrid::of_size(width, height);
+        let tiles = grid.tiles as usize;
         let partial: Vec<Vec<Vec<u32>>> = (0..groups)
             .into_par_iter()
             .map(|g| {
                 let mut lists = vec![Vec::new(); tiles];
                 for (index, r) in group(g) {
-                    let Some(r) = r.and_then(|r| r.intersect(&target)) else { continue };
-                    let (tx0, tx1) = (r.x0 as u32 / TILE, r.x1 as u32 / TILE);
-                    let (ty0, ty1) = (r.y0 as u32 / TILE, r.y1 as u32 / TILE);
-                    for ty in ty0..=ty1 {
-                        for tx in tx0..=tx1 {
-                            lists[ty as usize * tiles_x + tx as usize].push(index);
-                        }
-                    }
+                    let Some(r) = r.and_then(|r| r.intersect(&grid.screen)) else { continue };
+                    grid.each_tile(&r, |t| lists[t as usize].push(index));
                 }
                 lists
             })
@@ -278,7 +305,17 @@ impl Bins {
                 merged
             })
             .collect();
-        Self { tiles_x, lists }
+        Self { tiles_x: grid.tiles_x as usize, lists }
+    }
+
+    /// Bins items that already know their tile: `(index, tile)` in submission order, tiles
+    /// of `grid`.
+    pub(crate) fn of_tiles(grid: &TileGrid, items: impl Iterator<Item = (u32, u32)>) -> Self {
+        let mut lists = vec![Vec::new(); grid.tiles as usize];
+        for (index, tile) in items {
+            lists[tile as usize].push(index);
+        }
+        Self { tiles_x: grid.tiles_x as usize, lists }
     }
 
     /// Runs `draw(band, tile, list)` for every tile with a non-empty bin, `tile` clipped to

@@ -19,7 +19,7 @@ use glam::{Mat3, Mat4, Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 
 use super::tree::SplatTree;
-use crate::bin::{Bins, TILE};
+use crate::bin::{Bins, TileGrid};
 use crate::camera::Camera;
 use crate::color::{linear_to_srgb8_rgb, srgb_decode_table};
 use crate::model::Light;
@@ -312,7 +312,7 @@ pub fn render(
     // depend on the thread count.
     const PREFETCH_AHEAD: usize = 16;
     let mut stats = SplatStats::default();
-    let tiles = TileGrid::of(target);
+    let tiles = TileGrid::of_size(target.width(), target.height());
     // Splats stay in the per-chunk parts they were produced in (never concatenated: that copy
     // was a tenth of the frame).
     let mut parts: Vec<Part> = Vec::new();
@@ -371,45 +371,6 @@ pub fn render(
 
 /// Traversal classifies a level's frontier in chunks of this many nodes, in parallel.
 const CHUNK: usize = 4096;
-
-/// The target's 64 x 64 tiles ([`TILE`], as [`Bins`] lays them out).
-#[derive(Clone, Copy, Debug)]
-struct TileGrid {
-    tiles_x: u32,
-    screen: PixelRect,
-}
-
-impl TileGrid {
-    fn of(target: &Target) -> Self {
-        let (w, h) = (target.width(), target.height());
-        Self { tiles_x: w.div_ceil(TILE), screen: PixelRect::of_target(w, h) }
-    }
-
-    /// The pixels of tile `t`, on the target.
-    fn rect(&self, t: u32) -> PixelRect {
-        let (tx, ty) = ((t % self.tiles_x) as i32, (t / self.tiles_x) as i32);
-        let t = TILE as i32;
-        PixelRect { x0: tx * t, y0: ty * t, x1: tx * t + t - 1, y1: ty * t + t - 1 }
-            .intersect(&self.screen)
-            .expect("tile inside the target")
-    }
-
-    /// The first and last tile (in row-major order) a footprint on the target overlaps.
-    fn first_and_last(&self, r: &PixelRect) -> (u32, u32) {
-        let t = |v: i32| v as u32 / TILE;
-        (t(r.y0) * self.tiles_x + t(r.x0), t(r.y1) * self.tiles_x + t(r.x1))
-    }
-
-    /// Calls `f` with every tile a footprint on the target overlaps, in row-major order.
-    fn each_tile(&self, r: &PixelRect, mut f: impl FnMut(u32)) {
-        let t = |v: i32| v as u32 / TILE;
-        for ty in t(r.y0)..=t(r.y1) {
-            for tx in t(r.x0)..=t(r.x1) {
-                f(ty * self.tiles_x + tx);
-            }
-        }
-    }
-}
 
 /// One chunk's splats, sorted by tile as they are produced (a counting sort, stable, so each
 /// tile's splats keep traversal order; a splat overlapping several tiles is copied into each):
@@ -544,15 +505,11 @@ fn draw_splats(target: &mut Target, parts: &[Part], grid: &TileGrid, shape: Spla
         .enumerate()
         .flat_map(|(p, part)| (0..part.runs.len() as u32).map(move |k| (p as u32, k)))
         .collect();
-    let bins = Bins::build_groups(
-        1,
-        |_| {
-            runs.iter().enumerate().map(|(k, &(p, r))| {
-                (k as u32, Some(grid.rect(parts[p as usize].runs[r as usize].tile)))
-            })
-        },
-        width,
-        height,
+    let bins = Bins::of_tiles(
+        grid,
+        runs.iter()
+            .enumerate()
+            .map(|(k, &(p, r))| (k as u32, parts[p as usize].runs[r as usize].tile)),
     );
     bins.draw(target, &PixelRect::of_target(width, height), |band, tile, list| {
         let mut sum = 0;
@@ -788,7 +745,7 @@ mod tests {
     fn counting_and_comparison_sorts_agree() {
         let mut rng = SmallRng::seed_from_u64(9);
         let screen = PixelRect::of_target(16384, 16384);
-        let grid = TileGrid { tiles_x: 16384 / TILE, screen };
+        let grid = TileGrid::of_size(16384, 16384);
         for spread in [16384.0, 300.0] {
             let mut a = PartBuilder::new(CHUNK, &grid);
             let mut b = PartBuilder::new(CHUNK, &grid);
