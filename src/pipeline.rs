@@ -402,14 +402,7 @@ impl FrontEnd {
                 let bit = 1 << j;
                 if lanes & bit != 0 && stopped & bit == 0 {
                     // Passed the corner tests: straight to setup.
-                    let tri = corners(k);
-                    let setup =
-                        TriangleSetup::from_snapped(tri.map(|v| v.xy.map(i64::from)), self.cull);
-                    sink.take(
-                        setup
-                            .map_err(Skipped::from)
-                            .map(|setup| self.finish_inside(setup, tri, first_id + k)),
-                    );
+                    sink.take(self.setup_passed(corners(k), first_id + k));
                 } else if lanes & bit == 0 {
                     self.prepare(corners(k), first_id + k, |p| sink.take(p));
                 }
@@ -457,18 +450,18 @@ impl FrontEnd {
         if bin::extent_coverage_bounds(setup::extent(xy), self.multisampled, &self.clip).is_none() {
             return Err(Skipped::Empty);
         }
-        let setup = TriangleSetup::from_snapped(xy, self.cull)?;
-        Ok(self.finish_inside(setup, tri, id))
+        self.setup_passed(tri, id)
     }
 
-    /// [`FrontEnd::finish`] for a triangle inside the clip volume, from its shaded vertices.
-    fn finish_inside<V: Varyings>(
+    /// Setup and planes of a snapped triangle inside the clip volume that passed the corner
+    /// tests (zero area, culling, no sample in the box).
+    fn setup_passed<V: Varyings>(
         &self,
-        setup: TriangleSetup,
         tri: [&ShadedVertex<V>; 3],
         id: usize,
-    ) -> Prepared<TriangleData<V>> {
-        self.finish(setup, tri.map(|v| v.clip.varyings), tri.map(|v| [v.z, v.inv_w]), id)
+    ) -> Result<Prepared<TriangleData<V>>, Skipped> {
+        let setup = TriangleSetup::from_snapped(tri.map(|v| v.xy.map(i64::from)), self.cull)?;
+        Ok(self.finish(setup, tri.map(|v| v.clip.varyings), tri.map(|v| [v.z, v.inv_w]), id))
     }
 
     fn setup<V: Varyings>(
