@@ -27,6 +27,14 @@ pub struct SplatNode {
     pub child_count: u8,
 }
 
+impl SplatNode {
+    /// Indices of this node's children (empty for a leaf).
+    #[must_use]
+    pub fn children(&self) -> std::ops::Range<usize> {
+        self.first_child as usize..self.first_child as usize + usize::from(self.child_count)
+    }
+}
+
 /// A bounding-sphere tree over a point cloud.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SplatTree {
@@ -61,8 +69,7 @@ impl SplatTree {
     /// The children of node `i`.
     #[must_use]
     pub fn children(&self, i: usize) -> std::ops::Range<usize> {
-        let n = &self.nodes[i];
-        n.first_child as usize..n.first_child as usize + n.child_count as usize
+        self.nodes[i].children()
     }
 
     /// Number of leaves.
@@ -338,11 +345,9 @@ fn chain_length(ratio: f32) -> u8 {
 /// step at most 4x (usually 2x in a built tree), decoded sizes stay within a small factor.
 /// The inserted spheres contain every point below them, as the invariant asks.
 fn with_chains(nodes: Vec<SplatNode>) -> Vec<SplatNode> {
-    let children =
-        |n: &SplatNode| n.first_child as usize..n.first_child as usize + usize::from(n.child_count);
     let mut chain = vec![0u8; nodes.len()];
     for n in &nodes {
-        for k in children(n) {
+        for k in n.children() {
             if nodes[k].radius > 0.0 {
                 chain[k] = chain_length(n.radius / nodes[k].radius);
             }
@@ -368,7 +373,7 @@ fn with_chains(nodes: Vec<SplatNode>) -> Vec<SplatNode> {
             } else {
                 let first_child = if n.child_count > 0 { next_first } else { 0 };
                 out.push(SplatNode { first_child, ..n });
-                next.extend(children(&n).map(|k| (k, chain[k])));
+                next.extend(n.children().map(|k| (k, chain[k])));
                 next_first += u32::from(n.child_count);
             }
         }
