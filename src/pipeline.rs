@@ -250,7 +250,7 @@ impl Pipeline {
             Backend::Tiled => {
                 let level = SimdLevel::detect();
                 let mut window = Vec::new();
-                let mut prepared = bin::PreparedBatch::default();
+                let mut prepared: bin::PreparedBatch<_> = target.take_scratch();
                 for (b, batch) in triangles.chunks(BATCH).enumerate() {
                     // Vertices of a large mesh: the batch's index range shaded into a scratch
                     // window when it is compact (meshes are mostly stored with locality),
@@ -296,6 +296,7 @@ impl Pipeline {
                         shade,
                     );
                 }
+                target.keep_scratch(prepared);
             }
         }
         Ok(stats)

@@ -173,7 +173,7 @@ pub fn draw(
         let multisampled = target.samples().count() > 1;
         // With the scissor off the target nothing is visible, but setup still counts.
         let visible = clip.unwrap_or(PixelRect::EMPTY);
-        let mut prepared = bin::PreparedBatch::default();
+        let mut prepared: bin::PreparedBatch<TriangleShader> = target.take_scratch();
         for (b, batch) in triangles.chunks(BATCH).enumerate() {
             let counts = prepared.prepare(batch.len(), |k, sink| {
                 let tri = &batch[k];
@@ -200,6 +200,7 @@ pub fn draw(
                 );
             }
         }
+        target.keep_scratch(prepared);
         return Ok(stats);
     }
     for (id, tri) in triangles.iter().enumerate() {

@@ -4,6 +4,8 @@
 //! `pixel * samples + s`, i.e. an array of shape (height, width, samples). Per-pixel buffers
 //! (overdraw, normals) hold one.
 
+use std::any::Any;
+
 use crate::color::{linear_to_srgb8, srgb_to_linear};
 use crate::error::Error;
 use crate::fixed::MAX_TARGET_SIZE;
@@ -11,6 +13,9 @@ use crate::sample::SampleCount;
 use crate::setup::PixelRect;
 
 /// Colour, depth and the optional id, overdraw and normal buffers of one image.
+///
+/// A target also keeps the tiled backend's batch buffers between draw calls (see
+/// [`Target::release_scratch`]).
 #[derive(Clone, Debug)]
 pub struct Target {
     width: u32,
@@ -27,6 +32,28 @@ pub struct Target {
     pub overdraw: Option<Vec<u32>>,
     /// Normal of the last written fragment (zero where none), when a pipeline provides one.
     pub normals: Option<Vec<[f32; 3]>>,
+    scratch: Scratch,
+}
+
+/// Memory a draw call leaves for the next one on the same target: the tiled backend's
+/// per-batch buffers (set-up triangles, up to about 160 MB for large draws). Writing a frame's
+/// records into freshly allocated memory faulted in (and zeroed) every page of it again each
+/// frame: a tenth of the time of a million small triangles. Type-erased because each pipeline
+/// keeps records of its own payload type; a draw that finds another type starts afresh.
+#[derive(Default)]
+struct Scratch(Option<Box<dyn Any + Send + Sync>>);
+
+impl Clone for Scratch {
+    /// A clone starts without scratch memory: it is a cache, not part of the image.
+    fn clone(&self) -> Self {
+        Self(None)
+    }
+}
+
+impl std::fmt::Debug for Scratch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(if self.0.is_some() { "Scratch(kept)" } else { "Scratch(empty)" })
+    }
 }
 
 /// The colour a new target is cleared to: opaque black.
@@ -54,7 +81,36 @@ impl Target {
         let mut depth = Vec::new();
         depth.try_reserve_exact(n).map_err(too_large)?;
         depth.resize(n, 1.0);
-        Ok(Self { width, height, samples, color, depth, ids: None, overdraw: None, normals: None })
+        Ok(Self {
+            width,
+            height,
+            samples,
+            color,
+            depth,
+            ids: None,
+            overdraw: None,
+            normals: None,
+            scratch: Scratch::default(),
+        })
+    }
+
+    /// Frees the memory the tiled backend keeps between draw calls (it is kept so that the
+    /// next frame does not fault in fresh pages); the next draw call allocates it again.
+    pub fn release_scratch(&mut self) {
+        self.scratch = Scratch::default();
+    }
+
+    /// Takes the scratch a previous draw call left, if it is a `T`; otherwise a new `T`.
+    pub(crate) fn take_scratch<T: Default + Send + Sync + 'static>(&mut self) -> T {
+        match self.scratch.0.take().map(|b| b.downcast::<T>()) {
+            Some(Ok(kept)) => *kept,
+            _ => T::default(),
+        }
+    }
+
+    /// Leaves `scratch` for the next draw call.
+    pub(crate) fn keep_scratch<T: Send + Sync + 'static>(&mut self, scratch: T) {
+        self.scratch = Scratch(Some(Box::new(scratch)));
     }
 
     /// Adds a triangle-id buffer, cleared to -1.

@@ -6,8 +6,9 @@ use glam::{Vec2, Vec3, Vec4};
 /// A value that can be interpolated: a weighted sum of three values with weights summing to 1.
 ///
 /// Implemented for `()`, `f32`, glam's `Vec2`/`Vec3`/`Vec4`, `[f32; N]`, and tuples of up to
-/// four varyings; implement it for your own struct field by field.
-pub trait Varyings: Copy + Send + Sync {
+/// four varyings; implement it for your own struct field by field. Varyings are plain values
+/// (`'static`): the tiled backend keeps buffers of them between draw calls.
+pub trait Varyings: Copy + Send + Sync + 'static {
     /// `a * w[0] + b * w[1] + c * w[2]`.
     fn weighted(a: &Self, b: &Self, c: &Self, w: [f32; 3]) -> Self;
 

@@ -286,3 +286,57 @@ fn clipped_fans_outnumbering_their_triangles_match_the_reference() {
         assert_same(&reference, &tiled, &format!("clipped fans, {threads} threads"));
     }
 }
+
+/// A target keeps the tiled backend's batch buffers from one draw call to the next: a draw
+/// into a target that has drawn a larger scene (more chunks of set-up triangles than the new
+/// one fills) or another pipeline's triangles (another record type) gives exactly what a
+/// fresh target gives.
+#[test]
+fn reused_targets_draw_what_fresh_ones_draw() {
+    let mut rng = SmallRng::seed_from_u64(2718);
+    let (w, h) = (190u32, 130u32);
+    let large = scene(&mut rng, 4000, w as f32, h as f32);
+    let small = scene(&mut rng, 300, w as f32, h as f32);
+    let fresh = || Target::new(w, h).unwrap().with_ids().with_overdraw();
+    let options = RenderOptions::default();
+    let mut expected = fresh();
+    trirast::draw(&mut expected, &small, &options).unwrap();
+
+    let vertices: Vec<Vec3> = (0..600)
+        .map(|_| {
+            Vec3::new(
+                rng.random_range(-1.2..1.2),
+                rng.random_range(-1.2..1.2),
+                rng.random_range(0.1..0.9),
+            )
+        })
+        .collect();
+    let triangles: Vec<[u32; 3]> =
+        (0..400).map(|_| std::array::from_fn(|_| rng.random_range(0..600))).collect();
+    let vs = |p: &Vec3| (p.extend(1.0), *p);
+    let fs = |f: &Fragment<Vec3>| Some(f.varyings.extend(1.0));
+    let pipeline = Pipeline::default().with_cull(FaceCull::None);
+    let mut expected_3d = fresh();
+    pipeline.draw(&mut expected_3d, &vs, &fs, &vertices, &triangles).unwrap();
+
+    let mut reused = fresh();
+    for threads in [2, 1, 7] {
+        pool(threads).install(|| {
+            reused.clear([0, 0, 0, 255]);
+            trirast::draw(&mut reused, &large, &options).unwrap();
+            reused.clear([0, 0, 0, 255]);
+            trirast::draw(&mut reused, &small, &options).unwrap();
+            assert_same(&expected, &reused, &format!("after a larger scene, {threads} threads"));
+            reused.clear([0, 0, 0, 255]);
+            pipeline.draw(&mut reused, &vs, &fs, &vertices, &triangles).unwrap();
+            assert_same(&expected_3d, &reused, &format!("3D after 2D, {threads} threads"));
+            reused.clear([0, 0, 0, 255]);
+            trirast::draw(&mut reused, &small, &options).unwrap();
+            assert_same(&expected, &reused, &format!("2D after 3D, {threads} threads"));
+        });
+    }
+    reused.release_scratch();
+    reused.clear([0, 0, 0, 255]);
+    trirast::draw(&mut reused, &small, &options).unwrap();
+    assert_same(&expected, &reused, "after release_scratch");
+}
