@@ -17,8 +17,8 @@
 
 use crate::fixed;
 use crate::raster::{self, Algorithm, Span};
-use crate::setup::{PixelRect, TriangleSetup, Vertex};
-use crate::simd::{self, SimdLevel, SpanColor, SpanJob};
+use crate::setup::{PIXEL_STEP, PixelRect, TriangleSetup, Vertex};
+use crate::simd::{self, NarrowJob, SimdLevel, SpanColor, SpanJob};
 use crate::target::TargetBand;
 
 /// How a triangle's colour varies across it.
@@ -370,6 +370,34 @@ fn shade_single_sample(
     kernel: Option<(SimdLevel, SpanColor)>,
     mut fragment: impl FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>,
 ) -> u64 {
+    if let (Algorithm::EdgeMasks, Some((level, color))) = (algorithm, kernel) {
+        let Some(r) = setup.bounds.intersect(clip) else { return 0 };
+        let columns = (r.x1 - r.x0 + 1) as usize;
+        if columns <= simd::NARROW_COLUMNS {
+            let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
+            let edges = setup.edges.map(|e| e.eval(x, y));
+            let (e1, e2) = setup.barycentric_numerators(x, y);
+            let job = NarrowJob {
+                edges,
+                step_x: setup.edges.map(|e| e.a * PIXEL_STEP),
+                step_y: setup.edges.map(|e| e.b * PIXEL_STEP),
+                bias: [edges[1] - e1, edges[2] - e2],
+                columns,
+                rows: (r.y1 - r.y0 + 1) as usize,
+                first: target.index(r.x0, r.y0),
+                stride: target.stride(),
+                depth_plane: depth.coefficients(),
+                color,
+                depth_test,
+                id,
+                depth: target.depth,
+                color_out: target.color,
+                ids: target.ids.as_deref_mut(),
+                overdraw: target.overdraw.as_deref_mut(),
+            };
+            return simd::shade_narrow(level, job);
+        }
+    }
     let mut covered = 0u64;
     let step = [setup.edges[1].a, setup.edges[2].a].map(|a| a * i64::from(fixed::ONE));
     raster::rasterize(algorithm, setup, clip, |span| {

@@ -173,6 +173,17 @@ pub enum SpanColor {
     Smooth([[f64; 3]; 4]),
 }
 
+impl SpanColor {
+    /// The colour at barycentric numerators `(f1, f2)`, as the reference computes it.
+    #[inline]
+    fn at(&self, f1: f64, f2: f64) -> [u8; 4] {
+        match *self {
+            Self::Flat(c) => c,
+            Self::Smooth(p) => p.map(|[a0, g1, g2]| quantize_channel(a0 + f1 * g1 + f2 * g2)),
+        }
+    }
+}
+
 /// One span to shade: `n` pixels starting where the barycentric numerators are `e1`, `e2`,
 /// stepping by `step1`, `step2` per pixel, with the buffers' slices for exactly those pixels.
 #[derive(Debug)]
@@ -215,6 +226,111 @@ pub fn shade_span(level: SimdLevel, job: SpanJob<'_>) {
     }
 }
 
+/// Widest box (pixels) [`shade_narrow`] takes: two groups of four lanes.
+pub const NARROW_COLUMNS: usize = 8;
+
+/// A small triangle shaded whole, coverage included: its box (clipped) is at most
+/// [`NARROW_COLUMNS`] pixels wide. Coverage is the edge functions' sign test at every pixel of
+/// the box, as [`crate::raster::edge::rasterize_narrow`] does, so no spans are built: most
+/// triangles of a dense scene cover a few pixels on each of a few rows, where a span loop
+/// spends its time on row setup and mispredicted exits.
+#[derive(Debug)]
+pub struct NarrowJob<'a> {
+    /// Biased edge values (fill rule applied: covered iff all are `>= 0`) at the centre of
+    /// the box's first pixel (top left).
+    pub edges: [i64; 3],
+    /// Edge value steps one pixel to the right (`a * 256`).
+    pub step_x: [i64; 3],
+    /// Edge value steps one row down (`b * 256`).
+    pub step_y: [i64; 3],
+    /// Biased minus unbiased values of edges 1 and 2 (0 or -1): the barycentric numerators
+    /// are `edges[1] - bias[0]` and `edges[2] - bias[1]`.
+    pub bias: [i64; 2],
+    /// Columns of the box, `1..=NARROW_COLUMNS`.
+    pub columns: usize,
+    /// Rows of the box.
+    pub rows: usize,
+    /// Buffer index of the box's first pixel.
+    pub first: usize,
+    /// Buffer elements from one row to the next.
+    pub stride: usize,
+    /// Depth plane `[a0, g1, g2]`.
+    pub depth_plane: [f64; 3],
+    /// Colour.
+    pub color: SpanColor,
+    /// Depth comparison.
+    pub depth_test: DepthTest,
+    /// Id to write.
+    pub id: i32,
+    /// Depth buffer (the rows the box lies in, or more).
+    pub depth: &'a mut [f32],
+    /// Colour buffer, indexed as `depth`.
+    pub color_out: &'a mut [[u8; 4]],
+    /// Id buffer, indexed as `depth`.
+    pub ids: Option<&'a mut [i32]>,
+    /// Overdraw buffer, indexed as `depth`.
+    pub overdraw: Option<&'a mut [u32]>,
+}
+
+impl NarrowJob<'_> {
+    /// One past the last buffer element a kernel reads in four-pixel groups.
+    fn group_end(&self) -> usize {
+        self.first + (self.rows - 1) * self.stride + 4 * self.columns.div_ceil(4)
+    }
+}
+
+/// Shades a small triangle at `level`; returns the number of covered pixels. A box whose last
+/// four-pixel group would reach past the buffers (the target's last row, right edge) takes
+/// the scalar kernel.
+///
+/// # Panics
+/// If the box is empty or wider than [`NARROW_COLUMNS`], or the buffers do not hold it.
+pub fn shade_narrow(level: SimdLevel, job: NarrowJob<'_>) -> u64 {
+    match level {
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx2 if SimdLevel::Avx2.is_available() && job.group_end() <= job.depth.len() => {
+            // SAFETY: AVX2 support was just checked at run time.
+            unsafe { x86::shade_narrow_avx2(job) }
+        }
+        _ => shade_narrow_scalar(job),
+    }
+}
+
+/// [`shade_narrow`] pixel by pixel: the reference loop's coverage test and arithmetic.
+///
+/// # Panics
+/// As [`shade_narrow`].
+pub fn shade_narrow_scalar(mut job: NarrowJob<'_>) -> u64 {
+    assert!((1..=NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not a narrow box");
+    let [d0, d1, d2] = job.depth_plane;
+    let mut covered = 0;
+    let mut row = job.edges;
+    for r in 0..job.rows {
+        let mut e = row;
+        for c in 0..job.columns {
+            if (e[0] | e[1] | e[2]) >= 0 {
+                covered += 1;
+                let i = job.first + r * job.stride + c;
+                if let Some(o) = job.overdraw.as_deref_mut() {
+                    o[i] += 1;
+                }
+                let (f1, f2) = ((e[1] - job.bias[0]) as f64, (e[2] - job.bias[1]) as f64);
+                let z = ((d0 + f1 * d1 + f2 * d2) as f32).clamp(0.0, 1.0);
+                if job.depth_test.passes(z, job.depth[i]) {
+                    job.depth[i] = z;
+                    job.color_out[i] = job.color.at(f1, f2);
+                    if let Some(ids) = job.ids.as_deref_mut() {
+                        ids[i] = job.id;
+                    }
+                }
+            }
+            e = std::array::from_fn(|k| e[k] + job.step_x[k]);
+        }
+        row = std::array::from_fn(|k| row[k] + job.step_y[k]);
+    }
+    covered
+}
+
 /// The scalar kernel: the reference loop's arithmetic, specialised to plane colours.
 pub fn shade_span_scalar(mut job: SpanJob<'_>) {
     let [d0, d1, d2] = job.depth_plane;
@@ -231,10 +347,7 @@ pub fn shade_span_scalar(mut job: SpanJob<'_>) {
             continue;
         }
         job.depth[k] = z;
-        job.color_out[k] = match job.color {
-            SpanColor::Flat(c) => c,
-            SpanColor::Smooth(p) => p.map(|[a0, g1, g2]| quantize_channel(a0 + f1 * g1 + f2 * g2)),
-        };
+        job.color_out[k] = job.color.at(f1, f2);
         if let Some(ids) = job.ids.as_deref_mut() {
             ids[k] = job.id;
         }
@@ -304,7 +417,7 @@ pub fn corner_tests_scalar(
 mod x86 {
     use std::arch::x86_64::*;
 
-    use super::{CornerTests, SpanColor, SpanJob};
+    use super::{CornerTests, NarrowJob, SpanColor, SpanJob};
     use crate::setup::{CullMode, PixelRect};
     use crate::shade::DepthTest;
 
@@ -394,6 +507,133 @@ mod x86 {
         _mm256_cvtpd_epi32(v)
     }
 
+    /// Four lanes of colour at barycentric numerators `(f1, f2)`, as RGBA8 in `i32` lanes.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn rgba(color: &SpanColor, f1: __m256d, f2: __m256d) -> __m128i {
+        match *color {
+            SpanColor::Flat(c) => _mm_set1_epi32(i32::from_le_bytes(c)),
+            SpanColor::Smooth(p) => {
+                let r = quantize(plane(p[0], f1, f2));
+                let g = quantize(plane(p[1], f1, f2));
+                let b = quantize(plane(p[2], f1, f2));
+                let a = quantize(plane(p[3], f1, f2));
+                _mm_or_si128(
+                    _mm_or_si128(r, _mm_slli_epi32::<8>(g)),
+                    _mm_or_si128(_mm_slli_epi32::<16>(b), _mm_slli_epi32::<24>(a)),
+                )
+            }
+        }
+    }
+
+    /// Four lanes of `-1` (covered) or `0`, from the low four bits of an index.
+    static LANE_MASKS: [[i32; 4]; 16] = {
+        let mut t = [[0; 4]; 16];
+        let mut bits = 0;
+        while bits < 16 {
+            let mut lane = 0;
+            while lane < 4 {
+                t[bits][lane] = if bits & (1 << lane) != 0 { -1 } else { 0 };
+                lane += 1;
+            }
+            bits += 1;
+        }
+        t
+    };
+
+    /// [`super::shade_narrow`] in AVX2: each row of the box as one or two groups of four
+    /// pixels. The edge values are stepped in `f64` lanes (integers below 2^49 plus steps below
+    /// 2^35: exact), so coverage is the sign bit of `e0 | e1 | e2` as in the scalar test, and
+    /// the barycentric numerators are the edge values minus the fill-rule biases, exactly.
+    /// Groups are read and written whole (read-blend-write); lanes past the box's columns are
+    /// uncovered, so their pixels (of the same band: this thread's) are written back as read.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn shade_narrow_avx2(mut job: NarrowJob<'_>) -> u64 {
+        let n = job.depth.len();
+        assert!((1..=super::NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not narrow");
+        assert!(job.group_end() <= n, "the box's groups must lie in the buffers");
+        assert!(job.color_out.len() == n, "buffers must have the same length");
+        assert!(job.ids.as_ref().is_none_or(|s| s.len() == n), "buffers differ");
+        assert!(job.overdraw.as_ref().is_none_or(|s| s.len() == n), "buffers differ");
+        let groups = job.columns.div_ceil(4);
+        let lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
+        // Edge k's offsets from the row's first pixel, for the lanes of groups 0 and 1.
+        let offsets = |k: usize, g: usize| {
+            let step = _mm256_set1_pd(job.step_x[k] as f64);
+            _mm256_mul_pd(_mm256_add_pd(lanes, _mm256_set1_pd(4.0 * g as f64)), step)
+        };
+        let offsets: [[__m256d; 2]; 3] = std::array::from_fn(|k| [offsets(k, 0), offsets(k, 1)]);
+        // The box's columns among each group's lanes.
+        let column_bits =
+            [(1u32 << job.columns.min(4)) - 1, (1u32 << (job.columns.max(4) - 4)) - 1];
+        let bias = job.bias.map(|b| _mm256_set1_pd(b as f64));
+        let mut row = job.edges.map(|e| e as f64);
+        let step_y = job.step_y.map(|s| s as f64);
+        let mut covered = 0u64;
+        for r in 0..job.rows {
+            for g in 0..groups {
+                let e: [__m256d; 3] =
+                    std::array::from_fn(|k| _mm256_add_pd(_mm256_set1_pd(row[k]), offsets[k][g]));
+                let out = _mm256_movemask_pd(_mm256_or_pd(_mm256_or_pd(e[0], e[1]), e[2]));
+                let bits = !(out as u32) & column_bits[g];
+                if bits == 0 {
+                    continue;
+                }
+                covered += u64::from(bits.count_ones());
+                let at = job.first + r * job.stride + 4 * g;
+                // SAFETY (every pointer access in this block): the group's four elements at
+                // `at` lie below `group_end() <= n` (asserted), and every buffer holds `n`
+                // elements; the mask table index is below 16; unaligned loads and stores have
+                // no alignment requirement; `[u8; 4]` is one i32 lane.
+                unsafe {
+                    let cover =
+                        _mm_loadu_si128(LANE_MASKS[bits as usize].as_ptr() as *const __m128i);
+                    if let Some(o) = job.overdraw.as_deref_mut() {
+                        let p = o.as_mut_ptr().add(at) as *mut __m128i;
+                        // Covered lanes are -1: subtracting them counts one fragment.
+                        _mm_storeu_si128(p, _mm_sub_epi32(_mm_loadu_si128(p), cover));
+                    }
+                    let f1 = _mm256_sub_pd(e[1], bias[0]);
+                    let f2 = _mm256_sub_pd(e[2], bias[1]);
+                    let z = _mm256_cvtpd_ps(plane(job.depth_plane, f1, f2));
+                    let z = _mm_min_ps(_mm_set1_ps(1.0), _mm_max_ps(_mm_setzero_ps(), z));
+                    let dp = job.depth.as_mut_ptr().add(at);
+                    let stored = _mm_loadu_ps(dp);
+                    let cover_ps = _mm_castsi128_ps(cover);
+                    let pass = match job.depth_test {
+                        DepthTest::Less => {
+                            _mm_and_ps(_mm_cmp_ps::<_CMP_LT_OQ>(z, stored), cover_ps)
+                        }
+                        DepthTest::LessEqual => {
+                            _mm_and_ps(_mm_cmp_ps::<_CMP_LE_OQ>(z, stored), cover_ps)
+                        }
+                        DepthTest::Always => cover_ps,
+                    };
+                    if _mm_movemask_ps(pass) == 0 {
+                        continue;
+                    }
+                    _mm_storeu_ps(dp, _mm_blendv_ps(stored, z, pass));
+                    let pass = _mm_castps_si128(pass);
+                    let cp = job.color_out.as_mut_ptr().add(at) as *mut __m128i;
+                    let rgba = rgba(&job.color, f1, f2);
+                    _mm_storeu_si128(cp, _mm_blendv_epi8(_mm_loadu_si128(cp), rgba, pass));
+                    if let Some(ids) = job.ids.as_deref_mut() {
+                        let ip = ids.as_mut_ptr().add(at) as *mut __m128i;
+                        let id = _mm_set1_epi32(job.id);
+                        _mm_storeu_si128(ip, _mm_blendv_epi8(_mm_loadu_si128(ip), id, pass));
+                    }
+                }
+            }
+            for k in 0..3 {
+                row[k] += step_y[k];
+            }
+        }
+        covered
+    }
+
     /// The AVX2 kernel: four pixels per step; the last `n % 4` pixels go through the scalar
     /// kernel (same arithmetic). Writes are read-blend-write of whole 4-pixel groups inside
     /// the span, avoiding masked stores (microcoded and slow on AMD cores).
@@ -441,19 +681,7 @@ mod x86 {
                 if _mm_movemask_ps(pass) != 0 {
                     _mm_storeu_ps(dp, _mm_blendv_ps(stored, z, pass));
                     let pass = _mm_castps_si128(pass);
-                    let rgba = match job.color {
-                        SpanColor::Flat(c) => _mm_set1_epi32(i32::from_le_bytes(c)),
-                        SpanColor::Smooth(p) => {
-                            let r = quantize(plane(p[0], f1, f2));
-                            let g = quantize(plane(p[1], f1, f2));
-                            let b = quantize(plane(p[2], f1, f2));
-                            let a = quantize(plane(p[3], f1, f2));
-                            _mm_or_si128(
-                                _mm_or_si128(r, _mm_slli_epi32::<8>(g)),
-                                _mm_or_si128(_mm_slli_epi32::<16>(b), _mm_slli_epi32::<24>(a)),
-                            )
-                        }
-                    };
+                    let rgba = rgba(&job.color, f1, f2);
                     let cp = job.color_out.as_mut_ptr().add(k) as *mut __m128i;
                     _mm_storeu_si128(cp, _mm_blendv_epi8(_mm_loadu_si128(cp), rgba, pass));
                     if let Some(ids) = job.ids.as_deref_mut() {
@@ -575,6 +803,92 @@ mod tests {
                     expect,
                     "{level:?} {xy:?}"
                 );
+            }
+        }
+    }
+
+    /// The narrow kernels against the scalar one on random boxes (1 to 8 columns, 1 to 6
+    /// rows) of random edge functions (so any coverage pattern, not only triangles'), biases
+    /// 0 and -1, every depth test, flat and smooth colours, with and without id and overdraw
+    /// buffers, boxes whose last group ends exactly at the buffers' end or would reach past it
+    /// (where the scalar kernel takes over).
+    #[test]
+    fn narrow_kernels_match_scalar_bit_for_bit() {
+        let mut rng = SmallRng::seed_from_u64(8);
+        for round in 0..20_000 {
+            let columns = rng.random_range(1..=NARROW_COLUMNS);
+            let rows = rng.random_range(1..=6usize);
+            let stride = rng.random_range(columns..columns + 12);
+            let len = rows * stride + rng.random_range(0..6);
+            // Up to the last position where the box fits; its groups may not.
+            let first = rng.random_range(0..=len - (rows - 1) * stride - columns);
+            let edge = |rng: &mut SmallRng| rng.random_range(-(1i64 << 40)..(1 << 40));
+            let step = |rng: &mut SmallRng| rng.random_range(-(1i64 << 32)..(1 << 32));
+            // Small edge values near zero so boxes are partly covered.
+            let near = |rng: &mut SmallRng| rng.random_range(-3000i64..3000);
+            let (edges, step_x, step_y) = if round % 2 == 0 {
+                let s = |rng: &mut SmallRng| rng.random_range(-700i64..700);
+                (
+                    [near(&mut rng), near(&mut rng), near(&mut rng)],
+                    [0; 3].map(|_| s(&mut rng)),
+                    [0; 3].map(|_| s(&mut rng)),
+                )
+            } else {
+                (
+                    [0; 3].map(|_| edge(&mut rng)),
+                    [0; 3].map(|_| step(&mut rng)),
+                    [0; 3].map(|_| step(&mut rng)),
+                )
+            };
+            let bias = [-(rng.random::<bool>() as i64), -(rng.random::<bool>() as i64)];
+            let plane = |rng: &mut SmallRng, scale: f64| {
+                [
+                    rng.random_range(-0.2..1.2) * scale,
+                    rng.random_range(-1e-6..1e-6) * scale,
+                    rng.random_range(-1e-6..1e-6) * scale,
+                ]
+            };
+            let depth_plane = plane(&mut rng, 1.0);
+            let color = if rng.random() {
+                SpanColor::Flat([rng.random(), rng.random(), rng.random(), rng.random()])
+            } else {
+                SpanColor::Smooth(std::array::from_fn(|_| plane(&mut rng, 255.0)))
+            };
+            let depth_test = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always][round % 3];
+            let extras = round % 4 < 2;
+            let depth0: Vec<f32> = (0..len).map(|_| rng.random_range(0.0..1.0)).collect();
+            let color0: Vec<[u8; 4]> = (0..len).map(|_| [rng.random(); 4]).collect();
+            let ids0: Vec<i32> = (0..len).map(|_| rng.random_range(-1..5)).collect();
+            let over0: Vec<u32> = (0..len).map(|_| rng.random_range(0..3)).collect();
+            let run = |level: SimdLevel| {
+                let (mut d, mut c, mut i, mut o) =
+                    (depth0.clone(), color0.clone(), ids0.clone(), over0.clone());
+                let covered = shade_narrow(
+                    level,
+                    NarrowJob {
+                        edges,
+                        step_x,
+                        step_y,
+                        bias,
+                        columns,
+                        rows,
+                        first,
+                        stride,
+                        depth_plane,
+                        color,
+                        depth_test,
+                        id: 9,
+                        depth: &mut d,
+                        color_out: &mut c,
+                        ids: extras.then_some(&mut i[..]),
+                        overdraw: extras.then_some(&mut o[..]),
+                    },
+                );
+                (covered, d.iter().map(|z| z.to_bits()).collect::<Vec<_>>(), c, i, o)
+            };
+            let reference = run(SimdLevel::Scalar);
+            for level in SimdLevel::available() {
+                assert_eq!(run(level), reference, "{level:?}, round {round}");
             }
         }
     }

@@ -279,6 +279,13 @@ impl TargetBand<'_> {
         self.samples
     }
 
+    /// Elements from one row to the next in per-pixel buffers (the target's width).
+    #[inline]
+    #[must_use]
+    pub fn stride(&self) -> usize {
+        self.width
+    }
+
     /// Index of pixel `(x, y)` (image coordinates, `y` within the band) in per-pixel buffers.
     #[inline]
     #[must_use]
