@@ -31,6 +31,8 @@
 //! triangle keeps its index as its id. Fragment shaders return linear RGBA; the pipeline
 //! encodes to sRGB on write.
 
+use std::borrow::Borrow;
+
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
@@ -259,19 +261,27 @@ impl Pipeline {
                     // A window of at most VERTEX_CACHE vertices: a batch of 512k triangles
                     // of a mesh stored with locality spans fewer.
                     let windowed = !whole && (hi - lo) as usize <= VERTEX_CACHE;
+                    // Only positions: most triangles of a large mesh stop at the corner
+                    // tests, and the few that go on shade their three vertices again.
                     if windowed {
                         window.clear();
                         window.par_extend(
-                            vertices[lo as usize..=hi as usize].par_iter().map(shade_vertex),
+                            vertices[lo as usize..=hi as usize]
+                                .par_iter()
+                                .map(|v| front.corner(vertex_shader.shade(v).0)),
                         );
                     }
-                    // Vertices by reference: a triangle reads its corners in place.
                     let counts = prepared.prepare_ranges(batch.len(), |range, sink| {
                         let first = b * BATCH;
                         if whole {
-                            front.prepare_range(batch, range, first, (&shaded, 0), level, sink);
+                            // Vertices by reference: a triangle reads its corners in place.
+                            let corner = |i: u32| shaded[i as usize].corner();
+                            let vertex = |i: u32| &shaded[i as usize];
+                            front.prepare_range(batch, range, first, (corner, vertex), level, sink);
                         } else if windowed {
-                            front.prepare_range(batch, range, first, (&window, lo), level, sink);
+                            let corner = |i: u32| window[(i - lo) as usize];
+                            let vertex = |i: u32| shade_vertex(&vertices[i as usize]);
+                            front.prepare_range(batch, range, first, (corner, vertex), level, sink);
                         } else {
                             for k in range {
                                 let owned = batch[k].map(|i| shade_vertex(&vertices[i as usize]));
@@ -336,6 +346,22 @@ struct ShadedVertex<V> {
     snapped: bool,
 }
 
+impl<V> ShadedVertex<V> {
+    /// The vertex as the corner tests see it.
+    fn corner(&self) -> Corner {
+        if self.outcode == 0 && self.snapped { self.xy } else { OUTSIDE }
+    }
+}
+
+/// A vertex as the corner tests see it: its snapped window position, or [`OUTSIDE`] when it
+/// is outside the clip volume (or could not be snapped). Eight bytes where a shaded vertex
+/// takes forty or more: a large mesh's vertices are shaded batch by batch into a window of
+/// corners, and the few triangles that pass the tests shade their vertices again.
+type Corner = [i32; 2];
+
+/// The corner of a vertex outside the clip volume (snapped positions are within `+-2^23`).
+const OUTSIDE: Corner = [i32::MIN; 2];
+
 impl FrontEnd {
     /// Outcode, viewport and snap of one shaded vertex.
     fn vertex<V: Varyings>(&self, clip: ClipVertex<V>) -> ShadedVertex<V> {
@@ -352,26 +378,32 @@ impl FrontEnd {
         v
     }
 
+    /// The corner of a vertex at clip-space `position` (see [`Corner`]): what
+    /// [`FrontEnd::vertex`] finds, without the varyings.
+    fn corner(&self, position: Vec4) -> Corner {
+        self.vertex(ClipVertex { position, varyings: () }).corner()
+    }
+
     /// [`FrontEnd::prepare`] for triangles `range` of `batch` (whose first has id
-    /// `first_id`), reading their corners from `vertices`, where vertex `i` is at
-    /// `i - base`. Triangles inside the clip volume take the corner tests eight at a time
+    /// `first_id`); `corner(i)` and `vertex(i)` give vertex `i` as the corner tests and as
+    /// setup need it. Triangles inside the clip volume take the corner tests eight at a time
     /// ([`simd::corner_tests`]): in a dense mesh nearly all stop there, counted; those that
     /// pass go straight to setup (as `setup_inside` would after the same tests), and those
     /// needing clipping through `prepare`.
-    fn prepare_range<V: Varyings>(
+    fn prepare_range<V: Varyings, R: Borrow<ShadedVertex<V>>>(
         &self,
         batch: &[[u32; 3]],
         range: std::ops::Range<usize>,
         first_id: usize,
-        (vertices, base): (&[ShadedVertex<V>], u32),
+        (corner, vertex): (impl Fn(u32) -> Corner, impl Fn(u32) -> R),
         level: SimdLevel,
         sink: &mut Sink<'_, TriangleData<V>>,
     ) {
-        let corners = |k: usize| batch[k].map(|i| &vertices[(i - base) as usize]);
+        let vertices = |k: usize| batch[k].map(&vertex);
         if self.multisampled {
             // Sample boxes differ from the centre boxes the corner tests use.
             for k in range {
-                self.prepare(corners(k), first_id + k, |p| sink.take(p));
+                self.prepare(each_ref(&vertices(k)), first_id + k, |p| sink.take(p));
             }
             return;
         }
@@ -380,9 +412,9 @@ impl FrontEnd {
             let mut xy = [[[0i32; 2]; 3]; 8];
             let mut lanes = 0u8;
             for (j, k) in group.clone().enumerate() {
-                let tri = corners(k);
-                if tri.iter().all(|v| v.outcode == 0 && v.snapped) {
-                    xy[j] = tri.map(|v| v.xy);
+                let tri = batch[k].map(&corner);
+                if !tri.contains(&OUTSIDE) {
+                    xy[j] = tri;
                     lanes |= 1 << j;
                 }
             }
@@ -396,9 +428,9 @@ impl FrontEnd {
                 let bit = 1 << j;
                 if lanes & bit != 0 && stopped & bit == 0 {
                     // Passed the corner tests: straight to setup.
-                    sink.take(self.setup_passed(corners(k), first_id + k));
+                    sink.take(self.setup_passed(each_ref(&vertices(k)), first_id + k));
                 } else if lanes & bit == 0 {
-                    self.prepare(corners(k), first_id + k, |p| sink.take(p));
+                    self.prepare(each_ref(&vertices(k)), first_id + k, |p| sink.take(p));
                 }
             }
         }
@@ -448,7 +480,9 @@ impl FrontEnd {
     }
 
     /// Setup and planes of a snapped triangle inside the clip volume that passed the corner
-    /// tests (zero area, culling, no sample in the box).
+    /// tests (zero area, culling, no sample in the box). Inlined into the loops that call it,
+    /// so that the record is built in the batch buffer rather than returned and copied.
+    #[inline]
     fn setup_passed<V: Varyings>(
         &self,
         tri: [&ShadedVertex<V>; 3],
@@ -503,6 +537,11 @@ fn index_range(batch: &[[u32; 3]]) -> (u32, u32) {
             (c.iter().copied().min().unwrap_or(u32::MAX), c.iter().copied().max().unwrap_or(0))
         })
         .reduce(|| (u32::MAX, 0), |a, b| (a.0.min(b.0), a.1.max(b.1)))
+}
+
+/// Three borrowed vertices as references.
+fn each_ref<V, R: Borrow<ShadedVertex<V>>>(v: &[R; 3]) -> [&ShadedVertex<V>; 3] {
+    [v[0].borrow(), v[1].borrow(), v[2].borrow()]
 }
 
 /// Perspective-correct barycentric weights from screen-space ones (`l1`, `l2`; `l0` is the
