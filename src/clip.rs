@@ -40,7 +40,7 @@ const PLANES: usize = 7;
 
 /// Smallest `w` allowed after clipping: keeps the perspective divide finite for vertices that
 /// sit on the camera plane (w = 0) in projections without a near plane.
-const MIN_W: f32 = 1e-12;
+pub(crate) const MIN_W: f32 = 1e-12;
 
 impl ClipVolume {
     /// The clip volume of a `width x height` target.
@@ -50,6 +50,11 @@ impl ClipVolume {
         let gx = 2.0 * GUARD_BAND_PIXELS / width as f32 - 1.0;
         let gy = 2.0 * GUARD_BAND_PIXELS / height as f32 - 1.0;
         Self { guard: [gx, gy] }
+    }
+
+    /// The guard band's `[gx, gy]`: inside is `|x| <= gx w`, `|y| <= gy w`.
+    pub(crate) fn guard(&self) -> [f32; 2] {
+        self.guard
     }
 
     /// Signed distance (unnormalised) of `p` from `plane`, inside `>= 0`. Written out per

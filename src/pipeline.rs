@@ -45,7 +45,7 @@ use crate::raster::Algorithm;
 use crate::render::{Backend, DrawStats};
 use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
 use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
-use crate::simd::{self, SimdLevel};
+use crate::simd::{self, Corner, OUTSIDE, SimdLevel};
 use crate::target::Target;
 use crate::varyings::Varyings;
 
@@ -264,12 +264,26 @@ impl Pipeline {
                     // Only positions: most triangles of a large mesh stop at the corner
                     // tests, and the few that go on shade their three vertices again.
                     if windowed {
-                        window.clear();
-                        window.par_extend(
-                            vertices[lo as usize..=hi as usize]
-                                .par_iter()
-                                .map(|v| front.corner(vertex_shader.shade(v).0)),
-                        );
+                        let span = &vertices[lo as usize..=hi as usize];
+                        // Every element is written below.
+                        window.resize(span.len(), OUTSIDE);
+                        window
+                            .par_chunks_mut(CORNER_BLOCK)
+                            .zip(span.par_chunks(CORNER_BLOCK))
+                            .for_each(|(out, input)| {
+                                let mut positions = [Vec4::ZERO; CORNER_BLOCK];
+                                for (p, v) in positions.iter_mut().zip(input) {
+                                    *p = vertex_shader.shade(v).0;
+                                }
+                                let positions = &positions[..input.len()];
+                                simd::window_corners(
+                                    level,
+                                    positions,
+                                    &front.volume,
+                                    &front.viewport,
+                                    out,
+                                );
+                            });
                     }
                     let counts = prepared.prepare_ranges(batch.len(), |range, sink| {
                         let first = b * BATCH;
@@ -305,6 +319,10 @@ impl Pipeline {
         Ok(stats)
     }
 }
+
+/// Vertices shaded at a time into a batch's window of corners: their positions (16 KB) stay
+/// in the L1 cache for [`simd::window_corners`].
+const CORNER_BLOCK: usize = 1024;
 
 /// Meshes with at most this many vertices have them all shaded before any triangle; larger
 /// ones are shaded batch by batch, bounding memory.
@@ -347,41 +365,23 @@ struct ShadedVertex<V> {
 }
 
 impl<V> ShadedVertex<V> {
-    /// The vertex as the corner tests see it.
+    /// The vertex as the corner tests see it ([`simd::window_corner`]).
     fn corner(&self) -> Corner {
         if self.outcode == 0 && self.snapped { self.xy } else { OUTSIDE }
     }
 }
-
-/// A vertex as the corner tests see it: its snapped window position, or [`OUTSIDE`] when it
-/// is outside the clip volume (or could not be snapped). Eight bytes where a shaded vertex
-/// takes forty or more: a large mesh's vertices are shaded batch by batch into a window of
-/// corners, and the few triangles that pass the tests shade their vertices again.
-type Corner = [i32; 2];
-
-/// The corner of a vertex outside the clip volume (snapped positions are within `+-2^23`).
-const OUTSIDE: Corner = [i32::MIN; 2];
 
 impl FrontEnd {
     /// Outcode, viewport and snap of one shaded vertex.
     fn vertex<V: Varyings>(&self, clip: ClipVertex<V>) -> ShadedVertex<V> {
         let outcode = self.volume.outcode(clip.position);
         let mut v = ShadedVertex { clip, outcode, xy: [0; 2], z: 0.0, inv_w: 0.0, snapped: false };
-        if outcode == 0 {
-            let w = self.viewport.map(clip.position);
-            if let (Some(x), Some(y), true) =
-                (fixed::snap(w.x), fixed::snap(w.y), w.z.is_finite() && w.inv_w.is_finite())
-            {
-                (v.xy, v.z, v.inv_w, v.snapped) = ([x, y], w.z, w.inv_w, true);
-            }
+        if outcode == 0
+            && let Some((xy, z, inv_w)) = self.viewport.map_snapped(clip.position)
+        {
+            (v.xy, v.z, v.inv_w, v.snapped) = (xy, z, inv_w, true);
         }
         v
-    }
-
-    /// The corner of a vertex at clip-space `position` (see [`Corner`]): what
-    /// [`FrontEnd::vertex`] finds, without the varyings.
-    fn corner(&self, position: Vec4) -> Corner {
-        self.vertex(ClipVertex { position, varyings: () }).corner()
     }
 
     /// [`FrontEnd::prepare`] for triangles `range` of `batch` (whose first has id
@@ -564,10 +564,35 @@ impl Viewport {
     /// The viewport covering the whole target.
     #[must_use]
     pub fn of(target: &Target) -> Self {
-        Self { half_width: target.width() as f32 / 2.0, half_height: target.height() as f32 / 2.0 }
+        Self::of_size(target.width(), target.height())
+    }
+
+    /// The viewport covering a whole `width x height` target.
+    #[must_use]
+    pub fn of_size(width: u32, height: u32) -> Self {
+        Self { half_width: width as f32 / 2.0, half_height: height as f32 / 2.0 }
+    }
+
+    /// `[half width, half height]` in pixels.
+    pub(crate) fn half_size(&self) -> [f32; 2] {
+        [self.half_width, self.half_height]
+    }
+
+    /// [`Viewport::map`] with the position snapped to the fixed-point grid: `(xy, z, 1/w)`, or
+    /// `None` when the position cannot be snapped ([`fixed::snap`]) or depth or `1/w` is not
+    /// finite.
+    #[inline]
+    #[must_use]
+    pub fn map_snapped(&self, p: Vec4) -> Option<([i32; 2], f32, f32)> {
+        let w = self.map(p);
+        match (fixed::snap(w.x), fixed::snap(w.y), w.z.is_finite() && w.inv_w.is_finite()) {
+            (Some(x), Some(y), true) => Some(([x, y], w.z, w.inv_w)),
+            _ => None,
+        }
     }
 
     /// Perspective divide and viewport transform.
+    #[inline]
     #[must_use]
     pub fn map(&self, p: Vec4) -> Vertex {
         let inv_w = 1.0 / p.w;

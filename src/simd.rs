@@ -16,7 +16,11 @@
 //! The level is detected once per draw call ([`SimdLevel::detect`]) and can be forced (tests,
 //! comparisons) with [`crate::RenderOptions::simd`] or `TRIRAST_SIMD`.
 
+use glam::Vec4;
+
 use crate::bin::extent_coverage_bounds;
+use crate::clip::ClipVolume;
+use crate::pipeline::Viewport;
 use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup};
 use crate::shade::{DepthTest, quantize_channel};
 
@@ -354,6 +358,71 @@ pub fn shade_span_scalar(mut job: SpanJob<'_>) {
     }
 }
 
+/// A vertex as the corner tests see it: its snapped window position, or [`OUTSIDE`] when it
+/// is outside the clip volume (or cannot be snapped). Eight bytes where a shaded vertex takes
+/// forty or more: a large mesh's vertices are shaded batch by batch into a window of corners,
+/// and the few triangles that pass the tests shade their vertices again.
+pub type Corner = [i32; 2];
+
+/// The corner of a vertex outside the clip volume (snapped positions are within `+-2^23`).
+pub const OUTSIDE: Corner = [i32::MIN; 2];
+
+/// The corner of a vertex at clip-space position `p`: outside if any clip plane has it
+/// outside ([`ClipVolume::outcode`]), else its snapped window position
+/// ([`Viewport::map_snapped`]), outside too when that fails.
+#[inline]
+#[must_use]
+pub fn window_corner(p: Vec4, volume: &ClipVolume, viewport: &Viewport) -> Corner {
+    if volume.outcode(p) != 0 {
+        return OUTSIDE;
+    }
+    viewport.map_snapped(p).map_or(OUTSIDE, |(xy, _, _)| xy)
+}
+
+/// [`window_corner`] of every position into `out` (as long as `positions`), at `level`:
+/// AVX2 takes eight vertices at a time. In a dense mesh this is most of the per-vertex work
+/// (five plane tests, a division, two snaps): a quarter of the frame, scalar.
+///
+/// # Panics
+/// If `out` is shorter than `positions`.
+pub fn window_corners(
+    level: SimdLevel,
+    positions: &[Vec4],
+    volume: &ClipVolume,
+    viewport: &Viewport,
+    out: &mut [Corner],
+) {
+    assert!(out.len() >= positions.len(), "one corner per position");
+    let mut done = 0;
+    #[cfg(target_arch = "x86_64")]
+    if level == SimdLevel::Avx2 && SimdLevel::Avx2.is_available() {
+        for (p, o) in positions.chunks_exact(8).zip(out.chunks_exact_mut(8)) {
+            let p: &[Vec4; 8] = p.try_into().expect("chunks of eight");
+            let o: &mut [Corner; 8] = o.try_into().expect("chunks of eight");
+            // SAFETY: AVX2 support was just checked at run time.
+            *o = unsafe { x86::window_corners_avx2(p, volume.guard(), viewport.half_size()) };
+            done += 8;
+        }
+    }
+    window_corners_scalar(&positions[done..], volume, viewport, &mut out[done..]);
+}
+
+/// [`window_corners`] one vertex at a time, through [`window_corner`].
+///
+/// # Panics
+/// If `out` is shorter than `positions`.
+pub fn window_corners_scalar(
+    positions: &[Vec4],
+    volume: &ClipVolume,
+    viewport: &Viewport,
+    out: &mut [Corner],
+) {
+    assert!(out.len() >= positions.len(), "one corner per position");
+    for (o, &p) in out.iter_mut().zip(positions) {
+        *o = window_corner(p, volume, viewport);
+    }
+}
+
 /// What the corner tests decide for eight triangles (bit `k`: triangle `k`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CornerTests {
@@ -417,7 +486,11 @@ pub fn corner_tests_scalar(
 mod x86 {
     use std::arch::x86_64::*;
 
-    use super::{CornerTests, NarrowJob, SpanColor, SpanJob};
+    use glam::Vec4;
+
+    use super::{Corner, CornerTests, NarrowJob, SpanColor, SpanJob};
+    use crate::clip::MIN_W;
+    use crate::fixed;
     use crate::setup::{CullMode, PixelRect};
     use crate::shade::DepthTest;
 
@@ -486,6 +559,86 @@ mod x86 {
             CullMode::CounterClockwise => negative,
         } & lanes;
         CornerTests { degenerate, culled, empty: empty & lanes & !degenerate & !culled }
+    }
+
+    /// [`super::window_corner`] of eight positions: the same `f32` operations lane by lane
+    /// (distances to the clip planes, `1 / w`, the viewport, no fused multiply-adds), and the
+    /// snap as a round-half-even of `x * 256` in `f32`, which is exact: `x * 256` is (a power
+    /// of two scale) and, within the range, so is its rounding to an integer below 2^23.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn window_corners_avx2(
+        p: &[Vec4; 8],
+        guard: [f32; 2],
+        half: [f32; 2],
+    ) -> [Corner; 8] {
+        let lane = |c: usize| {
+            _mm256_setr_ps(p[0][c], p[1][c], p[2][c], p[3][c], p[4][c], p[5][c], p[6][c], p[7][c])
+        };
+        let (x, y, z, w) = (lane(0), lane(1), lane(2), lane(3));
+        let zero = _mm256_setzero_ps();
+        let lt = |a, b| _mm256_cmp_ps::<_CMP_LT_OQ>(a, b);
+        let or = |a, b| _mm256_or_ps(a, b);
+        let and = |a, b| _mm256_and_ps(a, b);
+        // Finite: |v| < inf (false for NaN).
+        let inf = _mm256_set1_ps(f32::INFINITY);
+        let abs = |v| _mm256_andnot_ps(_mm256_set1_ps(-0.0), v);
+        let finite = |v| lt(abs(v), inf);
+        let all_finite = and(and(finite(x), finite(y)), and(finite(z), finite(w)));
+        // Outside any plane: the distances of `ClipVolume::distance`, each `< 0`.
+        let (gx, gy) = (_mm256_mul_ps(_mm256_set1_ps(guard[0]), w), {
+            _mm256_mul_ps(_mm256_set1_ps(guard[1]), w)
+        });
+        let outside = or(
+            or(
+                or(lt(z, zero), lt(_mm256_sub_ps(w, z), zero)),
+                lt(_mm256_sub_ps(w, _mm256_set1_ps(MIN_W)), zero),
+            ),
+            or(
+                or(lt(_mm256_add_ps(x, gx), zero), lt(_mm256_sub_ps(gx, x), zero)),
+                or(lt(_mm256_add_ps(y, gy), zero), lt(_mm256_sub_ps(gy, y), zero)),
+            ),
+        );
+        // `Viewport::map`.
+        let one = _mm256_set1_ps(1.0);
+        let inv_w = _mm256_div_ps(one, w);
+        let wx =
+            _mm256_mul_ps(_mm256_add_ps(_mm256_mul_ps(x, inv_w), one), _mm256_set1_ps(half[0]));
+        let wy =
+            _mm256_mul_ps(_mm256_sub_ps(one, _mm256_mul_ps(y, inv_w)), _mm256_set1_ps(half[1]));
+        let wz = _mm256_mul_ps(z, inv_w);
+        // `fixed::snap`: in [MIN_COORD, MAX_COORD), and the rounded value below 2^23.
+        let snap = |v: __m256| {
+            let in_range = and(
+                _mm256_cmp_ps::<_CMP_GE_OQ>(v, _mm256_set1_ps(fixed::MIN_COORD)),
+                lt(v, _mm256_set1_ps(fixed::MAX_COORD)),
+            );
+            let scaled = _mm256_mul_ps(v, _mm256_set1_ps(fixed::ONE as f32));
+            let rounded =
+                _mm256_round_ps::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(scaled);
+            let limit = _mm256_set1_ps(fixed::MAX_COORD * fixed::ONE as f32);
+            (and(in_range, lt(rounded, limit)), _mm256_cvtps_epi32(rounded))
+        };
+        let (x_ok, sx) = snap(wx);
+        let (y_ok, sy) = snap(wy);
+        let valid = and(
+            _mm256_andnot_ps(outside, all_finite),
+            and(and(x_ok, y_ok), and(finite(wz), finite(inv_w))),
+        );
+        let valid = _mm256_castps_si256(valid);
+        let min = _mm256_set1_epi32(i32::MIN);
+        let sx = _mm256_blendv_epi8(min, sx, valid);
+        let sy = _mm256_blendv_epi8(min, sy, valid);
+        let mut xs = [0i32; 8];
+        let mut ys = [0i32; 8];
+        // SAFETY: each array holds eight i32 (32 bytes); unaligned stores need no alignment.
+        unsafe {
+            _mm256_storeu_si256(xs.as_mut_ptr() as *mut __m256i, sx);
+            _mm256_storeu_si256(ys.as_mut_ptr() as *mut __m256i, sy);
+        }
+        std::array::from_fn(|k| [xs[k], ys[k]])
     }
 
     /// Four lanes of `(a0 + f1 * g1) + f2 * g2`.
@@ -803,6 +956,74 @@ mod tests {
                     expect,
                     "{level:?} {xy:?}"
                 );
+            }
+        }
+    }
+
+    /// The vector corners against [`window_corner`] for every lane of random and special
+    /// positions: inside, outside each plane, exactly on planes (`z = 0`, `z = w`, the guard
+    /// band, `w = MIN_W`), `w` of zero, negative or tiny, NaN and infinities in each component,
+    /// window coordinates whose snap is a tie (a 1 x 1 target: `x * 256` at half-integers), and
+    /// lengths that leave a scalar tail.
+    #[test]
+    fn window_corners_match_scalar() {
+        let mut rng = SmallRng::seed_from_u64(12);
+        for (width, height) in [(1920, 1080), (1, 1), (16384, 16384), (97, 61)] {
+            let volume = ClipVolume::for_target(width, height);
+            let viewport = Viewport::of_size(width, height);
+            let [gx, gy] = volume.guard();
+            for round in 0..400 {
+                let n = rng.random_range(0..70);
+                let specials = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.0, -0.0, 1e-30];
+                let positions: Vec<Vec4> = (0..n)
+                    .map(|_| {
+                        let w = match rng.random_range(0..10) {
+                            0 => specials[rng.random_range(0..specials.len())],
+                            1 => crate::clip::MIN_W,
+                            2 => -rng.random_range(0.0..2.0f32),
+                            3 => 1.0,
+                            _ => rng.random_range(0.01..3.0f32),
+                        };
+                        let mut p = Vec4::new(
+                            rng.random_range(-1.5..1.5f32) * w,
+                            rng.random_range(-1.5..1.5f32) * w,
+                            rng.random_range(-0.2..1.2f32) * w,
+                            w,
+                        );
+                        match rng.random_range(0..12) {
+                            0 => p[rng.random_range(0..4)] = specials[rng.random_range(0..3)],
+                            1 => p.z = 0.0,
+                            2 => p.z = p.w,
+                            3 => p.x = gx * p.w,
+                            4 => p.y = -gy * p.w,
+                            5 => p.x = rng.random_range(-40.0..40.0f32) * p.w,
+                            // Multiples of 2^-10 with w = 1: on a 1 x 1 target, window
+                            // x * 256 = m / 8 + 128, a tie whenever m = 4 mod 8.
+                            6 | 7 => {
+                                p = Vec4::new(
+                                    rng.random_range(-1024..1024) as f32 / 1024.0,
+                                    rng.random_range(-1024..1024) as f32 / 1024.0,
+                                    0.5,
+                                    1.0,
+                                );
+                            }
+                            _ => {}
+                        }
+                        p
+                    })
+                    .collect();
+                let run = |level: SimdLevel| {
+                    let mut out = vec![[0, 0]; n];
+                    window_corners(level, &positions, &volume, &viewport, &mut out);
+                    out
+                };
+                let reference = run(SimdLevel::Scalar);
+                for (k, &p) in positions.iter().enumerate() {
+                    assert_eq!(reference[k], window_corner(p, &volume, &viewport));
+                }
+                for level in SimdLevel::available() {
+                    assert_eq!(run(level), reference, "{level:?}, {width}x{height}, round {round}");
+                }
             }
         }
     }
