@@ -165,11 +165,12 @@ impl Pipeline {
         VS: VertexShader<I>,
         FS: FragmentShader<VS::Varyings>,
     {
-        // The largest index first, in parallel (a serial search was a twentieth of a dense
-        // mesh's frame); the first bad triangle only when there is one.
-        let largest = triangles.as_flattened().par_chunks(1 << 16).map(|c| c.iter().max()).max();
-        if let Some(Some(&largest)) = largest
-            && largest as usize >= vertices.len()
+        // Each batch's index range, in parallel: the largest index validates them all (a serial
+        // search was a twentieth of a dense mesh's frame), the ranges size the batches' vertex
+        // windows below; the first bad triangle is searched for only when there is one.
+        let index_ranges: Vec<(u32, u32)> = triangles.chunks(BATCH).map(index_range).collect();
+        let largest = index_ranges.iter().map(|r| r.1).max().unwrap_or(0);
+        if largest as usize >= vertices.len()
             && let Some((t, &bad)) = triangles
                 .iter()
                 .enumerate()
@@ -262,7 +263,7 @@ impl Pipeline {
                     // Vertices of a large mesh: the batch's index range shaded into a scratch
                     // window when it is compact (meshes are mostly stored with locality),
                     // otherwise each corner shaded where it is used.
-                    let (lo, hi) = if whole { (0, 0) } else { index_range(batch) };
+                    let (lo, hi) = index_ranges[b];
                     // A window of at most VERTEX_CACHE vertices: a batch of 512k triangles
                     // of a mesh stored with locality spans fewer.
                     let windowed = !whole && (hi - lo) as usize <= VERTEX_CACHE;
@@ -535,12 +536,11 @@ impl FrontEnd {
 /// The smallest and largest index of a batch of triangles, in parallel (a serial pass over
 /// the indices was a tenth of a dense mesh's frame on two threads).
 fn index_range(batch: &[[u32; 3]]) -> (u32, u32) {
+    let range = |(lo, hi): (u32, u32), &i: &u32| (lo.min(i), hi.max(i));
     batch
         .as_flattened()
         .par_chunks(1 << 15)
-        .map(|c| {
-            (c.iter().copied().min().unwrap_or(u32::MAX), c.iter().copied().max().unwrap_or(0))
-        })
+        .map(|c| c.iter().fold((u32::MAX, 0), range))
         .reduce(|| (u32::MAX, 0), |a, b| (a.0.min(b.0), a.1.max(b.1)))
 }
 
