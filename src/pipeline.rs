@@ -45,7 +45,7 @@ use crate::raster::Algorithm;
 use crate::render::{Backend, DrawStats};
 use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
 use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
-use crate::simd::{self, Corner, OUTSIDE, SimdLevel};
+use crate::simd::{self, Corner, CornerGroup, OUTSIDE, SimdLevel};
 use crate::target::Target;
 use crate::varyings::Varyings;
 
@@ -414,28 +414,27 @@ impl FrontEnd {
             return;
         }
         for start in range.clone().step_by(8) {
-            let group = start..(start + 8).min(range.end);
-            let mut xy = [[[0i32; 2]; 3]; 8];
-            let mut lanes = 0u8;
-            for (j, k) in group.clone().enumerate() {
-                let tri = batch[k].map(&corner);
-                if !tri.contains(&OUTSIDE) {
-                    xy[j] = tri;
-                    lanes |= 1 << j;
-                }
+            let len = (range.end - start).min(8);
+            let mut group = CornerGroup::default();
+            for j in 0..len {
+                group.set(j, batch[start + j].map(&corner));
             }
-            let t = simd::corner_tests(level, &xy, lanes, self.cull, &self.clip);
+            let t = simd::corner_tests(level, &group, self.cull, &self.clip);
             let count = |bits: u8| bits.count_ones() as usize;
             sink.skip_many(Skipped::Rejected(Rejection::Degenerate), count(t.degenerate));
             sink.skip_many(Skipped::Rejected(Rejection::Culled), count(t.culled));
             sink.skip_many(Skipped::Empty, count(t.empty));
-            let stopped = t.degenerate | t.culled | t.empty;
-            for (j, k) in group.enumerate() {
-                let bit = 1 << j;
-                if lanes & bit != 0 && stopped & bit == 0 {
+            // Those that passed the tests, and those with a corner outside (to be clipped).
+            let live = ((1u32 << len) - 1) as u8;
+            let mut rest = (!(t.degenerate | t.culled | t.empty)) & live;
+            while rest != 0 {
+                let j = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                let k = start + j;
+                if t.inside & (1 << j) != 0 {
                     // Passed the corner tests: straight to setup.
                     sink.take(self.setup_passed(each_ref(&vertices(k)), first_id + k));
-                } else if lanes & bit == 0 {
+                } else {
                     self.prepare(each_ref(&vertices(k)), first_id + k, |p| sink.take(p));
                 }
             }

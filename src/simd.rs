@@ -423,9 +423,46 @@ pub fn window_corners_scalar(
     }
 }
 
+/// The corners of eight triangles, structure of arrays: corner `v` of triangle `k` is
+/// `(x[v][k], y[v][k])`, a snapped position or [`OUTSIDE`]. Filled by the front end as it
+/// reads each triangle's corners, so the vector tests load whole rows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CornerGroup {
+    /// `x` of corner `v` of each triangle.
+    pub x: [[i32; 8]; 3],
+    /// `y` of corner `v` of each triangle.
+    pub y: [[i32; 8]; 3],
+}
+
+impl Default for CornerGroup {
+    /// Every corner outside: lanes past the end of a short group take no tests.
+    fn default() -> Self {
+        Self { x: [[OUTSIDE[0]; 8]; 3], y: [[OUTSIDE[1]; 8]; 3] }
+    }
+}
+
+impl CornerGroup {
+    /// Sets triangle `k`'s corners.
+    #[inline]
+    pub fn set(&mut self, k: usize, corners: [Corner; 3]) {
+        for (v, [x, y]) in corners.into_iter().enumerate() {
+            self.x[v][k] = x;
+            self.y[v][k] = y;
+        }
+    }
+
+    /// Triangle `k`'s corners.
+    #[must_use]
+    pub fn get(&self, k: usize) -> [Corner; 3] {
+        std::array::from_fn(|v| [self.x[v][k], self.y[v][k]])
+    }
+}
+
 /// What the corner tests decide for eight triangles (bit `k`: triangle `k`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CornerTests {
+    /// All three corners inside the clip volume: the tests below were made.
+    pub inside: u8,
     /// Zero area.
     pub degenerate: u8,
     /// Nonzero area, removed by the cull mode.
@@ -434,17 +471,16 @@ pub struct CornerTests {
     pub empty: u8,
 }
 
-/// The front end's first tests for eight triangles inside the clip volume, from their snapped
-/// corners alone (`xy[k][v]`: corner `v` of triangle `k`, fixed point): zero area and culling
+/// The front end's first tests for eight triangles whose corners are all inside the clip
+/// volume, from their snapped corners alone: zero area and culling
 /// ([`TriangleSetup::signed_area2`]), then no pixel centre in the box
-/// ([`crate::bin::extent_coverage_bounds`], one sample per pixel), in that precedence. Lanes
-/// not in `lanes` report nothing. In a dense mesh nearly every triangle stops here; AVX2
-/// decides eight at once. Corners must be snapped coordinates (magnitude at most 2^23).
+/// ([`crate::bin::extent_coverage_bounds`], one sample per pixel), in that precedence.
+/// Triangles with a corner [`OUTSIDE`] are not `inside` and report nothing else. In a dense
+/// mesh nearly every triangle stops here; AVX2 decides eight at once.
 #[must_use]
 pub fn corner_tests(
     level: SimdLevel,
-    xy: &[[[i32; 2]; 3]; 8],
-    lanes: u8,
+    group: &CornerGroup,
     cull: CullMode,
     clip: &PixelRect,
 ) -> CornerTests {
@@ -452,22 +488,22 @@ pub fn corner_tests(
         #[cfg(target_arch = "x86_64")]
         SimdLevel::Avx2 if SimdLevel::Avx2.is_available() => {
             // SAFETY: AVX2 support was just checked at run time.
-            unsafe { x86::corner_tests_avx2(xy, lanes, cull, clip) }
+            unsafe { x86::corner_tests_avx2(group, cull, clip) }
         }
-        _ => corner_tests_scalar(xy, lanes, cull, clip),
+        _ => corner_tests_scalar(group, cull, clip),
     }
 }
 
 /// [`corner_tests`] lane by lane, through the front end's own functions.
 #[must_use]
-pub fn corner_tests_scalar(
-    xy: &[[[i32; 2]; 3]; 8],
-    lanes: u8,
-    cull: CullMode,
-    clip: &PixelRect,
-) -> CornerTests {
+pub fn corner_tests_scalar(group: &CornerGroup, cull: CullMode, clip: &PixelRect) -> CornerTests {
     let mut t = CornerTests::default();
-    for (k, tri) in xy.iter().enumerate().filter(|(k, _)| lanes & (1 << k) != 0) {
+    for k in 0..8 {
+        let tri = group.get(k);
+        if tri.contains(&OUTSIDE) {
+            continue;
+        }
+        t.inside |= 1 << k;
         let corners = tri.map(|p| p.map(i64::from));
         match TriangleSetup::signed_area2(corners, cull) {
             Err(Rejection::Degenerate) => t.degenerate |= 1 << k,
@@ -488,7 +524,7 @@ mod x86 {
 
     use glam::Vec4;
 
-    use super::{Corner, CornerTests, NarrowJob, SpanColor, SpanJob};
+    use super::{Corner, CornerGroup, CornerTests, NarrowJob, SpanColor, SpanJob};
     use crate::clip::MIN_W;
     use crate::fixed;
     use crate::setup::{CullMode, PixelRect};
@@ -503,25 +539,19 @@ mod x86 {
     /// The CPU must support AVX2.
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn corner_tests_avx2(
-        xy: &[[[i32; 2]; 3]; 8],
-        lanes: u8,
+        group: &CornerGroup,
         cull: CullMode,
         clip: &PixelRect,
     ) -> CornerTests {
-        let col = |v: usize, a: usize| {
-            _mm256_setr_epi32(
-                xy[0][v][a],
-                xy[1][v][a],
-                xy[2][v][a],
-                xy[3][v][a],
-                xy[4][v][a],
-                xy[5][v][a],
-                xy[6][v][a],
-                xy[7][v][a],
-            )
-        };
-        let (x0, y0, x1, y1, x2, y2) =
-            (col(0, 0), col(0, 1), col(1, 0), col(1, 1), col(2, 0), col(2, 1));
+        // SAFETY: each row is eight i32 (32 bytes); unaligned loads need no alignment.
+        let row = |r: &[i32; 8]| unsafe { _mm256_loadu_si256(r.as_ptr() as *const __m256i) };
+        let (x0, x1, x2) = (row(&group.x[0]), row(&group.x[1]), row(&group.x[2]));
+        let (y0, y1, y2) = (row(&group.y[0]), row(&group.y[1]), row(&group.y[2]));
+        // Lanes with a corner equal to OUTSIDE take no tests.
+        let (ox, oy) = (_mm256_set1_epi32(super::OUTSIDE[0]), _mm256_set1_epi32(super::OUTSIDE[1]));
+        let out = |x, y| _mm256_and_si256(_mm256_cmpeq_epi32(x, ox), _mm256_cmpeq_epi32(y, oy));
+        let any_outside = _mm256_or_si256(out(x0, y0), _mm256_or_si256(out(x1, y1), out(x2, y2)));
+        let lanes = !(_mm256_movemask_ps(_mm256_castsi256_ps(any_outside)) as u8);
         // Signed area, twice: (x1 - x0)(y2 - y0) - (x2 - x0)(y1 - y0), as in `signed_area2`.
         let (d1x, d1y) = (_mm256_sub_epi32(x1, x0), _mm256_sub_epi32(y1, y0));
         let (d2x, d2y) = (_mm256_sub_epi32(x2, x0), _mm256_sub_epi32(y2, y0));
@@ -558,7 +588,12 @@ mod x86 {
             CullMode::Clockwise => positive,
             CullMode::CounterClockwise => negative,
         } & lanes;
-        CornerTests { degenerate, culled, empty: empty & lanes & !degenerate & !culled }
+        CornerTests {
+            inside: lanes,
+            degenerate,
+            culled,
+            empty: empty & lanes & !degenerate & !culled,
+        }
     }
 
     /// [`super::window_corner`] of eight positions: the same `f32` operations lane by lane
@@ -916,11 +951,12 @@ mod tests {
     fn corner_tests_match_the_front_end() {
         let mut rng = SmallRng::seed_from_u64(11);
         let limit = (1 << 23) - 1;
-        // Lanes found degenerate, culled, empty, and kept.
-        let mut seen = [0u32; 4];
+        // Lanes found degenerate, culled, empty, kept, and with a corner outside.
+        let mut seen = [0u32; 5];
         for round in 0..40_000 {
-            let mut xy = [[[0i32; 2]; 3]; 8];
-            for tri in &mut xy {
+            let mut group = CornerGroup::default();
+            for k in 0..8 {
+                let mut tri = [[0i32; 2]; 3];
                 let kind = rng.random_range(0..4);
                 let base = [rng.random_range(-3000..3000), rng.random_range(-3000..3000)];
                 for (v, p) in tri.iter_mut().enumerate() {
@@ -935,8 +971,12 @@ mod tests {
                         _ => base.map(|b| b + 37 * v as i32),
                     };
                 }
+                // Some corners outside the clip volume (and lanes of a short group).
+                if round % 5 == 0 && rng.random_range(0..3) == 0 {
+                    tri[rng.random_range(0..3)] = OUTSIDE;
+                }
+                group.set(k, tri);
             }
-            let lanes = if round % 5 == 0 { rng.random() } else { u8::MAX };
             let cull = [CullMode::None, CullMode::Clockwise, CullMode::CounterClockwise][round % 3];
             let (cx, cy) = (rng.random_range(-20..20), rng.random_range(-20..20));
             let clip = PixelRect {
@@ -945,19 +985,19 @@ mod tests {
                 x1: cx + rng.random_range(-1..40),
                 y1: cy + rng.random_range(-1..40),
             };
-            let expect = corner_tests_scalar(&xy, lanes, cull, &clip);
+            let expect = corner_tests_scalar(&group, cull, &clip);
+            let lanes = expect.inside;
             seen[0] += expect.degenerate.count_ones();
             seen[1] += expect.culled.count_ones();
             seen[2] += expect.empty.count_ones();
             seen[3] += (lanes & !(expect.degenerate | expect.culled | expect.empty)).count_ones();
             for level in SimdLevel::available() {
-                assert_eq!(
-                    corner_tests(level, &xy, lanes, cull, &clip),
-                    expect,
-                    "{level:?} {xy:?}"
-                );
+                assert_eq!(corner_tests(level, &group, cull, &clip), expect, "{level:?} {group:?}");
             }
+            seen[4] += (!lanes).count_ones();
         }
+        // Every outcome is exercised, many times.
+        assert!(seen.iter().all(|&n| n > 1000), "{seen:?}");
     }
 
     /// The vector corners against [`window_corner`] for every lane of random and special
