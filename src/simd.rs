@@ -543,8 +543,9 @@ mod x86 {
         cull: CullMode,
         clip: &PixelRect,
     ) -> CornerTests {
-        // SAFETY: each row is eight i32 (32 bytes); unaligned loads need no alignment.
-        let row = |r: &[i32; 8]| unsafe { _mm256_loadu_si256(r.as_ptr() as *const __m256i) };
+        // Element by element: the rows were just written by 4-byte stores, which a 32-byte
+        // load cannot take from the store buffer (it would wait for them to reach the cache).
+        let row = |r: &[i32; 8]| _mm256_setr_epi32(r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]);
         let (x0, x1, x2) = (row(&group.x[0]), row(&group.x[1]), row(&group.x[2]));
         let (y0, y1, y2) = (row(&group.y[0]), row(&group.y[1]), row(&group.y[2]));
         // Lanes with a corner equal to OUTSIDE take no tests.
