@@ -823,15 +823,19 @@ mod x86 {
         covered
     }
 
-    /// The AVX2 kernel: four pixels per step; the last `n % 4` pixels go through the scalar
-    /// kernel (same arithmetic). Writes are read-blend-write of whole 4-pixel groups inside
-    /// the span, avoiding masked stores (microcoded and slow on AMD cores).
+    /// The AVX2 kernel: four pixels per step; the last `n % 4` pixels as the span's last four
+    /// with those already shaded masked off (spans shorter than four go to the scalar
+    /// kernel). Writes are read-blend-write of whole 4-pixel groups inside the span, avoiding
+    /// masked stores (microcoded and slow on AMD cores).
     ///
     /// # Safety
     /// The CPU must support AVX2.
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn shade_span_avx2(mut job: SpanJob<'_>) {
         let n = job.depth.len();
+        if n < 4 {
+            return super::shade_span_scalar(job);
+        }
         assert!(job.color_out.len() == n, "span slices must have the same length");
         assert!(job.ids.as_ref().is_none_or(|s| s.len() == n), "span slices differ");
         assert!(job.overdraw.as_ref().is_none_or(|s| s.len() == n), "span slices differ");
@@ -847,16 +851,17 @@ mod x86 {
         let (step1, step2) =
             (_mm256_set1_pd(4.0 * job.step1 as f64), _mm256_set1_pd(4.0 * job.step2 as f64));
         let full = n - n % 4;
-        let mut k = 0;
-        while k < full {
-            // SAFETY (every pointer access in this block): `k + 4 <= full <= n` and all the
-            // span's slices hold `n` elements (asserted above), so the 4 elements at `k` are in
-            // bounds; unaligned loads/stores have no alignment requirement, and `[u8; 4]` is
-            // four bytes, read and written as one i32 lane.
+        // One group of four pixels at `k` whose lanes in `cover` are to be shaded.
+        let mut group = |k: usize, f1: __m256d, f2: __m256d, cover: __m128i| {
+            // SAFETY (every pointer access in this block): callers pass `k + 4 <= n`, and all
+            // the span's slices hold `n` elements (asserted above), so the 4 elements at `k`
+            // are in bounds; unaligned loads/stores have no alignment requirement, and
+            // `[u8; 4]` is four bytes, read and written as one i32 lane.
             unsafe {
                 if let Some(o) = job.overdraw.as_deref_mut() {
                     let p = o.as_mut_ptr().add(k) as *mut __m128i;
-                    _mm_storeu_si128(p, _mm_add_epi32(_mm_loadu_si128(p), _mm_set1_epi32(1)));
+                    // Covered lanes are -1: subtracting them counts one fragment.
+                    _mm_storeu_si128(p, _mm_sub_epi32(_mm_loadu_si128(p), cover));
                 }
                 let z = _mm256_cvtpd_ps(plane(job.depth_plane, f1, f2));
                 let z = _mm_min_ps(_mm_set1_ps(1.0), _mm_max_ps(_mm_setzero_ps(), z));
@@ -867,6 +872,7 @@ mod x86 {
                     DepthTest::LessEqual => _mm_cmp_ps::<_CMP_LE_OQ>(z, stored),
                     DepthTest::Always => _mm_castsi128_ps(_mm_set1_epi32(-1)),
                 };
+                let pass = _mm_and_ps(pass, _mm_castsi128_ps(cover));
                 if _mm_movemask_ps(pass) != 0 {
                     _mm_storeu_ps(dp, _mm_blendv_ps(stored, z, pass));
                     let pass = _mm_castps_si128(pass);
@@ -880,21 +886,34 @@ mod x86 {
                     }
                 }
             }
+        };
+        let all = _mm_set1_epi32(-1);
+        let mut k = 0;
+        while k < full {
+            group(k, f1, f2, all);
             f1 = _mm256_add_pd(f1, step1);
             f2 = _mm256_add_pd(f2, step2);
             k += 4;
         }
         if full < n {
-            let at = full as i64;
-            super::shade_span_scalar(SpanJob {
-                e1: job.e1 + at * job.step1,
-                e2: job.e2 + at * job.step2,
-                depth: &mut job.depth[full..],
-                color_out: &mut job.color_out[full..],
-                ids: job.ids.map(|s| &mut s[full..]),
-                overdraw: job.overdraw.map(|s| &mut s[full..]),
-                ..job
-            });
+            // The last four pixels, those already shaded masked off: the numerators at
+            // `n - 4 + lane`, exact integers as everywhere (`(n - 4 + lane) * step` is below
+            // 2^47, the sum below 2^49).
+            let at = _mm256_add_pd(lanes, _mm256_set1_pd((n - 4) as f64));
+            let f1 = _mm256_add_pd(
+                _mm256_set1_pd(job.e1 as f64),
+                _mm256_mul_pd(at, _mm256_set1_pd(job.step1 as f64)),
+            );
+            let f2 = _mm256_add_pd(
+                _mm256_set1_pd(job.e2 as f64),
+                _mm256_mul_pd(at, _mm256_set1_pd(job.step2 as f64)),
+            );
+            let done = 4 - n % 4;
+            // SAFETY: the mask table index is below 16.
+            let cover = unsafe {
+                _mm_loadu_si128(LANE_MASKS[(0xF << done) & 0xF].as_ptr() as *const __m128i)
+            };
+            group(n - 4, f1, f2, cover);
         }
     }
 }
