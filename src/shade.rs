@@ -400,7 +400,7 @@ fn shade_single_sample(
     }
     let mut covered = 0u64;
     let step = [setup.edges[1].a, setup.edges[2].a].map(|a| a * i64::from(fixed::ONE));
-    raster::rasterize(algorithm, setup, clip, |span| {
+    let shade_span = |span: Span| {
         covered += span.len() as u64;
         let row = target.index(0, span.y);
         let (mut e1, mut e2) = setup
@@ -446,7 +446,15 @@ fn shade_single_sample(
                 normals[i] = nrm;
             }
         }
-    });
+    };
+    if algorithm == Algorithm::Scanline && raster::covers_rect(setup, clip) {
+        // A tile inside a large triangle: whole rows, no edge arithmetic.
+        (clip.y0..=clip.y1)
+            .map(|y| Span { y, x_start: clip.x0, x_end: clip.x1 + 1 })
+            .for_each(shade_span);
+    } else {
+        raster::rasterize(algorithm, setup, clip, shade_span);
+    }
     covered
 }
 

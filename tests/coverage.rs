@@ -120,6 +120,38 @@ fn rasterizers_agree_with_each_other_and_the_oracle() {
     }
 }
 
+/// The trivial accept of tiles (`raster::covers_rect`, from the four corner pixels alone) holds
+/// exactly when every pixel centre of the rectangle is covered, on random triangles and
+/// rectangles of every size from one pixel up, many inside the triangle, many crossing it.
+#[test]
+fn rectangles_are_accepted_iff_every_pixel_is_covered() {
+    let mut rng = SmallRng::seed_from_u64(0xB10C);
+    let size = 40i64;
+    let clip = PixelRect::of_target(size as u32, size as u32);
+    let (mut accepted, mut refused) = (0, 0);
+    for _ in 0..30_000 {
+        let v = random_triangle(&mut rng, size);
+        let Some(s) = setup(v) else { continue };
+        let spans = agreed_spans(&s, &clip);
+        let covered = |px: i32, py: i32| {
+            spans.iter().any(|sp| sp.y == py && (sp.x_start..sp.x_end).contains(&px))
+        };
+        for _ in 0..4 {
+            let (x0, y0) = (rng.random_range(0..size as i32), rng.random_range(0..size as i32));
+            let r = PixelRect {
+                x0,
+                y0,
+                x1: (x0 + rng.random_range(0..12)).min(size as i32 - 1),
+                y1: (y0 + rng.random_range(0..12)).min(size as i32 - 1),
+            };
+            let all = (r.y0..=r.y1).all(|py| (r.x0..=r.x1).all(|px| covered(px, py)));
+            assert_eq!(raster::covers_rect(&s, &r), all, "{v:?} on {r:?}");
+            if all { accepted += 1 } else { refused += 1 }
+        }
+    }
+    assert!(accepted > 1000 && refused > 1000, "{accepted} accepted, {refused} refused");
+}
+
 /// Scissor rectangles clip both rasterizers identically.
 #[test]
 fn scissor_clips_identically() {

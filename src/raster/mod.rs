@@ -81,6 +81,18 @@ pub fn rasterize_sample(
     }
 }
 
+/// Does the triangle cover the centre of every pixel of `rect`? True iff it covers the four
+/// corner pixels' centres: each edge's inside is a half-plane (its edge function is linear),
+/// so their intersection is convex and holds every point between covered corners. The
+/// trivial accept of hierarchical rasterizers: a tile inside a large triangle needs no edge
+/// arithmetic per row.
+#[must_use]
+pub fn covers_rect(tri: &TriangleSetup, rect: &PixelRect) -> bool {
+    [(rect.x0, rect.y0), (rect.x1, rect.y0), (rect.x0, rect.y1), (rect.x1, rect.y1)]
+        .iter()
+        .all(|&(x, y)| tri.covers(x, y))
+}
+
 /// Collects the spans of one triangle (convenient for tests and tools).
 #[must_use]
 pub fn spans(algorithm: Algorithm, tri: &TriangleSetup, clip: &PixelRect) -> Vec<Span> {
