@@ -257,7 +257,13 @@ impl Pipeline {
             }
             Backend::Tiled => {
                 let level = SimdLevel::detect();
-                let mut window = Vec::new();
+                // The corner tests read corners from a window of them: for a small mesh, all
+                // its vertices'; for a large one, each batch's index range.
+                let mut window: Vec<Corner> = if whole {
+                    shaded.par_iter().map(ShadedVertex::corner).collect()
+                } else {
+                    Vec::new()
+                };
                 let mut prepared: bin::PreparedBatch<_> = target.take_scratch();
                 for (b, batch) in triangles.chunks(BATCH).enumerate() {
                     // Vertices of a large mesh: the batch's index range shaded into a scratch
@@ -295,13 +301,13 @@ impl Pipeline {
                         let first = b * BATCH;
                         if whole {
                             // Vertices by reference: a triangle reads its corners in place.
-                            let corner = |i: u32| shaded[i as usize].corner();
                             let vertex = |i: u32| &shaded[i as usize];
-                            front.prepare_range(batch, range, first, (corner, vertex), level, sink);
+                            let source = (window.as_slice(), 0, vertex);
+                            front.prepare_range(batch, range, first, source, level, sink);
                         } else if windowed {
-                            let corner = |i: u32| window[(i - lo) as usize];
                             let vertex = |i: u32| shade_vertex(&vertices[i as usize]);
-                            front.prepare_range(batch, range, first, (corner, vertex), level, sink);
+                            let source = (window.as_slice(), lo, vertex);
+                            front.prepare_range(batch, range, first, source, level, sink);
                         } else {
                             for k in range {
                                 let owned = batch[k].map(|i| shade_vertex(&vertices[i as usize]));
@@ -391,8 +397,8 @@ impl FrontEnd {
     }
 
     /// [`FrontEnd::prepare`] for triangles `range` of `batch` (whose first has id
-    /// `first_id`); `corner(i)` and `vertex(i)` give vertex `i` as the corner tests and as
-    /// setup need it. Triangles inside the clip volume take the corner tests eight at a time
+    /// `first_id`); vertex `i`'s corner is `corners[i - base]`, and `vertex(i)` gives it as
+    /// setup needs it. Triangles inside the clip volume take the corner tests eight at a time
     /// ([`simd::corner_tests`]): in a dense mesh nearly all stop there, counted; those that
     /// pass go straight to setup (as `setup_inside` would after the same tests), and those
     /// needing clipping through `prepare`.
@@ -401,7 +407,7 @@ impl FrontEnd {
         batch: &[[u32; 3]],
         range: std::ops::Range<usize>,
         first_id: usize,
-        (corner, vertex): (impl Fn(u32) -> Corner, impl Fn(u32) -> R),
+        (corners, base, vertex): (&[Corner], u32, impl Fn(u32) -> R),
         level: SimdLevel,
         sink: &mut Sink<'_, TriangleData<V>>,
     ) {
@@ -415,11 +421,15 @@ impl FrontEnd {
         }
         for start in range.clone().step_by(8) {
             let len = (range.end - start).min(8);
-            let mut group = CornerGroup::default();
-            for j in 0..len {
-                group.set(j, batch[start + j].map(&corner));
-            }
-            let t = simd::corner_tests(level, &group, self.cull, &self.clip);
+            let t = if let Ok(eight) = <&[[u32; 3]; 8]>::try_from(&batch[start..start + len]) {
+                simd::corner_tests_indexed(level, eight, corners, base, self.cull, &self.clip)
+            } else {
+                let mut group = CornerGroup::default();
+                for j in 0..len {
+                    group.set(j, batch[start + j].map(|i| corners[(i - base) as usize]));
+                }
+                simd::corner_tests(level, &group, self.cull, &self.clip)
+            };
             let count = |bits: u8| bits.count_ones() as usize;
             sink.skip_many(Skipped::Rejected(Rejection::Degenerate), count(t.degenerate));
             sink.skip_many(Skipped::Rejected(Rejection::Culled), count(t.culled));

@@ -494,6 +494,33 @@ pub fn corner_tests(
     }
 }
 
+/// [`corner_tests`] for eight consecutive triangles of an index buffer whose corners are
+/// `window[i - base]` for index `i`. AVX2 reads each corner straight into a vector: filling a
+/// [`CornerGroup`] first and loading its rows would read memory just written.
+///
+/// # Panics
+/// If an index minus `base` falls outside the window.
+#[must_use]
+pub fn corner_tests_indexed(
+    level: SimdLevel,
+    tris: &[[u32; 3]; 8],
+    window: &[Corner],
+    base: u32,
+    cull: CullMode,
+    clip: &PixelRect,
+) -> CornerTests {
+    #[cfg(target_arch = "x86_64")]
+    if level == SimdLevel::Avx2 && SimdLevel::Avx2.is_available() {
+        // SAFETY: AVX2 support was just checked at run time.
+        return unsafe { x86::corner_tests_indexed_avx2(tris, window, base, cull, clip) };
+    }
+    let mut group = CornerGroup::default();
+    for (k, tri) in tris.iter().enumerate() {
+        group.set(k, tri.map(|i| window[i.wrapping_sub(base) as usize]));
+    }
+    corner_tests(level, &group, cull, clip)
+}
+
 /// [`corner_tests`] lane by lane, through the front end's own functions.
 #[must_use]
 pub fn corner_tests_scalar(group: &CornerGroup, cull: CullMode, clip: &PixelRect) -> CornerTests {
@@ -546,8 +573,57 @@ mod x86 {
         // Element by element: the rows were just written by 4-byte stores, which a 32-byte
         // load cannot take from the store buffer (it would wait for them to reach the cache).
         let row = |r: &[i32; 8]| _mm256_setr_epi32(r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]);
-        let (x0, x1, x2) = (row(&group.x[0]), row(&group.x[1]), row(&group.x[2]));
-        let (y0, y1, y2) = (row(&group.y[0]), row(&group.y[1]), row(&group.y[2]));
+        let x = [row(&group.x[0]), row(&group.x[1]), row(&group.x[2])];
+        let y = [row(&group.y[0]), row(&group.y[1]), row(&group.y[2])];
+        tests(x, y, cull, clip)
+    }
+
+    /// [`super::corner_tests_indexed`]: each corner read from the window as one 8-byte
+    /// `[x, y]` straight into a vector (memory written long before, so no store-forwarding
+    /// wait), four triangles' pairs per half, then split into rows of x and of y.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn corner_tests_indexed_avx2(
+        tris: &[[u32; 3]; 8],
+        window: &[Corner],
+        base: u32,
+        cull: CullMode,
+        clip: &PixelRect,
+    ) -> CornerTests {
+        // A corner's 8 bytes as the low half of a vector; slice indexing checks the index.
+        let corner = |k: usize, v: usize| -> __m128i {
+            let c: &Corner = &window[tris[k][v].wrapping_sub(base) as usize];
+            // SAFETY: `c` is a reference to 8 readable bytes; the load has no alignment
+            // requirement.
+            unsafe { _mm_loadl_epi64(std::ptr::from_ref(c).cast::<__m128i>()) }
+        };
+        let mut x = [_mm256_setzero_si256(); 3];
+        let mut y = [_mm256_setzero_si256(); 3];
+        for v in 0..3 {
+            // [x y] pairs of triangles 0-3 and 4-7, in 32-bit lanes.
+            let pairs = |first: usize| {
+                let lo = _mm_unpacklo_epi64(corner(first, v), corner(first + 1, v));
+                let hi = _mm_unpacklo_epi64(corner(first + 2, v), corner(first + 3, v));
+                _mm256_set_m128i(hi, lo)
+            };
+            let (p, q) = (_mm256_castsi256_ps(pairs(0)), _mm256_castsi256_ps(pairs(4)));
+            // Per 128-bit half: lanes [t0 t1 t4 t5 | t2 t3 t6 t7]; the permute restores
+            // triangle order.
+            let xs = _mm256_castps_si256(_mm256_shuffle_ps::<0b10_00_10_00>(p, q));
+            let ys = _mm256_castps_si256(_mm256_shuffle_ps::<0b11_01_11_01>(p, q));
+            x[v] = _mm256_permute4x64_epi64::<0b11_01_10_00>(xs);
+            y[v] = _mm256_permute4x64_epi64::<0b11_01_10_00>(ys);
+        }
+        tests(x, y, cull, clip)
+    }
+
+    /// The corner tests on eight triangles' corners in rows (`x[v]`: corner `v`'s x).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn tests(x: [__m256i; 3], y: [__m256i; 3], cull: CullMode, clip: &PixelRect) -> CornerTests {
+        let ([x0, x1, x2], [y0, y1, y2]) = (x, y);
         // Lanes with a corner equal to OUTSIDE take no tests.
         let (ox, oy) = (_mm256_set1_epi32(super::OUTSIDE[0]), _mm256_set1_epi32(super::OUTSIDE[1]));
         let out = |x, y| _mm256_and_si256(_mm256_cmpeq_epi32(x, ox), _mm256_cmpeq_epi32(y, oy));
@@ -1018,6 +1094,52 @@ mod tests {
         }
         // Every outcome is exercised, many times.
         assert!(seen.iter().all(|&n| n > 1000), "{seen:?}");
+    }
+
+    /// Corner tests read through indices from a window of corners give what the scalar tests
+    /// give on the same corners gathered into a group: random windows (positions within a
+    /// few pixels of each other, far apart, and OUTSIDE), indices offset by a base, every
+    /// cull mode; an index outside the window panics at every level.
+    #[test]
+    fn indexed_corner_tests_match_the_group_ones() {
+        let mut rng = SmallRng::seed_from_u64(21);
+        for round in 0..20_000 {
+            let len = rng.random_range(3..40);
+            let spread = [300, 3000, 1 << 23][round % 3];
+            let window: Vec<Corner> = (0..len)
+                .map(|_| {
+                    if rng.random_range(0..10) == 0 {
+                        OUTSIDE
+                    } else {
+                        [rng.random_range(-spread..spread), rng.random_range(-spread..spread)]
+                    }
+                })
+                .collect();
+            let base = rng.random_range(0..1000u32);
+            let tris: [[u32; 3]; 8] = std::array::from_fn(|_| {
+                std::array::from_fn(|_| base + rng.random_range(0..len) as u32)
+            });
+            let cull = [CullMode::None, CullMode::Clockwise, CullMode::CounterClockwise][round % 3];
+            let clip = PixelRect { x0: -5, y0: -3, x1: rng.random_range(0..30), y1: 20 };
+            let mut group = CornerGroup::default();
+            for (k, t) in tris.iter().enumerate() {
+                group.set(k, t.map(|i| window[(i - base) as usize]));
+            }
+            let expect = corner_tests_scalar(&group, cull, &clip);
+            for level in SimdLevel::available() {
+                let got = corner_tests_indexed(level, &tris, &window, base, cull, &clip);
+                assert_eq!(got, expect, "{level:?}, round {round}");
+            }
+        }
+        let window = vec![[0, 0]; 5];
+        let mut tris = [[0u32, 1, 2]; 8];
+        tris[6][1] = 5;
+        for level in SimdLevel::available() {
+            let r = std::panic::catch_unwind(|| {
+                corner_tests_indexed(level, &tris, &window, 0, CullMode::None, &PixelRect::EMPTY)
+            });
+            assert!(r.is_err(), "{level:?} read past the window");
+        }
     }
 
     /// The vector corners against [`window_corner`] for every lane of random and special
