@@ -370,32 +370,82 @@ fn shade_single_sample(
     kernel: Option<(SimdLevel, SpanColor)>,
     mut fragment: impl FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>,
 ) -> u64 {
-    if let (Algorithm::EdgeMasks, Some((level, color))) = (algorithm, kernel) {
+    // One covered pixel with barycentric numerators `(f1, f2)`: overdraw, depth test, the
+    // fragment, the writes.
+    let mut shade_pixel = |target: &mut TargetBand<'_>, i: usize, px, py, f1, f2| {
+        if let Some(o) = &mut target.overdraw {
+            o[i] += 1;
+        }
+        let z = depth_at(depth, f1, f2);
+        if !depth_test.passes(z, target.depth[i]) {
+            return;
+        }
+        let Some(out) = fragment(px, py, f1, f2, z) else { return };
+        target.depth[i] = z;
+        target.color[i] = out.color;
+        if let Some(ids) = &mut target.ids {
+            ids[i] = id;
+        }
+        if let (Some(normals), Some(nrm)) = (&mut target.normals, out.normal) {
+            normals[i] = nrm;
+        }
+    };
+    if algorithm == Algorithm::EdgeMasks {
         let Some(r) = setup.bounds.intersect(clip) else { return 0 };
         let columns = (r.x1 - r.x0 + 1) as usize;
         if columns <= simd::NARROW_COLUMNS {
             let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
             let edges = setup.edges.map(|e| e.eval(x, y));
             let (e1, e2) = setup.barycentric_numerators(x, y);
-            let job = NarrowJob {
-                edges,
-                step_x: setup.edges.map(|e| e.a * PIXEL_STEP),
-                step_y: setup.edges.map(|e| e.b * PIXEL_STEP),
-                bias: [edges[1] - e1, edges[2] - e2],
-                columns,
-                rows: (r.y1 - r.y0 + 1) as usize,
-                first: target.index(r.x0, r.y0),
-                stride: target.stride(),
-                depth_plane: depth.coefficients(),
-                color,
-                depth_test,
-                id,
-                depth: target.depth,
-                color_out: target.color,
-                ids: target.ids.as_deref_mut(),
-                overdraw: target.overdraw.as_deref_mut(),
-            };
-            return simd::shade_narrow(level, job);
+            let step_x = setup.edges.map(|e| e.a * PIXEL_STEP);
+            let step_y = setup.edges.map(|e| e.b * PIXEL_STEP);
+            let bias = [edges[1] - e1, edges[2] - e2];
+            if let Some((level, color)) = kernel {
+                let job = NarrowJob {
+                    edges,
+                    step_x,
+                    step_y,
+                    bias,
+                    columns,
+                    rows: (r.y1 - r.y0 + 1) as usize,
+                    first: target.index(r.x0, r.y0),
+                    stride: target.stride(),
+                    depth_plane: depth.coefficients(),
+                    color,
+                    depth_test,
+                    id,
+                    depth: target.depth,
+                    color_out: target.color,
+                    ids: target.ids.as_deref_mut(),
+                    overdraw: target.overdraw.as_deref_mut(),
+                };
+                return simd::shade_narrow(level, job);
+            }
+            // Row coverage as a bit mask without branches (as `rasterize_narrow`), then the
+            // covered pixels, left to right.
+            let mut covered = 0u64;
+            let mut row = edges;
+            for py in r.y0..=r.y1 {
+                let mut e = row;
+                let mut mask = 0u32;
+                for c in 0..simd::NARROW_COLUMNS as u32 {
+                    let out = ((e[0] | e[1] | e[2]) >> 63) as u32 & 1;
+                    mask |= (out ^ 1) << c;
+                    e = std::array::from_fn(|k| e[k] + step_x[k]);
+                }
+                mask &= (1 << columns) - 1;
+                covered += u64::from(mask.count_ones());
+                let first = target.index(r.x0, py);
+                while mask != 0 {
+                    let c = mask.trailing_zeros();
+                    mask &= mask - 1;
+                    let f1 = (row[1] - bias[0] + i64::from(c) * step_x[1]) as f64;
+                    let f2 = (row[2] - bias[1] + i64::from(c) * step_x[2]) as f64;
+                    shade_pixel(target, first + c as usize, r.x0 + c as i32, py, f1, f2);
+                }
+                row = std::array::from_fn(|k| row[k] + step_y[k]);
+            }
+            return covered;
         }
     }
     let mut covered = 0u64;
@@ -425,26 +475,10 @@ fn shade_single_sample(
             return;
         }
         for px in span.x_start..span.x_end {
-            let i = row + px as usize;
             let (f1, f2) = (e1 as f64, e2 as f64);
             e1 += step[0];
             e2 += step[1];
-            if let Some(o) = &mut target.overdraw {
-                o[i] += 1;
-            }
-            let z = depth_at(depth, f1, f2);
-            if !depth_test.passes(z, target.depth[i]) {
-                continue;
-            }
-            let Some(out) = fragment(px, span.y, f1, f2, z) else { continue };
-            target.depth[i] = z;
-            target.color[i] = out.color;
-            if let Some(ids) = &mut target.ids {
-                ids[i] = id;
-            }
-            if let (Some(normals), Some(nrm)) = (&mut target.normals, out.normal) {
-                normals[i] = nrm;
-            }
+            shade_pixel(target, row + px as usize, px, span.y, f1, f2);
         }
     };
     if algorithm == Algorithm::Scanline && raster::covers_rect(setup, clip) {
