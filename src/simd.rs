@@ -1,10 +1,12 @@
-//! SIMD span kernels, the front end's corner tests for eight triangles at once, and small
-//! SSE2 helpers (four floors, a unit clamp, cache prefetch hints): the only module with
-//! `unsafe` and `core::arch`. Each has a scalar path it is tested against.
+//! SIMD kernels: spans and narrow triangles (shading), window corners and corner tests (the
+//! 3D front end, eight vertices or triangles at once), and small SSE2 helpers (four floors, a
+//! unit clamp, cache prefetch hints): the only module with `unsafe` and `core::arch`. Each
+//! has a scalar path it is tested against.
 //!
-//! A kernel shades one 1x span of a window-space triangle with flat or smooth colour: the same
-//! arithmetic as the reference per-pixel loop in [`crate::shade`], lane by lane, so the output
-//! is bit-identical (tested at every level against the reference):
+//! The shading kernels shade a 1x span, or a whole narrow triangle, of a window-space
+//! triangle with flat or smooth colour: the same arithmetic as the reference per-pixel loop in
+//! [`crate::shade`], lane by lane, so the output is bit-identical (tested at every level
+//! against the reference):
 //! - barycentric numerators are exact integers below 2^49, so stepping them in `f64` lanes
 //!   (`e + k * step`) gives exactly the reference's integer values converted to `f64`;
 //! - planes are evaluated as `(a0 + e1 * g1) + e2 * g2` with separate multiplies and adds (no
