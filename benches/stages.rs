@@ -1,13 +1,17 @@
-//! Micro-benchmarks of the pipeline stages: triangle setup, binning, and the span kernels at
-//! every SIMD level this CPU has. `cargo bench --bench stages`.
+//! Micro-benchmarks of the pipeline stages: triangle setup, binning, the span and narrow
+//! triangle kernels, and the 3D front end's window corners and corner tests, at every SIMD
+//! level this CPU has. `cargo bench --bench stages`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use glam::Vec4;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use std::hint::black_box;
 use trirast::bin::Bins;
+use trirast::clip::ClipVolume;
+use trirast::pipeline::Viewport;
 use trirast::shade::DepthTest;
-use trirast::simd::{self, SimdLevel, SpanColor, SpanJob};
+use trirast::simd::{self, Corner, NarrowJob, SimdLevel, SpanColor, SpanJob};
 use trirast::{CullMode, PixelRect, TriangleSetup, Vertex};
 
 fn triangles(n: usize) -> Vec<[Vertex; 3]> {
@@ -85,5 +89,96 @@ fn kernels(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, setup, binning, kernels);
+fn narrow(c: &mut Criterion) {
+    // A triangle of about 12 pixels in a 5 x 5 box, on a 64-pixel-wide buffer.
+    let v = [Vertex::new(1.2, 0.7, 0.3, [9; 4]), Vertex::new(5.9, 2.1, 0.5, [99; 4]), {
+        Vertex::new(2.4, 5.6, 0.7, [199; 4])
+    }];
+    let s = TriangleSetup::new(&v, CullMode::None).expect("a triangle");
+    let (x, y) = (128 + 256 * i64::from(s.bounds.x0), 128 + 256 * i64::from(s.bounds.y0));
+    let edges = s.edges.map(|e| e.eval(x, y));
+    let (e1, e2) = s.barycentric_numerators(x, y);
+    let planes = [[100.0, 1e-9, -2e-9], [50.0, 2e-9, 1e-9], [20.0, 0.0, 3e-9], [255.0, 0.0, 0.0]];
+    let mut g = c.benchmark_group("narrow kernel");
+    g.throughput(Throughput::Elements(1));
+    for level in SimdLevel::available() {
+        let mut depth = vec![1.0f32; 64 * 8];
+        let mut color = vec![[0u8; 4]; 64 * 8];
+        g.bench_function(format!("{level:?}, 5 x 5 box smooth"), |b| {
+            b.iter(|| {
+                depth.fill(1.0);
+                simd::shade_narrow(
+                    level,
+                    NarrowJob {
+                        edges,
+                        step_x: s.edges.map(|e| e.a * 256),
+                        step_y: s.edges.map(|e| e.b * 256),
+                        bias: [edges[1] - e1, edges[2] - e2],
+                        columns: (s.bounds.x1 - s.bounds.x0 + 1) as usize,
+                        rows: (s.bounds.y1 - s.bounds.y0 + 1) as usize,
+                        first: 0,
+                        stride: 64,
+                        depth_plane: [0.5, 1e-12, 1e-12],
+                        color: SpanColor::Smooth(planes),
+                        depth_test: DepthTest::Less,
+                        id: 1,
+                        depth: &mut depth,
+                        color_out: &mut color,
+                        ids: None,
+                        overdraw: None,
+                    },
+                )
+            })
+        });
+    }
+    g.finish();
+}
+
+fn front_end(c: &mut Criterion) {
+    let mut rng = SmallRng::seed_from_u64(3);
+    let positions: Vec<Vec4> = (0..1024)
+        .map(|_| {
+            let w = rng.random_range(0.5..2.0f32);
+            Vec4::new(rng.random_range(-1.0..1.0) * w, rng.random_range(-1.0..1.0) * w, 0.5 * w, w)
+        })
+        .collect();
+    let volume = ClipVolume::for_target(1920, 1080);
+    let viewport = Viewport::of_size(1920, 1080);
+    let mut window: Vec<Corner> = vec![[0, 0]; positions.len()];
+    let mut g = c.benchmark_group("front end");
+    g.throughput(Throughput::Elements(positions.len() as u64));
+    for level in SimdLevel::available() {
+        g.bench_function(format!("{level:?}, window corners of 1024 vertices"), |b| {
+            b.iter(|| {
+                simd::window_corners(level, black_box(&positions), &volume, &viewport, &mut window)
+            })
+        });
+    }
+    // Triangles of neighbouring vertices, as in a mesh stored with locality.
+    let tris: Vec<[u32; 3]> = (0..1024u32).map(|i| [i, (i + 1) % 1024, (i + 33) % 1024]).collect();
+    let clip = PixelRect::of_target(1920, 1080);
+    for level in SimdLevel::available() {
+        g.bench_function(format!("{level:?}, corner tests of 1024 triangles"), |b| {
+            b.iter(|| {
+                let mut kept = 0u32;
+                for eight in tris.chunks_exact(8) {
+                    let eight: &[[u32; 3]; 8] = eight.try_into().expect("eight");
+                    let t = simd::corner_tests_indexed(
+                        level,
+                        black_box(eight),
+                        &window,
+                        0,
+                        CullMode::Clockwise,
+                        &clip,
+                    );
+                    kept += (t.inside & !(t.degenerate | t.culled | t.empty)).count_ones();
+                }
+                kept
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, setup, binning, kernels, narrow, front_end);
 criterion_main!(benches);
