@@ -5,7 +5,7 @@ use crate::error::Error;
 use crate::fixed;
 use crate::raster::Algorithm;
 use crate::setup::{CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
-use crate::shade::{self, DepthTest, FragmentOutput, Shading, TriangleShader};
+use crate::shade::{self, DepthTest, FragmentOutput, Shading, TriangleColor, TriangleShader};
 use crate::simd::SimdLevel;
 use crate::target::Target;
 
@@ -164,8 +164,8 @@ pub fn draw(
         None => Some(target.rect()),
     };
     let mut stats = DrawStats { submitted: triangles.len(), ..DrawStats::default() };
-    let color = |shader: &TriangleShader, e1, e2| FragmentOutput {
-        color: shader.color_at(e1, e2),
+    let color = |color: &TriangleColor, e1, e2| FragmentOutput {
+        color: color.color_at(e1, e2),
         normal: None,
     };
     if options.backend == Backend::Tiled {
@@ -173,7 +173,7 @@ pub fn draw(
         let multisampled = target.samples().count() > 1;
         // With the scissor off the target nothing is visible, but setup still counts.
         let visible = clip.unwrap_or(PixelRect::EMPTY);
-        let mut prepared: bin::PreparedBatch<TriangleShader> = target.take_scratch();
+        let mut prepared: bin::PreparedBatch<TriangleColor> = target.take_scratch();
         for (b, batch) in triangles.chunks(BATCH).enumerate() {
             let counts = prepared.prepare(batch.len(), |k, sink| {
                 let tri = &batch[k];
@@ -183,8 +183,9 @@ pub fn draw(
                             return Err(Skipped::Empty);
                         }
                         let shader = TriangleShader::new(tri, &setup, options.shading);
+                        let (depth, payload) = shader.into_parts();
                         let id = (b * BATCH + k) as i32;
-                        Ok(Prepared { setup, depth: *shader.depth_plane(), id, payload: shader })
+                        Ok(Prepared { setup, depth, id, payload })
                     },
                 ));
             });
@@ -213,13 +214,13 @@ pub fn draw(
         };
         stats.rasterized += 1;
         let Some(clip) = clip else { continue };
-        let shader = TriangleShader::new(tri, &setup, options.shading);
+        let (depth, shader) = TriangleShader::new(tri, &setup, options.shading).into_parts();
         stats.fragments += shade::shade_triangle(
             &mut target.band(),
             &setup,
             options.algorithm,
             &clip,
-            shader.depth_plane(),
+            &depth,
             options.depth_test,
             id as i32,
             None,

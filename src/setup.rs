@@ -157,8 +157,9 @@ impl PixelRect {
 /// unbiased value at a sample is `2 * area * barycentric_i`.
 #[derive(Clone, Copy, Debug)]
 pub struct TriangleSetup {
-    /// Snapped vertex positions, in the caller's order.
-    pub xy: [[i64; 2]; 3],
+    /// Snapped vertex positions, in the caller's order (within `+-2^23`: `i32` keeps the
+    /// record the tile loop reads small).
+    pub xy: [[i32; 2]; 3],
     /// Edge functions, inside positive whatever the input winding, fill rule applied.
     pub edges: [EdgeFunction; 3],
     /// Twice the (absolute) area in fixed-point units squared: `E_i(v_i)` unbiased. `> 0`.
@@ -202,6 +203,8 @@ impl TriangleSetup {
         };
         let edges = [edge(p1, p2), edge(p2, p0), edge(p0, p1)];
         let bounds = sample_bounds(extent(xy), [0, 0]);
+        debug_assert!(xy.iter().flatten().all(|v| v.abs() <= 1 << 23), "not snapped: {xy:?}");
+        let xy = xy.map(|p| p.map(|v| v as i32));
         Ok(Self { xy, edges, area2: signed.abs(), clockwise, bounds })
     }
 
@@ -231,7 +234,7 @@ impl TriangleSetup {
     /// The snapped bounding box in fixed point: `[[x_min, y_min], [x_max, y_max]]`.
     #[must_use]
     pub fn extent(&self) -> [[i64; 2]; 2] {
-        extent(self.xy)
+        extent(self.xy.map(|p| p.map(i64::from)))
     }
 
     /// Does the triangle cover the centre of pixel `(px, py)`? The definition every
@@ -255,8 +258,8 @@ impl TriangleSetup {
     #[inline]
     #[must_use]
     pub fn barycentric_numerators(&self, x: i64, y: i64) -> (i64, i64) {
-        let dx = x - self.xy[0][0];
-        let dy = y - self.xy[0][1];
+        let dx = x - i64::from(self.xy[0][0]);
+        let dy = y - i64::from(self.xy[0][1]);
         let e1 = self.edges[1].a * dx + self.edges[1].b * dy;
         let e2 = self.edges[2].a * dx + self.edges[2].b * dy;
         (e1, e2)
@@ -329,13 +332,13 @@ mod tests {
         let s = TriangleSetup::new(&tri([[1.5, 1.0], [9.25, 2.0], [3.0, 8.75]]), CullMode::None)
             .unwrap();
         for i in 0..3 {
-            let [x, y] = s.xy[i];
+            let [x, y] = s.xy[i].map(i64::from);
             let unbiased = s.edges[i].eval(x, y) - FillRule::bias(s.edges[i].a, s.edges[i].b);
             assert_eq!(unbiased, s.area2);
         }
-        let [x1, y1] = s.xy[1];
+        let [x1, y1] = s.xy[1].map(i64::from);
         assert_eq!(s.barycentric_numerators(x1, y1), (s.area2, 0));
-        let [x2, y2] = s.xy[2];
+        let [x2, y2] = s.xy[2].map(i64::from);
         assert_eq!(s.barycentric_numerators(x2, y2), (0, s.area2));
     }
 }

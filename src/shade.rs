@@ -132,12 +132,17 @@ enum ColorSource {
     Perspective(Box<[PerspectivePlane; 4]>),
 }
 
-/// The window pipeline's per-triangle shading: a depth plane and a colour source.
+/// The window pipeline's per-triangle shading: a depth plane and a colour.
 #[derive(Clone, Debug)]
 pub struct TriangleShader {
     depth: PlaneEquation,
-    color: ColorSource,
+    color: TriangleColor,
 }
+
+/// A triangle's colour across it: what the tiled backend keeps per triangle beside the depth
+/// plane it keeps anyway.
+#[derive(Clone, Debug)]
+pub struct TriangleColor(ColorSource);
 
 /// The flat colour of a triangle: per channel, the average of the vertex colours rounded to
 /// nearest (halves up), `(2 * sum + 3) / 6` in integers.
@@ -183,7 +188,13 @@ impl TriangleShader {
                 })))
             }
         };
-        Self { depth, color }
+        Self { depth, color: TriangleColor(color) }
+    }
+
+    /// The depth plane and the colour, apart.
+    #[must_use]
+    pub fn into_parts(self) -> (PlaneEquation, TriangleColor) {
+        (self.depth, self.color)
     }
 
     /// The depth plane.
@@ -203,7 +214,23 @@ impl TriangleShader {
     /// no kernel.
     #[must_use]
     pub fn span_color(&self) -> Option<SpanColor> {
-        match &self.color {
+        self.color.span_color()
+    }
+
+    /// Colour at barycentric numerators `(e1, e2)`.
+    #[inline]
+    #[must_use]
+    pub fn color_at(&self, e1: f64, e2: f64) -> [u8; 4] {
+        self.color.color_at(e1, e2)
+    }
+}
+
+impl TriangleColor {
+    /// The colour as a SIMD span kernel takes it; `None` for perspective shading, which has
+    /// no kernel.
+    #[must_use]
+    pub fn span_color(&self) -> Option<SpanColor> {
+        match &self.0 {
             ColorSource::Flat(c) => Some(SpanColor::Flat(*c)),
             ColorSource::Smooth(p) => Some(SpanColor::Smooth(p.map(|p| p.coefficients()))),
             ColorSource::Perspective(_) => None,
@@ -216,7 +243,7 @@ impl TriangleShader {
     pub fn color_at(&self, e1: f64, e2: f64) -> [u8; 4] {
         // Channels written out: `array::map` with a closure here was a sixth of the
         // instructions of a frame of small triangles.
-        match &self.color {
+        match &self.0 {
             ColorSource::Flat(c) => *c,
             ColorSource::Smooth([r, g, b, a]) => [
                 quantize_channel(r.eval(e1, e2)),

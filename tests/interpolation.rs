@@ -39,7 +39,7 @@ fn vertex_values_are_reproduced_at_vertex_centres() {
         for shading in [Shading::Smooth, Shading::Perspective] {
             let shader = TriangleShader::new(&v, &setup, shading);
             for (i, p) in v.iter().enumerate() {
-                let [x, y] = setup.xy[i];
+                let [x, y] = setup.xy[i].map(i64::from);
                 let (e1, e2) = setup.barycentric_numerators(x, y);
                 let (e1, e2) = (e1 as f64, e2 as f64);
                 assert_eq!(shader.color_at(e1, e2), p.color, "{shading:?} vertex {i} of {v:?}");

@@ -39,7 +39,7 @@ pub fn rasterize(
     let upper = edge(top, mid);
     let lower = edge(mid, bot);
     // Compare sample rows with the middle vertex in "pixel centre" coordinates.
-    let y_mid = tri.xy[mid][1] - oy;
+    let y_mid = i64::from(tri.xy[mid][1]) - oy;
 
     let rows = |first: i64, last: i64| {
         (first.max(i64::from(r.y0)) as i32)..=(last.min(i64::from(r.y1)) as i32)
