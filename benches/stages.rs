@@ -11,7 +11,7 @@ use trirast::bin::Bins;
 use trirast::clip::ClipVolume;
 use trirast::pipeline::Viewport;
 use trirast::shade::DepthTest;
-use trirast::simd::{self, Corner, NarrowJob, SimdLevel, SpanColor, SpanJob};
+use trirast::simd::{self, Corner, KernelTarget, NarrowJob, SimdLevel, SpanColor, SpanJob};
 use trirast::{CullMode, PixelRect, TriangleSetup, Vertex};
 
 fn triangles(n: usize) -> Vec<[Vertex; 3]> {
@@ -73,14 +73,16 @@ fn kernels(c: &mut Criterion) {
                         e2: 1 << 29,
                         step1: 1 << 20,
                         step2: -(1 << 19),
-                        depth_plane: [0.5, 1e-12, 1e-12],
-                        color: SpanColor::Smooth(planes),
-                        depth_test: DepthTest::Less,
-                        id: 1,
-                        depth: &mut depth,
-                        color_out: &mut color,
-                        ids: None,
-                        overdraw: None,
+                        target: KernelTarget {
+                            depth_plane: [0.5, 1e-12, 1e-12],
+                            color: SpanColor::Smooth(planes),
+                            depth_test: DepthTest::Less,
+                            id: 1,
+                            depth: &mut depth,
+                            color_out: &mut color,
+                            ids: None,
+                            overdraw: None,
+                        },
                     },
                 );
             })
@@ -118,14 +120,16 @@ fn narrow(c: &mut Criterion) {
                         rows: (s.bounds.y1 - s.bounds.y0 + 1) as usize,
                         first: 0,
                         stride: 64,
-                        depth_plane: [0.5, 1e-12, 1e-12],
-                        color: SpanColor::Smooth(planes),
-                        depth_test: DepthTest::Less,
-                        id: 1,
-                        depth: &mut depth,
-                        color_out: &mut color,
-                        ids: None,
-                        overdraw: None,
+                        target: KernelTarget {
+                            depth_plane: [0.5, 1e-12, 1e-12],
+                            color: SpanColor::Smooth(planes),
+                            depth_test: DepthTest::Less,
+                            id: 1,
+                            depth: &mut depth,
+                            color_out: &mut color,
+                            ids: None,
+                            overdraw: None,
+                        },
                     },
                 )
             })

@@ -18,7 +18,7 @@
 use crate::fixed;
 use crate::raster::{self, Algorithm, Span};
 use crate::setup::{PIXEL_STEP, PixelRect, TriangleSetup, Vertex};
-use crate::simd::{self, NarrowJob, SimdLevel, SpanColor, SpanJob};
+use crate::simd::{self, KernelTarget, NarrowJob, SimdLevel, SpanColor, SpanJob};
 use crate::target::TargetBand;
 
 /// How a triangle's colour varies across it.
@@ -437,14 +437,16 @@ fn shade_single_sample(
                     rows: (r.y1 - r.y0 + 1) as usize,
                     first: target.index(r.x0, r.y0),
                     stride: target.stride(),
-                    depth_plane: depth.coefficients(),
-                    color,
-                    depth_test,
-                    id,
-                    depth: target.depth,
-                    color_out: target.color,
-                    ids: target.ids.as_deref_mut(),
-                    overdraw: target.overdraw.as_deref_mut(),
+                    target: KernelTarget {
+                        depth_plane: depth.coefficients(),
+                        color,
+                        depth_test,
+                        id,
+                        depth: target.depth,
+                        color_out: target.color,
+                        ids: target.ids.as_deref_mut(),
+                        overdraw: target.overdraw.as_deref_mut(),
+                    },
                 };
                 return simd::shade_narrow(level, job);
             }
@@ -489,14 +491,16 @@ fn shade_single_sample(
                 e2,
                 step1: step[0],
                 step2: step[1],
-                depth_plane: depth.coefficients(),
-                color,
-                depth_test,
-                id,
-                depth: &mut target.depth[range.clone()],
-                color_out: &mut target.color[range.clone()],
-                ids: target.ids.as_deref_mut().map(|s| &mut s[range.clone()]),
-                overdraw: target.overdraw.as_deref_mut().map(|s| &mut s[range.clone()]),
+                target: KernelTarget {
+                    depth_plane: depth.coefficients(),
+                    color,
+                    depth_test,
+                    id,
+                    depth: &mut target.depth[range.clone()],
+                    color_out: &mut target.color[range.clone()],
+                    ids: target.ids.as_deref_mut().map(|s| &mut s[range.clone()]),
+                    overdraw: target.overdraw.as_deref_mut().map(|s| &mut s[range.clone()]),
+                },
             };
             simd::shade_span(level, job);
             return;

@@ -190,8 +190,60 @@ impl SpanColor {
     }
 }
 
-/// One span to shade: `n` pixels starting where the barycentric numerators are `e1`, `e2`,
-/// stepping by `step1`, `step2` per pixel, with the buffers' slices for exactly those pixels.
+/// What the shading kernels write and how: a triangle's depth plane and colour, the depth
+/// test, the id, and the buffers (indexed alike), shared by spans and narrow triangles.
+#[derive(Debug)]
+pub struct KernelTarget<'a> {
+    /// Depth plane `[a0, g1, g2]`.
+    pub depth_plane: [f64; 3],
+    /// Colour.
+    pub color: SpanColor,
+    /// Depth comparison.
+    pub depth_test: DepthTest,
+    /// Id to write.
+    pub id: i32,
+    /// Depth buffer.
+    pub depth: &'a mut [f32],
+    /// Colour buffer.
+    pub color_out: &'a mut [[u8; 4]],
+    /// Id buffer.
+    pub ids: Option<&'a mut [i32]>,
+    /// Overdraw buffer.
+    pub overdraw: Option<&'a mut [u32]>,
+}
+
+impl KernelTarget<'_> {
+    /// One covered pixel `i` at barycentric numerators `(f1, f2)`: the reference loop's
+    /// overdraw count, depth test and writes.
+    #[inline]
+    fn pixel(&mut self, i: usize, f1: f64, f2: f64) {
+        if let Some(o) = self.overdraw.as_deref_mut() {
+            o[i] += 1;
+        }
+        let [d0, d1, d2] = self.depth_plane;
+        let z = ((d0 + f1 * d1 + f2 * d2) as f32).clamp(0.0, 1.0);
+        if !self.depth_test.passes(z, self.depth[i]) {
+            return;
+        }
+        self.depth[i] = z;
+        self.color_out[i] = self.color.at(f1, f2);
+        if let Some(ids) = self.ids.as_deref_mut() {
+            ids[i] = self.id;
+        }
+    }
+
+    /// Panics unless every buffer holds as many elements as `depth`; returns that number.
+    fn checked_len(&self) -> usize {
+        let n = self.depth.len();
+        assert!(self.color_out.len() == n, "kernel buffers must have the same length");
+        assert!(self.ids.as_ref().is_none_or(|s| s.len() == n), "kernel buffers differ");
+        assert!(self.overdraw.as_ref().is_none_or(|s| s.len() == n), "kernel buffers differ");
+        n
+    }
+}
+
+/// One span to shade: the pixels of `target`'s buffers (exactly the span's), starting where
+/// the barycentric numerators are `e1`, `e2`, stepping by `step1`, `step2` per pixel.
 #[derive(Debug)]
 pub struct SpanJob<'a> {
     /// `E1` at the first pixel.
@@ -202,22 +254,8 @@ pub struct SpanJob<'a> {
     pub step1: i64,
     /// `E2` step per pixel.
     pub step2: i64,
-    /// Depth plane `[a0, g1, g2]`.
-    pub depth_plane: [f64; 3],
-    /// Colour.
-    pub color: SpanColor,
-    /// Depth comparison.
-    pub depth_test: DepthTest,
-    /// Id to write.
-    pub id: i32,
-    /// Depth of the span's pixels.
-    pub depth: &'a mut [f32],
-    /// Colour of the span's pixels.
-    pub color_out: &'a mut [[u8; 4]],
-    /// Ids of the span's pixels.
-    pub ids: Option<&'a mut [i32]>,
-    /// Overdraw of the span's pixels.
-    pub overdraw: Option<&'a mut [u32]>,
+    /// The triangle's shading and the span's pixels.
+    pub target: KernelTarget<'a>,
 }
 
 /// Shades a span at `level` (which must be available; otherwise the scalar kernel runs).
@@ -260,22 +298,8 @@ pub struct NarrowJob<'a> {
     pub first: usize,
     /// Buffer elements from one row to the next.
     pub stride: usize,
-    /// Depth plane `[a0, g1, g2]`.
-    pub depth_plane: [f64; 3],
-    /// Colour.
-    pub color: SpanColor,
-    /// Depth comparison.
-    pub depth_test: DepthTest,
-    /// Id to write.
-    pub id: i32,
-    /// Depth buffer (the rows the box lies in, or more).
-    pub depth: &'a mut [f32],
-    /// Colour buffer, indexed as `depth`.
-    pub color_out: &'a mut [[u8; 4]],
-    /// Id buffer, indexed as `depth`.
-    pub ids: Option<&'a mut [i32]>,
-    /// Overdraw buffer, indexed as `depth`.
-    pub overdraw: Option<&'a mut [u32]>,
+    /// The triangle's shading and the buffers (the rows the box lies in, or more).
+    pub target: KernelTarget<'a>,
 }
 
 impl NarrowJob<'_> {
@@ -294,7 +318,9 @@ impl NarrowJob<'_> {
 pub fn shade_narrow(level: SimdLevel, job: NarrowJob<'_>) -> u64 {
     match level {
         #[cfg(target_arch = "x86_64")]
-        SimdLevel::Avx2 if SimdLevel::Avx2.is_available() && job.group_end() <= job.depth.len() => {
+        SimdLevel::Avx2
+            if SimdLevel::Avx2.is_available() && job.group_end() <= job.target.depth.len() =>
+        {
             // SAFETY: AVX2 support was just checked at run time.
             unsafe { x86::shade_narrow_avx2(job) }
         }
@@ -308,7 +334,6 @@ pub fn shade_narrow(level: SimdLevel, job: NarrowJob<'_>) -> u64 {
 /// As [`shade_narrow`].
 pub fn shade_narrow_scalar(mut job: NarrowJob<'_>) -> u64 {
     assert!((1..=NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not a narrow box");
-    let [d0, d1, d2] = job.depth_plane;
     let mut covered = 0;
     let mut row = job.edges;
     for r in 0..job.rows {
@@ -316,19 +341,8 @@ pub fn shade_narrow_scalar(mut job: NarrowJob<'_>) -> u64 {
         for c in 0..job.columns {
             if (e[0] | e[1] | e[2]) >= 0 {
                 covered += 1;
-                let i = job.first + r * job.stride + c;
-                if let Some(o) = job.overdraw.as_deref_mut() {
-                    o[i] += 1;
-                }
                 let (f1, f2) = ((e[1] - job.bias[0]) as f64, (e[2] - job.bias[1]) as f64);
-                let z = ((d0 + f1 * d1 + f2 * d2) as f32).clamp(0.0, 1.0);
-                if job.depth_test.passes(z, job.depth[i]) {
-                    job.depth[i] = z;
-                    job.color_out[i] = job.color.at(f1, f2);
-                    if let Some(ids) = job.ids.as_deref_mut() {
-                        ids[i] = job.id;
-                    }
-                }
+                job.target.pixel(job.first + r * job.stride + c, f1, f2);
             }
             e = std::array::from_fn(|k| e[k] + job.step_x[k]);
         }
@@ -339,24 +353,11 @@ pub fn shade_narrow_scalar(mut job: NarrowJob<'_>) -> u64 {
 
 /// The scalar kernel: the reference loop's arithmetic, specialised to plane colours.
 pub fn shade_span_scalar(mut job: SpanJob<'_>) {
-    let [d0, d1, d2] = job.depth_plane;
     let (mut e1, mut e2) = (job.e1, job.e2);
-    for k in 0..job.depth.len() {
-        let (f1, f2) = (e1 as f64, e2 as f64);
+    for k in 0..job.target.depth.len() {
+        job.target.pixel(k, e1 as f64, e2 as f64);
         e1 += job.step1;
         e2 += job.step2;
-        if let Some(o) = job.overdraw.as_deref_mut() {
-            o[k] += 1;
-        }
-        let z = ((d0 + f1 * d1 + f2 * d2) as f32).clamp(0.0, 1.0);
-        if !job.depth_test.passes(z, job.depth[k]) {
-            continue;
-        }
-        job.depth[k] = z;
-        job.color_out[k] = job.color.at(f1, f2);
-        if let Some(ids) = job.ids.as_deref_mut() {
-            ids[k] = job.id;
-        }
     }
 }
 
@@ -553,7 +554,7 @@ mod x86 {
 
     use glam::Vec4;
 
-    use super::{Corner, CornerGroup, CornerTests, NarrowJob, SpanColor, SpanJob};
+    use super::{Corner, CornerGroup, CornerTests, KernelTarget, NarrowJob, SpanColor, SpanJob};
     use crate::clip::MIN_W;
     use crate::fixed;
     use crate::setup::{CullMode, PixelRect};
@@ -808,23 +809,75 @@ mod x86 {
         t
     };
 
+    /// A group of four pixels at `at` whose lanes in `cover` (each 0 or -1) are covered,
+    /// with barycentric numerators `f1`, `f2`: overdraw, depth test, writes, as the scalar
+    /// `KernelTarget::pixel` does lane by lane. Read-blend-write of the whole group (masked
+    /// stores are microcoded and slow on AMD cores): uncovered lanes are written back as read.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2, and `at + 4` must not exceed `t.checked_len()`.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn group(t: &mut KernelTarget<'_>, at: usize, f1: __m256d, f2: __m256d, cover: __m128i) {
+        // SAFETY (every pointer access in this block): the caller guarantees the four
+        // elements at `at` lie in every buffer (they all hold `checked_len()` elements);
+        // unaligned loads and stores have no alignment requirement; `[u8; 4]` is four bytes,
+        // read and written as one i32 lane.
+        unsafe {
+            if let Some(o) = t.overdraw.as_deref_mut() {
+                let p = o.as_mut_ptr().add(at) as *mut __m128i;
+                // Covered lanes are -1: subtracting them counts one fragment.
+                _mm_storeu_si128(p, _mm_sub_epi32(_mm_loadu_si128(p), cover));
+            }
+            let z = _mm256_cvtpd_ps(plane(t.depth_plane, f1, f2));
+            let z = _mm_min_ps(_mm_set1_ps(1.0), _mm_max_ps(_mm_setzero_ps(), z));
+            let dp = t.depth.as_mut_ptr().add(at);
+            let stored = _mm_loadu_ps(dp);
+            let cover_ps = _mm_castsi128_ps(cover);
+            let pass = match t.depth_test {
+                DepthTest::Less => _mm_and_ps(_mm_cmp_ps::<_CMP_LT_OQ>(z, stored), cover_ps),
+                DepthTest::LessEqual => _mm_and_ps(_mm_cmp_ps::<_CMP_LE_OQ>(z, stored), cover_ps),
+                DepthTest::Always => cover_ps,
+            };
+            if _mm_movemask_ps(pass) == 0 {
+                return;
+            }
+            _mm_storeu_ps(dp, _mm_blendv_ps(stored, z, pass));
+            let pass = _mm_castps_si128(pass);
+            let cp = t.color_out.as_mut_ptr().add(at) as *mut __m128i;
+            let rgba = rgba(&t.color, f1, f2);
+            _mm_storeu_si128(cp, _mm_blendv_epi8(_mm_loadu_si128(cp), rgba, pass));
+            if let Some(ids) = t.ids.as_deref_mut() {
+                let ip = ids.as_mut_ptr().add(at) as *mut __m128i;
+                let id = _mm_set1_epi32(t.id);
+                _mm_storeu_si128(ip, _mm_blendv_epi8(_mm_loadu_si128(ip), id, pass));
+            }
+        }
+    }
+
+    /// The lane mask of the low four bits of `bits`.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn lane_mask(bits: u32) -> __m128i {
+        let row = &LANE_MASKS[(bits & 0xF) as usize];
+        // SAFETY: `row` is four i32 (16 bytes); unaligned loads need no alignment.
+        unsafe { _mm_loadu_si128(row.as_ptr() as *const __m128i) }
+    }
+
     /// [`super::shade_narrow`] in AVX2: each row of the box as one or two groups of four
     /// pixels. The edge values are stepped in `f64` lanes (integers below 2^49 plus steps below
     /// 2^35: exact), so coverage is the sign bit of `e0 | e1 | e2` as in the scalar test, and
     /// the barycentric numerators are the edge values minus the fill-rule biases, exactly.
-    /// Groups are read and written whole (read-blend-write); lanes past the box's columns are
-    /// uncovered, so their pixels (of the same band: this thread's) are written back as read.
+    /// Lanes past the box's columns are uncovered, so their pixels (of the same band: this
+    /// thread's) are written back as read.
     ///
     /// # Safety
     /// The CPU must support AVX2.
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn shade_narrow_avx2(mut job: NarrowJob<'_>) -> u64 {
-        let n = job.depth.len();
+        let n = job.target.checked_len();
         assert!((1..=super::NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not narrow");
         assert!(job.group_end() <= n, "the box's groups must lie in the buffers");
-        assert!(job.color_out.len() == n, "buffers must have the same length");
-        assert!(job.ids.as_ref().is_none_or(|s| s.len() == n), "buffers differ");
-        assert!(job.overdraw.as_ref().is_none_or(|s| s.len() == n), "buffers differ");
         let groups = job.columns.div_ceil(4);
         let lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
         // Edge k's offsets from the row's first pixel, for the lanes of groups 0 and 1.
@@ -850,148 +903,60 @@ mod x86 {
                     continue;
                 }
                 covered += u64::from(bits.count_ones());
+                let (f1, f2) = (_mm256_sub_pd(e[1], bias[0]), _mm256_sub_pd(e[2], bias[1]));
                 let at = job.first + r * job.stride + 4 * g;
-                // SAFETY (every pointer access in this block): the group's four elements at
-                // `at` lie below `group_end() <= n` (asserted), and every buffer holds `n`
-                // elements; the mask table index is below 16; unaligned loads and stores have
-                // no alignment requirement; `[u8; 4]` is one i32 lane.
-                unsafe {
-                    let cover =
-                        _mm_loadu_si128(LANE_MASKS[bits as usize].as_ptr() as *const __m128i);
-                    if let Some(o) = job.overdraw.as_deref_mut() {
-                        let p = o.as_mut_ptr().add(at) as *mut __m128i;
-                        // Covered lanes are -1: subtracting them counts one fragment.
-                        _mm_storeu_si128(p, _mm_sub_epi32(_mm_loadu_si128(p), cover));
-                    }
-                    let f1 = _mm256_sub_pd(e[1], bias[0]);
-                    let f2 = _mm256_sub_pd(e[2], bias[1]);
-                    let z = _mm256_cvtpd_ps(plane(job.depth_plane, f1, f2));
-                    let z = _mm_min_ps(_mm_set1_ps(1.0), _mm_max_ps(_mm_setzero_ps(), z));
-                    let dp = job.depth.as_mut_ptr().add(at);
-                    let stored = _mm_loadu_ps(dp);
-                    let cover_ps = _mm_castsi128_ps(cover);
-                    let pass = match job.depth_test {
-                        DepthTest::Less => {
-                            _mm_and_ps(_mm_cmp_ps::<_CMP_LT_OQ>(z, stored), cover_ps)
-                        }
-                        DepthTest::LessEqual => {
-                            _mm_and_ps(_mm_cmp_ps::<_CMP_LE_OQ>(z, stored), cover_ps)
-                        }
-                        DepthTest::Always => cover_ps,
-                    };
-                    if _mm_movemask_ps(pass) == 0 {
-                        continue;
-                    }
-                    _mm_storeu_ps(dp, _mm_blendv_ps(stored, z, pass));
-                    let pass = _mm_castps_si128(pass);
-                    let cp = job.color_out.as_mut_ptr().add(at) as *mut __m128i;
-                    let rgba = rgba(&job.color, f1, f2);
-                    _mm_storeu_si128(cp, _mm_blendv_epi8(_mm_loadu_si128(cp), rgba, pass));
-                    if let Some(ids) = job.ids.as_deref_mut() {
-                        let ip = ids.as_mut_ptr().add(at) as *mut __m128i;
-                        let id = _mm_set1_epi32(job.id);
-                        _mm_storeu_si128(ip, _mm_blendv_epi8(_mm_loadu_si128(ip), id, pass));
-                    }
-                }
+                // SAFETY: `at + 4 <= group_end() <= n` (asserted above).
+                unsafe { group(&mut job.target, at, f1, f2, lane_mask(bits)) };
             }
-            for k in 0..3 {
-                row[k] += step_y[k];
-            }
+            row = std::array::from_fn(|k| row[k] + step_y[k]);
         }
         covered
     }
 
     /// The AVX2 kernel: four pixels per step; the last `n % 4` pixels as the span's last four
     /// with those already shaded masked off (spans shorter than four go to the scalar
-    /// kernel). Writes are read-blend-write of whole 4-pixel groups inside the span, avoiding
-    /// masked stores (microcoded and slow on AMD cores).
+    /// kernel).
     ///
     /// # Safety
     /// The CPU must support AVX2.
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn shade_span_avx2(mut job: SpanJob<'_>) {
-        let n = job.depth.len();
+        let n = job.target.checked_len();
         if n < 4 {
             return super::shade_span_scalar(job);
         }
-        assert!(job.color_out.len() == n, "span slices must have the same length");
-        assert!(job.ids.as_ref().is_none_or(|s| s.len() == n), "span slices differ");
-        assert!(job.overdraw.as_ref().is_none_or(|s| s.len() == n), "span slices differ");
         let lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
-        let mut f1 = _mm256_add_pd(
-            _mm256_set1_pd(job.e1 as f64),
-            _mm256_mul_pd(lanes, _mm256_set1_pd(job.step1 as f64)),
-        );
-        let mut f2 = _mm256_add_pd(
-            _mm256_set1_pd(job.e2 as f64),
-            _mm256_mul_pd(lanes, _mm256_set1_pd(job.step2 as f64)),
-        );
+        // The numerators at pixel `first + lane`: exact integers as everywhere
+        // (`(first + lane) * step` is below 2^47, the sum below 2^49).
+        let at = |first: usize| {
+            let k = _mm256_add_pd(lanes, _mm256_set1_pd(first as f64));
+            let f = |e: i64, step: i64| {
+                _mm256_add_pd(
+                    _mm256_set1_pd(e as f64),
+                    _mm256_mul_pd(k, _mm256_set1_pd(step as f64)),
+                )
+            };
+            (f(job.e1, job.step1), f(job.e2, job.step2))
+        };
+        let (mut f1, mut f2) = at(0);
         let (step1, step2) =
             (_mm256_set1_pd(4.0 * job.step1 as f64), _mm256_set1_pd(4.0 * job.step2 as f64));
         let full = n - n % 4;
-        // One group of four pixels at `k` whose lanes in `cover` are to be shaded.
-        let mut group = |k: usize, f1: __m256d, f2: __m256d, cover: __m128i| {
-            // SAFETY (every pointer access in this block): callers pass `k + 4 <= n`, and all
-            // the span's slices hold `n` elements (asserted above), so the 4 elements at `k`
-            // are in bounds; unaligned loads/stores have no alignment requirement, and
-            // `[u8; 4]` is four bytes, read and written as one i32 lane.
-            unsafe {
-                if let Some(o) = job.overdraw.as_deref_mut() {
-                    let p = o.as_mut_ptr().add(k) as *mut __m128i;
-                    // Covered lanes are -1: subtracting them counts one fragment.
-                    _mm_storeu_si128(p, _mm_sub_epi32(_mm_loadu_si128(p), cover));
-                }
-                let z = _mm256_cvtpd_ps(plane(job.depth_plane, f1, f2));
-                let z = _mm_min_ps(_mm_set1_ps(1.0), _mm_max_ps(_mm_setzero_ps(), z));
-                let dp = job.depth.as_mut_ptr().add(k);
-                let stored = _mm_loadu_ps(dp);
-                let pass = match job.depth_test {
-                    DepthTest::Less => _mm_cmp_ps::<_CMP_LT_OQ>(z, stored),
-                    DepthTest::LessEqual => _mm_cmp_ps::<_CMP_LE_OQ>(z, stored),
-                    DepthTest::Always => _mm_castsi128_ps(_mm_set1_epi32(-1)),
-                };
-                let pass = _mm_and_ps(pass, _mm_castsi128_ps(cover));
-                if _mm_movemask_ps(pass) != 0 {
-                    _mm_storeu_ps(dp, _mm_blendv_ps(stored, z, pass));
-                    let pass = _mm_castps_si128(pass);
-                    let rgba = rgba(&job.color, f1, f2);
-                    let cp = job.color_out.as_mut_ptr().add(k) as *mut __m128i;
-                    _mm_storeu_si128(cp, _mm_blendv_epi8(_mm_loadu_si128(cp), rgba, pass));
-                    if let Some(ids) = job.ids.as_deref_mut() {
-                        let ip = ids.as_mut_ptr().add(k) as *mut __m128i;
-                        let id = _mm_set1_epi32(job.id);
-                        _mm_storeu_si128(ip, _mm_blendv_epi8(_mm_loadu_si128(ip), id, pass));
-                    }
-                }
-            }
-        };
         let all = _mm_set1_epi32(-1);
         let mut k = 0;
         while k < full {
-            group(k, f1, f2, all);
+            // SAFETY: `k + 4 <= full <= n`.
+            unsafe { group(&mut job.target, k, f1, f2, all) };
             f1 = _mm256_add_pd(f1, step1);
             f2 = _mm256_add_pd(f2, step2);
             k += 4;
         }
         if full < n {
-            // The last four pixels, those already shaded masked off: the numerators at
-            // `n - 4 + lane`, exact integers as everywhere (`(n - 4 + lane) * step` is below
-            // 2^47, the sum below 2^49).
-            let at = _mm256_add_pd(lanes, _mm256_set1_pd((n - 4) as f64));
-            let f1 = _mm256_add_pd(
-                _mm256_set1_pd(job.e1 as f64),
-                _mm256_mul_pd(at, _mm256_set1_pd(job.step1 as f64)),
-            );
-            let f2 = _mm256_add_pd(
-                _mm256_set1_pd(job.e2 as f64),
-                _mm256_mul_pd(at, _mm256_set1_pd(job.step2 as f64)),
-            );
+            // The last four pixels, those already shaded masked off.
+            let (f1, f2) = at(n - 4);
             let done = 4 - n % 4;
-            // SAFETY: the mask table index is below 16.
-            let cover = unsafe {
-                _mm_loadu_si128(LANE_MASKS[(0xF << done) & 0xF].as_ptr() as *const __m128i)
-            };
-            group(n - 4, f1, f2, cover);
+            // SAFETY: `n - 4 + 4 = n`.
+            unsafe { group(&mut job.target, n - 4, f1, f2, lane_mask(0xF << done)) };
         }
     }
 }
@@ -1279,14 +1244,16 @@ mod tests {
                         rows,
                         first,
                         stride,
-                        depth_plane,
-                        color,
-                        depth_test,
-                        id: 9,
-                        depth: &mut d,
-                        color_out: &mut c,
-                        ids: extras.then_some(&mut i[..]),
-                        overdraw: extras.then_some(&mut o[..]),
+                        target: KernelTarget {
+                            depth_plane,
+                            color,
+                            depth_test,
+                            id: 9,
+                            depth: &mut d,
+                            color_out: &mut c,
+                            ids: extras.then_some(&mut i[..]),
+                            overdraw: extras.then_some(&mut o[..]),
+                        },
                     },
                 );
                 (covered, d.iter().map(|z| z.to_bits()).collect::<Vec<_>>(), c, i, o)
@@ -1348,14 +1315,16 @@ mod tests {
                         e2,
                         step1,
                         step2,
-                        depth_plane,
-                        color,
-                        depth_test,
-                        id: 7,
-                        depth: &mut d,
-                        color_out: &mut c,
-                        ids: Some(&mut i),
-                        overdraw: Some(&mut o),
+                        target: KernelTarget {
+                            depth_plane,
+                            color,
+                            depth_test,
+                            id: 7,
+                            depth: &mut d,
+                            color_out: &mut c,
+                            ids: Some(&mut i),
+                            overdraw: Some(&mut o),
+                        },
                     },
                 );
                 (d.iter().map(|z| z.to_bits()).collect::<Vec<_>>(), c, i, o)
