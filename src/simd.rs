@@ -1177,6 +1177,28 @@ mod tests {
         }
     }
 
+    /// A random plane `[a0, g1, g2]` whose values over a span leave [0, scale] on either side.
+    fn random_plane(rng: &mut SmallRng, scale: f64) -> [f64; 3] {
+        [
+            rng.random_range(-0.2..1.2) * scale,
+            rng.random_range(-1e-6..1e-6) * scale,
+            rng.random_range(-1e-6..1e-6) * scale,
+        ]
+    }
+
+    /// A random flat or smooth colour; now and then a smooth one with a NaN or infinite
+    /// channel (the quantizers map NaN to 0 and clamp infinities).
+    fn random_color(rng: &mut SmallRng, round: usize) -> SpanColor {
+        if rng.random() {
+            return SpanColor::Flat([rng.random(), rng.random(), rng.random(), rng.random()]);
+        }
+        let mut planes: [[f64; 3]; 4] = std::array::from_fn(|_| random_plane(rng, 255.0));
+        if round.is_multiple_of(89) {
+            planes[round % 4][0] = [f64::NAN, f64::INFINITY, -f64::INFINITY][round % 3];
+        }
+        SpanColor::Smooth(planes)
+    }
+
     /// The narrow kernels against the scalar one on random boxes (1 to 8 columns, 1 to 6
     /// rows) of random edge functions (so any coverage pattern, not only triangles'), biases
     /// 0 and -1, every depth test, flat and smooth colours, with and without id and overdraw
@@ -1211,19 +1233,8 @@ mod tests {
                 )
             };
             let bias = [-(rng.random::<bool>() as i64), -(rng.random::<bool>() as i64)];
-            let plane = |rng: &mut SmallRng, scale: f64| {
-                [
-                    rng.random_range(-0.2..1.2) * scale,
-                    rng.random_range(-1e-6..1e-6) * scale,
-                    rng.random_range(-1e-6..1e-6) * scale,
-                ]
-            };
-            let depth_plane = plane(&mut rng, 1.0);
-            let color = if rng.random() {
-                SpanColor::Flat([rng.random(), rng.random(), rng.random(), rng.random()])
-            } else {
-                SpanColor::Smooth(std::array::from_fn(|_| plane(&mut rng, 255.0)))
-            };
+            let depth_plane = random_plane(&mut rng, 1.0);
+            let color = random_color(&mut rng, round);
             let depth_test = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always][round % 3];
             let extras = round % 4 < 2;
             let depth0: Vec<f32> = (0..len).map(|_| rng.random_range(0.0..1.0)).collect();
@@ -1273,27 +1284,11 @@ mod tests {
         let mut rng = SmallRng::seed_from_u64(1);
         for round in 0..20_000 {
             let n = rng.random_range(0..40usize);
-            let plane = |rng: &mut SmallRng, scale: f64| {
-                [
-                    rng.random_range(-0.2..1.2) * scale,
-                    rng.random_range(-1e-6..1e-6) * scale,
-                    rng.random_range(-1e-6..1e-6) * scale,
-                ]
-            };
-            let mut depth_plane = plane(&mut rng, 1.0);
+            let mut depth_plane = random_plane(&mut rng, 1.0);
             if round % 97 == 0 {
                 depth_plane = [-0.0, 0.0, 0.0];
             }
-            let color = if rng.random() {
-                SpanColor::Flat([rng.random(), rng.random(), rng.random(), rng.random()])
-            } else {
-                let mut planes: [[f64; 3]; 4] = std::array::from_fn(|_| plane(&mut rng, 255.0));
-                // Non-finite channels (the quantizers map NaN to 0 and clamp infinities).
-                if round % 89 == 0 {
-                    planes[round % 4][0] = [f64::NAN, f64::INFINITY, -f64::INFINITY][round % 3];
-                }
-                SpanColor::Smooth(planes)
-            };
+            let color = random_color(&mut rng, round);
             let depth_test = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always][round % 3];
             let e1 = rng.random_range(-(1i64 << 40)..(1 << 40));
             let e2 = rng.random_range(-(1i64 << 40)..(1 << 40));
