@@ -399,7 +399,7 @@ impl FrontEnd {
     /// [`FrontEnd::prepare`] for triangles `range` of `batch` (whose first has id
     /// `first_id`); vertex `i`'s corner is `corners[i - base]`, and `vertex(i)` gives it as
     /// setup needs it. Triangles inside the clip volume take the corner tests eight at a time
-    /// ([`simd::corner_tests`]): in a dense mesh nearly all stop there, counted; those that
+    /// ([`simd::corner_tests_indexed`]): in a dense mesh nearly all stop there, counted; those that
     /// pass go straight to setup (as `setup_inside` would after the same tests), and those
     /// needing clipping through `prepare`.
     fn prepare_range<V: Varyings, R: Borrow<ShadedVertex<V>>>(

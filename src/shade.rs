@@ -455,14 +455,7 @@ fn shade_single_sample(
             let mut covered = 0u64;
             let mut row = edges;
             for py in r.y0..=r.y1 {
-                let mut e = row;
-                let mut mask = 0u32;
-                for c in 0..simd::NARROW_COLUMNS as u32 {
-                    let out = ((e[0] | e[1] | e[2]) >> 63) as u32 & 1;
-                    mask |= (out ^ 1) << c;
-                    e = std::array::from_fn(|k| e[k] + step_x[k]);
-                }
-                mask &= (1 << columns) - 1;
+                let mut mask = raster::edge::row_coverage(row, step_x) & ((1 << columns) - 1);
                 covered += u64::from(mask.count_ones());
                 let first = target.index(r.x0, py);
                 while mask != 0 {

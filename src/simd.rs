@@ -270,8 +270,9 @@ pub fn shade_span(level: SimdLevel, job: SpanJob<'_>) {
     }
 }
 
-/// Widest box (pixels) [`shade_narrow`] takes: two groups of four lanes.
-pub const NARROW_COLUMNS: usize = 8;
+/// Widest box (pixels) [`shade_narrow`] takes: two groups of four lanes, the narrow boxes of
+/// [`crate::raster::edge::rasterize_narrow`].
+pub const NARROW_COLUMNS: usize = crate::raster::edge::NARROW as usize;
 
 /// A small triangle shaded whole, coverage included: its box (clipped) is at most
 /// [`NARROW_COLUMNS`] pixels wide. Coverage is the edge functions' sign test at every pixel of

@@ -70,6 +70,21 @@ pub fn rasterize(
 /// Widest box (pixels) [`rasterize_narrow`] handles.
 pub const NARROW: i32 = 8;
 
+/// Coverage of [`NARROW`] pixels of a row as bits (bit `x`: the pixel `x` to the right of the
+/// one whose biased edge values are `e`), without branches: the sign bit of `e0 | e1 | e2` is
+/// set iff a pixel is out.
+#[inline]
+#[must_use]
+pub fn row_coverage(mut e: [i64; 3], step_x: [i64; 3]) -> u32 {
+    let mut mask = 0u32;
+    for x in 0..NARROW as u32 {
+        let out = ((e[0] | e[1] | e[2]) >> 63) as u32 & 1;
+        mask |= (out ^ 1) << x;
+        e = std::array::from_fn(|k| e[k] + step_x[k]);
+    }
+    mask
+}
+
 /// [`rasterize`] for boxes at most [`NARROW`] pixels wide (after clipping), without
 /// data-dependent branches inside a row: the row's coverage is gathered as a bit mask over a
 /// fixed number of pixels and the span read off its lowest and highest bits (a convex
@@ -92,17 +107,7 @@ pub fn rasterize_narrow(
     // Only the box's own columns count.
     let columns = (1u32 << width) - 1;
     for y in r.y0..=r.y1 {
-        let mut e = row;
-        let mut mask = 0u32;
-        for x in 0..NARROW as u32 {
-            // The sign bit of `e0 | e1 | e2` is set iff the pixel is out.
-            let out = ((e[0] | e[1] | e[2]) >> 63) as u32 & 1;
-            mask |= (out ^ 1) << x;
-            for k in 0..3 {
-                e[k] += step_x[k];
-            }
-        }
-        mask &= columns;
+        let mask = row_coverage(row, step_x) & columns;
         if mask != 0 {
             let first = mask.trailing_zeros() as i32;
             let last = 31 - mask.leading_zeros() as i32;
