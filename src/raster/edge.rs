@@ -72,8 +72,9 @@ pub const NARROW: i32 = 8;
 
 /// Coverage of [`NARROW`] pixels of a row as bits (bit `x`: the pixel `x` to the right of the
 /// one whose biased edge values are `e`), without branches: the sign bit of `e0 | e1 | e2` is
-/// set iff a pixel is out.
-#[inline]
+/// set iff a pixel is out. Always inlined: with plain `#[inline]` the grid scene was 16%
+/// slower on two threads (unchanged on one).
+#[inline(always)]
 #[must_use]
 pub fn row_coverage(mut e: [i64; 3], step_x: [i64; 3]) -> u32 {
     let mut mask = 0u32;
