@@ -814,12 +814,22 @@ mod x86 {
     /// with barycentric numerators `f1`, `f2`: overdraw, depth test, writes, as the scalar
     /// `KernelTarget::pixel` does lane by lane. Read-blend-write of the whole group (masked
     /// stores are microcoded and slow on AMD cores): uncovered lanes are written back as read.
+    /// With `SKIP_HIDDEN`, a group where no lane passes the depth test stops there: right
+    /// for long spans of large overlapping triangles (fill: twice as fast as without), wrong
+    /// for the few groups of a small triangle, where the mispredicted branch costs more than
+    /// the colour it saves (soup: 7% faster without).
     ///
     /// # Safety
     /// The CPU must support AVX2, and `at + 4` must not exceed `t.checked_len()`.
     #[inline]
     #[target_feature(enable = "avx2")]
-    unsafe fn group(t: &mut KernelTarget<'_>, at: usize, f1: __m256d, f2: __m256d, cover: __m128i) {
+    unsafe fn group<const SKIP_HIDDEN: bool>(
+        t: &mut KernelTarget<'_>,
+        at: usize,
+        f1: __m256d,
+        f2: __m256d,
+        cover: __m128i,
+    ) {
         // SAFETY (every pointer access in this block): the caller guarantees the four
         // elements at `at` lie in every buffer (they all hold `checked_len()` elements);
         // unaligned loads and stores have no alignment requirement; `[u8; 4]` is four bytes,
@@ -840,7 +850,7 @@ mod x86 {
                 DepthTest::LessEqual => _mm_and_ps(_mm_cmp_ps::<_CMP_LE_OQ>(z, stored), cover_ps),
                 DepthTest::Always => cover_ps,
             };
-            if _mm_movemask_ps(pass) == 0 {
+            if SKIP_HIDDEN && _mm_movemask_ps(pass) == 0 {
                 return;
             }
             _mm_storeu_ps(dp, _mm_blendv_ps(stored, z, pass));
@@ -907,7 +917,7 @@ mod x86 {
                 let (f1, f2) = (_mm256_sub_pd(e[1], bias[0]), _mm256_sub_pd(e[2], bias[1]));
                 let at = job.first + r * job.stride + 4 * g;
                 // SAFETY: `at + 4 <= group_end() <= n` (asserted above).
-                unsafe { group(&mut job.target, at, f1, f2, lane_mask(bits)) };
+                unsafe { group::<false>(&mut job.target, at, f1, f2, lane_mask(bits)) };
             }
             row = std::array::from_fn(|k| row[k] + step_y[k]);
         }
@@ -947,7 +957,7 @@ mod x86 {
         let mut k = 0;
         while k < full {
             // SAFETY: `k + 4 <= full <= n`.
-            unsafe { group(&mut job.target, k, f1, f2, all) };
+            unsafe { group::<true>(&mut job.target, k, f1, f2, all) };
             f1 = _mm256_add_pd(f1, step1);
             f2 = _mm256_add_pd(f2, step2);
             k += 4;
@@ -957,7 +967,7 @@ mod x86 {
             let (f1, f2) = at(n - 4);
             let done = 4 - n % 4;
             // SAFETY: `n - 4 + 4 = n`.
-            unsafe { group(&mut job.target, n - 4, f1, f2, lane_mask(0xF << done)) };
+            unsafe { group::<true>(&mut job.target, n - 4, f1, f2, lane_mask(0xF << done)) };
         }
     }
 }
