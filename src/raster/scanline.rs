@@ -59,6 +59,13 @@ pub fn rasterize(
     walk_rows(rows(below, i64::from(r.y1)), [long, lower], &r, offset, &mut emit);
 }
 
+/// The right-hand side of the inside test on the sample row at fixed-point `yc`: the sample
+/// in column `px` is inside `e` iff `a * 256 * px >= inside_rhs`.
+#[inline]
+fn inside_rhs(e: &EdgeFunction, yc: i64, offset: [i64; 2]) -> i64 {
+    -(e.b * yc + e.c + e.a * (i64::from(HALF) + offset[0]))
+}
+
 /// Intersects the row's clip range with the bound each active edge puts on `px`.
 fn walk_row(
     y: i32,
@@ -70,8 +77,7 @@ fn walk_row(
     let yc = fixed::pixel_centre(y) + offset[1];
     let (mut lo, mut hi) = (i64::from(clip.x0), i64::from(clip.x1));
     for e in active {
-        // Need a * 256 * px >= rhs.
-        let rhs = -(e.b * yc + e.c + e.a * (i64::from(HALF) + offset[0]));
+        let rhs = inside_rhs(e, yc, offset);
         let step = e.a * i64::from(ONE);
         if e.a > 0 {
             lo = lo.max(fixed::ceil_div(rhs, step));
@@ -91,7 +97,8 @@ fn walk_row(
 /// so a run of rows costs two divisions per edge instead of two per row.
 #[derive(Clone, Copy, Debug)]
 struct EdgeWalker {
-    /// The bound on the current row.
+    /// `floor(n / s)` on the current row: a right edge's upper bound on `px`, the negated
+    /// lower bound of a left edge.
     q: i64,
     /// Remainder of the bound's division, `0 <= r < s`.
     r: i64,
@@ -149,7 +156,7 @@ fn walk_rows(
     let mut lo = None;
     let mut hi = None;
     for e in active {
-        let rhs = -(e.b * yc + e.c + e.a * (i64::from(HALF) + offset[0]));
+        let rhs = inside_rhs(e, yc, offset);
         let d = e.b * i64::from(ONE);
         let s = e.a * i64::from(ONE);
         if e.a > 0 {
