@@ -9,6 +9,7 @@ use rand::{Rng, SeedableRng};
 use std::hint::black_box;
 use trirast::bin::Bins;
 use trirast::clip::ClipVolume;
+use trirast::fixed;
 use trirast::pipeline::Viewport;
 use trirast::shade::DepthTest;
 use trirast::simd::{self, Corner, KernelTarget, NarrowJob, SimdLevel, SpanColor, SpanJob};
@@ -55,11 +56,25 @@ fn binning(c: &mut Criterion) {
     g.finish();
 }
 
+/// The kernels' shading in every bench: smooth colour, LESS depth, no id or overdraw buffer.
+fn smooth_target<'a>(depth: &'a mut [f32], color: &'a mut [[u8; 4]]) -> KernelTarget<'a> {
+    let planes = [[100.0, 1e-9, -2e-9], [50.0, 2e-9, 1e-9], [20.0, 0.0, 3e-9], [255.0, 0.0, 0.0]];
+    KernelTarget {
+        depth_plane: [0.5, 1e-12, 1e-12],
+        color: SpanColor::Smooth(planes),
+        depth_test: DepthTest::Less,
+        id: 1,
+        depth,
+        color_out: color,
+        ids: None,
+        overdraw: None,
+    }
+}
+
 fn kernels(c: &mut Criterion) {
     let mut g = c.benchmark_group("span kernel");
     let n = 64;
     g.throughput(Throughput::Elements(n as u64));
-    let planes = [[100.0, 1e-9, -2e-9], [50.0, 2e-9, 1e-9], [20.0, 0.0, 3e-9], [255.0, 0.0, 0.0]];
     for level in SimdLevel::available() {
         let mut depth = vec![1.0f32; n];
         let mut color = vec![[0u8; 4]; n];
@@ -73,16 +88,7 @@ fn kernels(c: &mut Criterion) {
                         e2: 1 << 29,
                         step1: 1 << 20,
                         step2: -(1 << 19),
-                        target: KernelTarget {
-                            depth_plane: [0.5, 1e-12, 1e-12],
-                            color: SpanColor::Smooth(planes),
-                            depth_test: DepthTest::Less,
-                            id: 1,
-                            depth: &mut depth,
-                            color_out: &mut color,
-                            ids: None,
-                            overdraw: None,
-                        },
+                        target: smooth_target(&mut depth, &mut color),
                     },
                 );
             })
@@ -97,10 +103,9 @@ fn narrow(c: &mut Criterion) {
         Vertex::new(2.4, 5.6, 0.7, [199; 4])
     }];
     let s = TriangleSetup::new(&v, CullMode::None).expect("a triangle");
-    let (x, y) = (128 + 256 * i64::from(s.bounds.x0), 128 + 256 * i64::from(s.bounds.y0));
+    let (x, y) = (fixed::pixel_centre(s.bounds.x0), fixed::pixel_centre(s.bounds.y0));
     let edges = s.edges.map(|e| e.eval(x, y));
     let (e1, e2) = s.barycentric_numerators(x, y);
-    let planes = [[100.0, 1e-9, -2e-9], [50.0, 2e-9, 1e-9], [20.0, 0.0, 3e-9], [255.0, 0.0, 0.0]];
     let mut g = c.benchmark_group("narrow kernel");
     g.throughput(Throughput::Elements(1));
     for level in SimdLevel::available() {
@@ -120,16 +125,7 @@ fn narrow(c: &mut Criterion) {
                         rows: (s.bounds.y1 - s.bounds.y0 + 1) as usize,
                         first: 0,
                         stride: 64,
-                        target: KernelTarget {
-                            depth_plane: [0.5, 1e-12, 1e-12],
-                            color: SpanColor::Smooth(planes),
-                            depth_test: DepthTest::Less,
-                            id: 1,
-                            depth: &mut depth,
-                            color_out: &mut color,
-                            ids: None,
-                            overdraw: None,
-                        },
+                        target: smooth_target(&mut depth, &mut color),
                     },
                 )
             })
