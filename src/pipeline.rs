@@ -202,8 +202,15 @@ impl Pipeline {
             let (position, varyings) = vertex_shader.shade(v);
             front.vertex(ClipVertex { position, varyings })
         };
-        let shaded: Vec<ShadedVertex<VS::Varyings>> =
-            if whole { vertices.par_iter().map(shade_vertex).collect() } else { Vec::new() };
+        // Buffers a previous draw call on this target left: refilled, not reallocated (a
+        // fresh vector's pages were a twentieth of a small mesh's frame).
+        let mut scratch: Scratch<VS::Varyings> = target.take_scratch();
+        let Scratch { shaded, window, prepared } = &mut scratch;
+        shaded.clear();
+        if whole {
+            vertices.par_iter().map(shade_vertex).collect_into_vec(shaded);
+        }
+        let shaded = &*shaded;
         let want_normal = target.normals.is_some();
         let shade = |t: &TriangleData<VS::Varyings>, x, y, e1: f64, e2: f64, z| {
             let w = perspective_weights(e1 * t.inv_area2, e2 * t.inv_area2, t.inv_w);
@@ -259,12 +266,9 @@ impl Pipeline {
                 let level = SimdLevel::detect();
                 // The corner tests read corners from a window of them: for a small mesh, all
                 // its vertices'; for a large one, each batch's index range.
-                let mut window: Vec<Corner> = if whole {
-                    shaded.par_iter().map(ShadedVertex::corner).collect()
-                } else {
-                    Vec::new()
-                };
-                let mut prepared: bin::PreparedBatch<_> = target.take_scratch();
+                if whole {
+                    shaded.par_iter().map(ShadedVertex::corner).collect_into_vec(window);
+                }
                 for (b, batch) in triangles.chunks(BATCH).enumerate() {
                     // Vertices of a large mesh: the batch's index range shaded into a scratch
                     // window when it is compact (meshes are mostly stored with locality),
@@ -318,16 +322,16 @@ impl Pipeline {
                     stats = stats.merged(&counts);
                     stats.fragments += bin::draw_binned(
                         target,
-                        &prepared,
+                        prepared,
                         self.depth_test,
                         &front.clip,
                         |_| None,
                         shade,
                     );
                 }
-                target.keep_scratch(prepared);
             }
         }
+        target.keep_scratch(scratch);
         Ok(stats)
     }
 }
@@ -339,6 +343,22 @@ const CORNER_BLOCK: usize = 1024;
 /// Meshes with at most this many vertices have them all shaded before any triangle; larger
 /// ones are shaded batch by batch, bounding memory.
 const VERTEX_CACHE: usize = 1 << 20;
+
+/// What [`Pipeline::draw`] keeps on the target between draw calls with the same varyings.
+struct Scratch<V> {
+    /// A small mesh's shaded vertices.
+    shaded: Vec<ShadedVertex<V>>,
+    /// The corners the corner tests read (all a small mesh's, or a batch's index range).
+    window: Vec<Corner>,
+    /// The tiled backend's set-up triangles.
+    prepared: bin::PreparedBatch<TriangleData<V>>,
+}
+
+impl<V> Default for Scratch<V> {
+    fn default() -> Self {
+        Self { shaded: Vec::new(), window: Vec::new(), prepared: bin::PreparedBatch::default() }
+    }
+}
 
 /// What the fragment stage needs of one (possibly clipped) triangle.
 #[derive(Clone, Copy, Debug)]
