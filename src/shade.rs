@@ -232,7 +232,14 @@ impl TriangleColor {
     pub fn span_color(&self) -> Option<SpanColor> {
         match &self.0 {
             ColorSource::Flat(c) => Some(SpanColor::Flat(*c)),
-            ColorSource::Smooth(p) => Some(SpanColor::Smooth(p.map(|p| p.coefficients()))),
+            ColorSource::Smooth([r, g, b, a]) => Some(match a.coefficients() {
+                // One alpha at every vertex: the same colours with one plane fewer.
+                [a0, 0.0, 0.0] => SpanColor::SmoothRgb(
+                    [r, g, b].map(PlaneEquation::coefficients),
+                    quantize_channel(a0),
+                ),
+                _ => SpanColor::Smooth([r, g, b, a].map(PlaneEquation::coefficients)),
+            }),
             ColorSource::Perspective(_) => None,
         }
     }

@@ -177,6 +177,11 @@ pub enum SpanColor {
     Flat([u8; 4]),
     /// Gouraud planes per channel.
     Smooth([[f64; 3]; 4]),
+    /// Gouraud planes for red, green and blue, and a constant alpha: a triangle whose
+    /// vertices share one alpha (opaque geometry) skips a fourth of the colour arithmetic.
+    /// The same colours as `Smooth` with the alpha plane `[a0, 0, 0]` and `quantize(a0)` here:
+    /// `a0 + f1 * 0 + f2 * 0` is `a0` for finite `f1`, `f2`.
+    SmoothRgb([[f64; 3]; 3], u8),
 }
 
 impl SpanColor {
@@ -186,6 +191,10 @@ impl SpanColor {
         match *self {
             Self::Flat(c) => c,
             Self::Smooth(p) => p.map(|[a0, g1, g2]| quantize_channel(a0 + f1 * g1 + f2 * g2)),
+            Self::SmoothRgb(p, alpha) => {
+                let [r, g, b] = p.map(|[a0, g1, g2]| quantize_channel(a0 + f1 * g1 + f2 * g2));
+                [r, g, b, alpha]
+            }
         }
     }
 }
@@ -776,23 +785,45 @@ mod x86 {
         _mm256_cvtpd_epi32(v)
     }
 
-    /// Four lanes of colour at barycentric numerators `(f1, f2)`, as RGBA8 in `i32` lanes.
+    /// Four lanes of RGBA8 (in `i32` lanes) from planes: red, green, blue and, when `alpha`
+    /// is `None`, the fourth plane's alpha.
     #[inline]
     #[target_feature(enable = "avx2")]
-    fn rgba(color: &SpanColor, f1: __m256d, f2: __m256d) -> __m128i {
-        match *color {
-            SpanColor::Flat(c) => _mm_set1_epi32(i32::from_le_bytes(c)),
-            SpanColor::Smooth(p) => {
-                let r = quantize(plane(p[0], f1, f2));
-                let g = quantize(plane(p[1], f1, f2));
-                let b = quantize(plane(p[2], f1, f2));
-                let a = quantize(plane(p[3], f1, f2));
-                _mm_or_si128(
-                    _mm_or_si128(r, _mm_slli_epi32::<8>(g)),
-                    _mm_or_si128(_mm_slli_epi32::<16>(b), _mm_slli_epi32::<24>(a)),
-                )
+    fn smooth(p: &[[f64; 3]], alpha: Option<u8>, f1: __m256d, f2: __m256d) -> __m128i {
+        let r = quantize(plane(p[0], f1, f2));
+        let g = quantize(plane(p[1], f1, f2));
+        let b = quantize(plane(p[2], f1, f2));
+        let a = match alpha {
+            Some(a) => _mm_set1_epi32(i32::from(a) << 24),
+            None => _mm_slli_epi32::<24>(quantize(plane(p[3], f1, f2))),
+        };
+        _mm_or_si128(
+            _mm_or_si128(r, _mm_slli_epi32::<8>(g)),
+            _mm_or_si128(_mm_slli_epi32::<16>(b), a),
+        )
+    }
+
+    /// Runs `$body` with `$rgba` bound to the colour of four lanes at barycentric numerators
+    /// `(f1, f2)` as a closure, one per colour kind: each kind's loop is compiled on its own,
+    /// without a match per group (and with groups small enough to inline).
+    macro_rules! with_rgba {
+        ($color:expr, $rgba:ident => $body:expr) => {
+            match $color {
+                SpanColor::Flat(c) => {
+                    let flat = _mm_set1_epi32(i32::from_le_bytes(c));
+                    let $rgba = move |_: __m256d, _: __m256d| flat;
+                    $body
+                }
+                SpanColor::Smooth(p) => {
+                    let $rgba = move |f1, f2| smooth(&p, None, f1, f2);
+                    $body
+                }
+                SpanColor::SmoothRgb(p, alpha) => {
+                    let $rgba = move |f1, f2| smooth(&p, Some(alpha), f1, f2);
+                    $body
+                }
             }
-        }
+        };
     }
 
     /// Four lanes of `-1` (covered) or `0`, from the low four bits of an index.
@@ -829,6 +860,7 @@ mod x86 {
         f1: __m256d,
         f2: __m256d,
         cover: __m128i,
+        rgba: impl Fn(__m256d, __m256d) -> __m128i,
     ) {
         // SAFETY (every pointer access in this block): the caller guarantees the four
         // elements at `at` lie in every buffer (they all hold `checked_len()` elements);
@@ -856,8 +888,7 @@ mod x86 {
             _mm_storeu_ps(dp, _mm_blendv_ps(stored, z, pass));
             let pass = _mm_castps_si128(pass);
             let cp = t.color_out.as_mut_ptr().add(at) as *mut __m128i;
-            let rgba = rgba(&t.color, f1, f2);
-            _mm_storeu_si128(cp, _mm_blendv_epi8(_mm_loadu_si128(cp), rgba, pass));
+            _mm_storeu_si128(cp, _mm_blendv_epi8(_mm_loadu_si128(cp), rgba(f1, f2), pass));
             if let Some(ids) = t.ids.as_deref_mut() {
                 let ip = ids.as_mut_ptr().add(at) as *mut __m128i;
                 let id = _mm_set1_epi32(t.id);
@@ -887,7 +918,21 @@ mod x86 {
     /// # Safety
     /// The CPU must support AVX2.
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn shade_narrow_avx2(mut job: NarrowJob<'_>) -> u64 {
+    pub(super) unsafe fn shade_narrow_avx2(job: NarrowJob<'_>) -> u64 {
+        // SAFETY: the CPU supports AVX2 (this function's contract).
+        with_rgba!(job.target.color, rgba => unsafe { narrow_groups(job, rgba) })
+    }
+
+    /// [`shade_narrow_avx2`] for one colour kind.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn narrow_groups(
+        mut job: NarrowJob<'_>,
+        rgba: impl Fn(__m256d, __m256d) -> __m128i,
+    ) -> u64 {
         let n = job.target.checked_len();
         assert!((1..=super::NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not narrow");
         assert!(job.group_end() <= n, "the box's groups must lie in the buffers");
@@ -916,7 +961,7 @@ mod x86 {
                 let (f1, f2) = (_mm256_sub_pd(e[1], bias[0]), _mm256_sub_pd(e[2], bias[1]));
                 let at = job.first + r * job.stride + 4 * g;
                 // SAFETY: `at + 4 <= group_end() <= n` (asserted above).
-                unsafe { group::<false>(&mut job.target, at, f1, f2, lane_mask(bits)) };
+                unsafe { group::<false>(&mut job.target, at, f1, f2, lane_mask(bits), &rgba) };
             }
             row = std::array::from_fn(|k| row[k] + step_y[k]);
         }
@@ -930,11 +975,22 @@ mod x86 {
     /// # Safety
     /// The CPU must support AVX2.
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn shade_span_avx2(mut job: SpanJob<'_>) {
-        let n = job.target.checked_len();
-        if n < 4 {
+    pub(super) unsafe fn shade_span_avx2(job: SpanJob<'_>) {
+        if job.target.checked_len() < 4 {
             return super::shade_span_scalar(job);
         }
+        // SAFETY: the CPU supports AVX2 (this function's contract).
+        with_rgba!(job.target.color, rgba => unsafe { span_groups(job, rgba) })
+    }
+
+    /// [`shade_span_avx2`] for one colour kind, on a span of at least four pixels.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    unsafe fn span_groups(mut job: SpanJob<'_>, rgba: impl Fn(__m256d, __m256d) -> __m128i) {
+        let n = job.target.checked_len();
         let lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
         // The numerators at pixel `first + lane`: exact integers as everywhere
         // (`(first + lane) * step` is below 2^47, the sum below 2^49).
@@ -956,7 +1012,7 @@ mod x86 {
         let mut k = 0;
         while k < full {
             // SAFETY: `k + 4 <= full <= n`.
-            unsafe { group::<true>(&mut job.target, k, f1, f2, all) };
+            unsafe { group::<true>(&mut job.target, k, f1, f2, all, &rgba) };
             f1 = _mm256_add_pd(f1, step1);
             f2 = _mm256_add_pd(f2, step2);
             k += 4;
@@ -965,8 +1021,9 @@ mod x86 {
             // The last four pixels, those already shaded masked off.
             let (f1, f2) = at(n - 4);
             let done = 4 - n % 4;
+            let cover = lane_mask(0xF << done);
             // SAFETY: `n - 4 + 4 = n`.
-            unsafe { group::<true>(&mut job.target, n - 4, f1, f2, lane_mask(0xF << done)) };
+            unsafe { group::<true>(&mut job.target, n - 4, f1, f2, cover, &rgba) };
         }
     }
 }
@@ -1196,8 +1253,9 @@ mod tests {
         ]
     }
 
-    /// A random flat or smooth colour; now and then a smooth one with a NaN or infinite
-    /// channel (the quantizers map NaN to 0 and clamp infinities).
+    /// A random flat or smooth colour (four planes, or three and a constant alpha); now and
+    /// then a smooth one with a NaN or infinite channel (the quantizers map NaN to 0 and clamp
+    /// infinities).
     fn random_color(rng: &mut SmallRng, round: usize) -> SpanColor {
         if rng.random() {
             return SpanColor::Flat([rng.random(), rng.random(), rng.random(), rng.random()]);
@@ -1205,6 +1263,10 @@ mod tests {
         let mut planes: [[f64; 3]; 4] = std::array::from_fn(|_| random_plane(rng, 255.0));
         if round.is_multiple_of(89) {
             planes[round % 4][0] = [f64::NAN, f64::INFINITY, -f64::INFINITY][round % 3];
+        }
+        if rng.random() {
+            let [r, g, b, _] = planes;
+            return SpanColor::SmoothRgb([r, g, b], rng.random());
         }
         SpanColor::Smooth(planes)
     }
