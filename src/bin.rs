@@ -407,7 +407,14 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 /// Renders prepared triangles through tiles on the current rayon thread pool; returns the
 /// number of covered samples.
 /// `fragment(payload, x, y, e1, e2, z)` shades one pixel; where `kernel(payload)` gives a span
-/// kernel, it shades 1x spans instead.
+/// kernel, it shades 1x spans instead, and `fragment` must not discard.
+///
+/// Hierarchical depth (1x, `Less` or `LessEqual`, no overdraw buffer, which counts hidden
+/// fragments too): each tile keeps a bound on the largest depth stored in it, and a wide
+/// triangle whose depth over the tile is at or behind it fails the test at every pixel, so
+/// only its coverage is counted. The bound starts as the tile's largest depth (computed when a
+/// wide triangle first needs it) and drops to a triangle's largest depth when it covers the
+/// whole tile without discarding.
 #[allow(clippy::too_many_arguments)]
 pub fn draw_binned<T, K, F>(
     target: &mut Target,
@@ -425,25 +432,65 @@ where
     let multisampled = target.samples().count() > 1;
     let (width, height) = (target.width(), target.height());
     let bins = Bins::of_batch(prepared, multisampled, clip, width, height);
+    let hierarchical = !multisampled && depth_test != DepthTest::Always;
     bins.draw(target, clip, |band, tile, list| {
+        let hierarchical = hierarchical && band.overdraw.is_none();
         let mut covered = 0;
+        // A bound on the tile's largest stored depth, once a wide triangle needs it.
+        let mut depth_max: Option<f32> = None;
         for (j, &i) in list.iter().enumerate() {
             if let Some(&ahead) = list.get(j + PREFETCH_AHEAD) {
                 crate::simd::prefetch(prepared.get(ahead));
             }
             let p = prepared.get(i);
+            let algorithm = coverage_algorithm(&p.setup);
+            let kernel = kernel(&p.payload);
+            let mut lowers_max = None;
+            if hierarchical
+                && algorithm == Algorithm::Scanline
+                && let Some(r) = p.setup.bounds.intersect(tile)
+            {
+                let (near, far) = shade::depth_bounds(&p.depth, &p.setup, &r);
+                let max = *depth_max.get_or_insert_with(|| band.max_depth(tile));
+                let hidden = match depth_test {
+                    DepthTest::Less => near >= max,
+                    DepthTest::LessEqual => near > max,
+                    DepthTest::Always => false,
+                };
+                if hidden {
+                    covered += coverage_count(&p.setup, &r);
+                    continue;
+                }
+                if kernel.is_some() && crate::raster::covers_rect(&p.setup, tile) {
+                    lowers_max = Some(max.min(far));
+                }
+            }
             covered += shade::shade_triangle(
                 band,
                 &p.setup,
-                coverage_algorithm(&p.setup),
+                algorithm,
                 tile,
                 &p.depth,
                 depth_test,
                 p.id,
-                kernel(&p.payload),
+                kernel,
                 |x, y, e1, e2, z| fragment(&p.payload, x, y, e1, e2, z),
             );
+            // Every pixel of the tile now holds at most the triangle's depth there.
+            if lowers_max.is_some() {
+                depth_max = lowers_max;
+            }
         }
         covered
     })
+}
+
+/// Pixels of `rect` a triangle covers, without shading them.
+fn coverage_count(setup: &TriangleSetup, rect: &PixelRect) -> u64 {
+    if crate::raster::covers_rect(setup, rect) {
+        return ((rect.x1 - rect.x0 + 1) as u64) * ((rect.y1 - rect.y0 + 1) as u64);
+    }
+    let mut n = 0;
+    crate::raster::rasterize(Algorithm::Scanline, setup, rect, |s| n += s.len() as u64);
+    n
 }

@@ -285,6 +285,27 @@ pub fn depth_at(plane: &PlaneEquation, e1: f64, e2: f64) -> f32 {
     (plane.eval(e1, e2) as f32).clamp(0.0, 1.0)
 }
 
+/// Bounds of the depth a triangle can write at the pixel centres of `rect`: [`depth_at`] at
+/// any of them lies in `[lo, hi]`. A plane's extremes over a rectangle are at its corners; the
+/// evaluation's three roundings move a value by less than `2^-51` of the terms' magnitudes,
+/// and the bounds are widened by `2^-40` of them before the (monotonic) conversion to `f32`
+/// and clamp, so they hold for the computed values, not only the exact ones.
+#[must_use]
+pub fn depth_bounds(plane: &PlaneEquation, setup: &TriangleSetup, rect: &PixelRect) -> (f32, f32) {
+    let [a0, g1, g2] = plane.coefficients();
+    let (mut lo, mut hi, mut scale) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+    for (x, y) in [(rect.x0, rect.y0), (rect.x1, rect.y0), (rect.x0, rect.y1), (rect.x1, rect.y1)] {
+        let (e1, e2) = setup.barycentric_numerators(fixed::pixel_centre(x), fixed::pixel_centre(y));
+        let (e1, e2) = (e1 as f64, e2 as f64);
+        let v = plane.eval(e1, e2);
+        (lo, hi) = (lo.min(v), hi.max(v));
+        scale = scale.max(a0.abs() + (e1 * g1).abs() + (e2 * g2).abs());
+    }
+    let margin = scale * 2f64.powi(-40);
+    let to_depth = |v: f64| (v as f32).clamp(0.0, 1.0);
+    (to_depth(lo - margin), to_depth(hi + margin))
+}
+
 /// The one fragment loop every pipeline shares. For each pixel with covered samples: count
 /// them (overdraw), interpolate depth at each covered sample and test it, and only if one
 /// passes ask `fragment(px, py, e1, e2, z)` for the output, once per pixel, with `e1`, `e2`
@@ -526,6 +547,56 @@ fn shade_single_sample(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
+
+    /// `depth_bounds` holds every pixel's depth over random rectangles of random triangles
+    /// (large and small, steep and flat depth, some beyond [0, 1] so the clamp matters), and
+    /// is reached: some pixel lies at each bound when the rectangle is one pixel.
+    #[test]
+    fn depth_bounds_hold_every_pixel() {
+        let mut rng = SmallRng::seed_from_u64(31);
+        let mut checked = 0;
+        while checked < 400 {
+            let scale = [4.0, 60.0, 2000.0][checked % 3];
+            let tri: [Vertex; 3] = std::array::from_fn(|_| {
+                Vertex::new(
+                    rng.random_range(-scale..scale),
+                    rng.random_range(-scale..scale),
+                    rng.random_range(-0.2..1.2),
+                    [0; 4],
+                )
+            });
+            let Ok(setup) = TriangleSetup::new(&tri, crate::setup::CullMode::None) else {
+                continue;
+            };
+            checked += 1;
+            let plane = PlaneEquation::new(tri.map(|v| f64::from(v.z)), &setup);
+            let (x0, y0) = (rng.random_range(-40..40), rng.random_range(-40..40));
+            let rect = PixelRect {
+                x0,
+                y0,
+                x1: x0 + rng.random_range(0..24),
+                y1: y0 + rng.random_range(0..24),
+            };
+            let (lo, hi) = depth_bounds(&plane, &setup, &rect);
+            assert!(lo <= hi);
+            for y in rect.y0..=rect.y1 {
+                for x in rect.x0..=rect.x1 {
+                    let (e1, e2) = setup
+                        .barycentric_numerators(fixed::pixel_centre(x), fixed::pixel_centre(y));
+                    let z = depth_at(&plane, e1 as f64, e2 as f64);
+                    assert!(lo <= z && z <= hi, "{z} outside [{lo}, {hi}] at ({x}, {y})");
+                }
+            }
+            let one = PixelRect { x1: rect.x0, y1: rect.y0, ..rect };
+            let (e1, e2) = setup
+                .barycentric_numerators(fixed::pixel_centre(one.x0), fixed::pixel_centre(one.y0));
+            let z = depth_at(&plane, e1 as f64, e2 as f64);
+            let (lo, hi) = depth_bounds(&plane, &setup, &one);
+            assert!(lo <= z && z <= hi && hi - lo <= 2.0 * f32::EPSILON, "{lo} {z} {hi}");
+        }
+    }
 
     /// The quantizer rounds half to even after clamping, as `f64::round_ties_even` would, for
     /// every half and quarter step over the range and beyond it, NaN and infinities.

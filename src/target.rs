@@ -279,6 +279,15 @@ impl TargetBand<'_> {
         self.samples
     }
 
+    /// The largest depth stored at the pixels of `rect` (within the band, 1x); NaN depths are
+    /// ignored (no depth passes a test against them), `-inf` when there are only those.
+    #[must_use]
+    pub fn max_depth(&self, rect: &PixelRect) -> f32 {
+        (rect.y0..=rect.y1)
+            .map(|y| &self.depth[self.index(rect.x0, y)..=self.index(rect.x1, y)])
+            .fold(f32::NEG_INFINITY, |m, row| row.iter().fold(m, |m, &z| m.max(z)))
+    }
+
     /// Elements from one row to the next in per-pixel buffers (the target's width).
     #[inline]
     #[must_use]

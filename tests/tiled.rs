@@ -89,6 +89,123 @@ fn window_scenes_match_the_reference() {
     }
 }
 
+/// Hierarchical depth (on at 1x without an overdraw buffer): large overlapping triangles,
+/// drawn front to back (most are hidden tile by tile), back to front (each covering one lowers
+/// the tiles' depth bound) and in random order, full-screen quads at one depth (ties, where
+/// `Less` and `LessEqual` differ), translucent and opaque, with and without span kernels;
+/// drawn twice on one target so the second draw starts from a written depth buffer. The tiled
+/// backend still writes exactly what the reference writes, and counts the same fragments.
+#[test]
+fn hidden_tiles_match_the_reference() {
+    let mut rng = SmallRng::seed_from_u64(2718);
+    let (w, h) = (300u32, 200u32);
+    for round in 0..18 {
+        let mut tris: Vec<[Vertex; 3]> = (0..rng.random_range(20..120))
+            .map(|_| {
+                let opaque = rng.random_range(0..3) > 0;
+                let (cx, cy) = (rng.random_range(0.0..w as f32), rng.random_range(0.0..h as f32));
+                let z0: f32 = rng.random_range(0.0..1.0);
+                std::array::from_fn(|_| {
+                    let mut color: [u8; 4] = rng.random();
+                    if opaque {
+                        color[3] = 255;
+                    }
+                    Vertex::new(
+                        cx + rng.random_range(-400.0..400.0),
+                        cy + rng.random_range(-400.0..400.0),
+                        (z0 + rng.random_range(-0.05..0.05)).clamp(0.0, 1.0),
+                        color,
+                    )
+                })
+            })
+            .collect();
+        let mean_z = |t: &[Vertex; 3]| t.iter().map(|v| v.z).sum::<f32>();
+        match round % 3 {
+            0 => tris.sort_by(|a, b| mean_z(a).total_cmp(&mean_z(b))),
+            1 => tris.sort_by(|a, b| mean_z(b).total_cmp(&mean_z(a))),
+            _ => {}
+        }
+        // Full-screen quads at one depth, somewhere in the list.
+        let z = rng.random_range(0.2..0.8);
+        let corner = |x: f32, y: f32| Vertex::new(x, y, z, [90, 120, 150, 255]);
+        let (a, b, c, d) =
+            (corner(-8.0, -8.0), corner(w as f32 + 8.0, -8.0), corner(-8.0, h as f32 + 8.0), {
+                corner(w as f32 + 8.0, h as f32 + 8.0)
+            });
+        for k in 0..3 {
+            let at = rng.random_range(0..=tris.len());
+            tris.insert(at, if k % 2 == 0 { [a, b, c] } else { [b, d, c] });
+        }
+        let shading = [Shading::Flat, Shading::Smooth, Shading::Perspective][(round / 3) % 3];
+        let depth_test = [DepthTest::Less, DepthTest::LessEqual][(round / 9) % 2];
+        let options = RenderOptions::default().with_shading(shading).with_depth_test(depth_test);
+        let mut reference = Target::new(w, h).unwrap().with_ids();
+        let reference_options = options.with_backend(Backend::Reference);
+        let first = trirast::draw(&mut reference, &tris, &reference_options).unwrap();
+        let second =
+            trirast::draw(&mut reference, &tris[tris.len() / 2..], &reference_options).unwrap();
+        for threads in [1, 2, 7] {
+            for level in SimdLevel::available() {
+                let mut tiled = Target::new(w, h).unwrap().with_ids();
+                let opts = options.with_backend(Backend::Tiled).with_simd(level);
+                let stats = pool(threads).install(|| {
+                    let a = trirast::draw(&mut tiled, &tris, &opts).unwrap();
+                    let b = trirast::draw(&mut tiled, &tris[tris.len() / 2..], &opts).unwrap();
+                    (a, b)
+                });
+                let what = format!("round {round}, {threads} threads, {level:?}");
+                assert_eq!(stats, (first, second), "{what}");
+                assert_same(&reference, &tiled, &what);
+            }
+        }
+    }
+}
+
+/// Hierarchical depth in the 3D pipeline, whose fragment shaders may discard: a screen-filling
+/// quad in front that discards half its pixels must not lower the tiles' depth bound, or the
+/// triangles behind it would be skipped where it left holes.
+#[test]
+fn hidden_tiles_respect_discards() {
+    let quad = |z: f32| {
+        [[-1.2, -1.2], [1.2, -1.2], [1.2, 1.2], [-1.2, 1.2]].map(|[x, y]| Vec4::new(x, y, z, 1.0))
+    };
+    let mut vertices: Vec<Vec4> = quad(0.1).into_iter().chain(quad(0.5)).collect();
+    // Large triangles between and behind the quads.
+    let mut rng = SmallRng::seed_from_u64(5);
+    for _ in 0..60 {
+        let z = rng.random_range(0.2..0.9);
+        vertices.extend(
+            (0..3).map(|_| {
+                Vec4::new(rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0), z, 1.0)
+            }),
+        );
+    }
+    let mut triangles = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
+    triangles.extend((0..60).map(|k| [8 + 3 * k, 9 + 3 * k, 10 + 3 * k]));
+    let vs = |p: &Vec4| (*p, p.z);
+    // The near quad (depth 0.1) discards a checkerboard.
+    let fs = |f: &Fragment<f32>| {
+        if f.varyings < 0.15 && (f.x + f.y) % 2 == 0 {
+            return None;
+        }
+        Some(Vec4::new(f.varyings, 0.5, 1.0 - f.varyings, 1.0))
+    };
+    let pipeline = Pipeline::default().with_cull(FaceCull::None);
+    let mut reference = Target::new(300, 200).unwrap().with_ids();
+    let ref_stats = pipeline
+        .with_backend(Backend::Reference)
+        .draw(&mut reference, &vs, &fs, &vertices, &triangles)
+        .unwrap();
+    for threads in [1, 2, 7] {
+        let mut tiled = Target::new(300, 200).unwrap().with_ids();
+        let stats = pool(threads)
+            .install(|| pipeline.draw(&mut tiled, &vs, &fs, &vertices, &triangles))
+            .unwrap();
+        assert_eq!(stats, ref_stats);
+        assert_same(&reference, &tiled, &format!("{threads} threads"));
+    }
+}
+
 /// Watertight tilings through the tiled backend: still exactly one fragment per pixel, and the
 /// same buffers as the reference.
 #[test]
