@@ -283,9 +283,21 @@ impl TargetBand<'_> {
     /// ignored (no depth passes a test against them), `-inf` when there are only those.
     #[must_use]
     pub fn max_depth(&self, rect: &PixelRect) -> f32 {
-        (rect.y0..=rect.y1)
-            .map(|y| &self.depth[self.index(rect.x0, y)..=self.index(rect.x1, y)])
-            .fold(f32::NEG_INFINITY, |m, row| row.iter().fold(m, |m, &z| m.max(z)))
+        // Eight running maxima, so that the loop compiles to vector maxima.
+        let mut lanes = [f32::NEG_INFINITY; 8];
+        for y in rect.y0..=rect.y1 {
+            let row = &self.depth[self.index(rect.x0, y)..=self.index(rect.x1, y)];
+            let chunks = row.chunks_exact(8);
+            for &z in chunks.remainder() {
+                lanes[0] = lanes[0].max(z);
+            }
+            for chunk in chunks {
+                for (m, &z) in lanes.iter_mut().zip(chunk) {
+                    *m = m.max(z);
+                }
+            }
+        }
+        lanes.into_iter().fold(f32::NEG_INFINITY, f32::max)
     }
 
     /// Elements from one row to the next in per-pixel buffers (the target's width).
