@@ -15,6 +15,8 @@
 //! up, binned, rendered and dropped before the next (the lectures' "flush"), so bin memory
 //! never grows with the scene, and no triangle is ever dropped.
 
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use rayon::prelude::*;
 
 use crate::raster::Algorithm;
@@ -31,6 +33,11 @@ pub const TILE: u32 = 64;
 /// 160 MB). Larger batches sweep the target fewer times per frame (each batch visits every
 /// tile once): 512k against 64k made a million small triangles 15-20% faster.
 pub const BATCH: usize = 1 << 19;
+
+/// Triangles at least this many pixels wide take the hierarchical depth test in
+/// [`draw_binned`]: narrower ones seldom cover a tile or hide behind one, and testing them
+/// made a frame of small triangles slower.
+const HIDDEN_MIN_WIDTH: i32 = TILE as i32 / 2;
 
 /// How many triangles ahead of the one being drawn the tile loop prefetches.
 const PREFETCH_AHEAD: usize = 4;
@@ -247,13 +254,15 @@ impl Bins {
         )
     }
 
-    /// Bins the triangles of a prepared batch by their coverage bounds within `clip`.
+    /// Bins the triangles of a prepared batch by their coverage bounds within `clip`, calling
+    /// `visit` with each (in parallel, in no particular order).
     fn of_batch<T: Sync>(
         batch: &PreparedBatch<T>,
         multisampled: bool,
         clip: &PixelRect,
         width: u32,
         height: u32,
+        visit: impl Fn(&Prepared<T>) + Sync,
     ) -> Self {
         let chunks = batch.chunk_count();
         let per_group = chunks.div_ceil(rayon::current_num_threads() * 4).max(4);
@@ -261,9 +270,10 @@ impl Bins {
             chunks.div_ceil(per_group),
             |g| {
                 let range = g * per_group..((g + 1) * per_group).min(chunks);
-                batch
-                    .indexed(range)
-                    .map(|(i, p)| (i, coverage_bounds(&p.setup, multisampled, clip)))
+                batch.indexed(range).map(|(i, p)| {
+                    visit(p);
+                    (i, coverage_bounds(&p.setup, multisampled, clip))
+                })
             },
             width,
             height,
@@ -412,9 +422,10 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 /// Hierarchical depth (1x, `Less` or `LessEqual`, no overdraw buffer, which counts hidden
 /// fragments too): each tile keeps a bound on the largest depth stored in it, and a wide
 /// triangle whose depth over the tile is at or behind it fails the test at every pixel, so
-/// only its coverage is counted. The bound starts as the tile's largest depth (computed when a
-/// wide triangle first needs it) and drops to a triangle's largest depth when it covers the
-/// whole tile without discarding.
+/// the tile is skipped. The bound starts as the tile's largest depth (computed when a wide
+/// triangle first needs it) and drops to a triangle's largest depth when it covers the whole
+/// tile without discarding. Wide triangles' fragments are then counted once per triangle, not
+/// tile by tile (skipped tiles are not shaded, so shading cannot count them).
 #[allow(clippy::too_many_arguments)]
 pub fn draw_binned<T, K, F>(
     target: &mut Target,
@@ -431,58 +442,92 @@ where
 {
     let multisampled = target.samples().count() > 1;
     let (width, height) = (target.width(), target.height());
-    let bins = Bins::of_batch(prepared, multisampled, clip, width, height);
-    let hierarchical = !multisampled && depth_test != DepthTest::Always;
-    bins.draw(target, clip, |band, tile, list| {
-        let hierarchical = hierarchical && band.overdraw.is_none();
+    let hierarchical =
+        !multisampled && depth_test != DepthTest::Always && target.overdraw.is_none();
+    let wide =
+        |p: &Prepared<T>| hierarchical && p.setup.bounds.x1 - p.setup.bounds.x0 >= HIDDEN_MIN_WIDTH;
+    // Counted while binning, which reads every record anyway (a pass of its own was a
+    // twentieth of a frame of small triangles, waiting on memory).
+    let wide_coverage = AtomicU64::new(0);
+    let bins = Bins::of_batch(prepared, multisampled, clip, width, height, |p| {
+        if wide(p)
+            && let Some(r) = p.setup.bounds.intersect(clip)
+        {
+            wide_coverage.fetch_add(coverage_count(&p.setup, &r), Ordering::Relaxed);
+        }
+    });
+    let shaded = bins.draw(target, clip, |band, tile, list| {
         let mut covered = 0;
-        // A bound on the tile's largest stored depth, once a wide triangle needs it.
-        let mut depth_max: Option<f32> = None;
+        let mut tile_depth = TileDepth { test: depth_test, max: None };
         for (j, &i) in list.iter().enumerate() {
             if let Some(&ahead) = list.get(j + PREFETCH_AHEAD) {
                 crate::simd::prefetch(prepared.get(ahead));
             }
             let p = prepared.get(i);
-            let algorithm = coverage_algorithm(&p.setup);
             let kernel = kernel(&p.payload);
-            let mut lowers_max = None;
-            if hierarchical
-                && algorithm == Algorithm::Scanline
-                && let Some(r) = p.setup.bounds.intersect(tile)
-            {
-                let (near, far) = shade::depth_bounds(&p.depth, &p.setup, &r);
-                let max = *depth_max.get_or_insert_with(|| band.max_depth(tile));
-                let hidden = match depth_test {
-                    DepthTest::Less => near >= max,
-                    DepthTest::LessEqual => near > max,
-                    DepthTest::Always => false,
-                };
-                if hidden {
-                    covered += coverage_count(&p.setup, &r);
-                    continue;
-                }
-                if kernel.is_some() && crate::raster::covers_rect(&p.setup, tile) {
-                    lowers_max = Some(max.min(far));
-                }
-            }
-            covered += shade::shade_triangle(
-                band,
-                &p.setup,
-                algorithm,
-                tile,
-                &p.depth,
-                depth_test,
-                p.id,
-                kernel,
-                |x, y, e1, e2, z| fragment(&p.payload, x, y, e1, e2, z),
-            );
-            // Every pixel of the tile now holds at most the triangle's depth there.
-            if lowers_max.is_some() {
-                depth_max = lowers_max;
+            let shade = |band: &mut TargetBand<'_>| {
+                shade::shade_triangle(
+                    band,
+                    &p.setup,
+                    coverage_algorithm(&p.setup),
+                    tile,
+                    &p.depth,
+                    depth_test,
+                    p.id,
+                    kernel,
+                    |x, y, e1, e2, z| fragment(&p.payload, x, y, e1, e2, z),
+                )
+            };
+            if wide(p) {
+                // Its fragments were counted while binning.
+                tile_depth.shade(band, tile, p, kernel.is_some(), shade);
+            } else {
+                covered += shade(band);
             }
         }
         covered
-    })
+    });
+    shaded + wide_coverage.into_inner()
+}
+
+/// A tile's hierarchical depth: a bound on the largest depth stored in it, once a wide
+/// triangle needs it.
+struct TileDepth {
+    test: DepthTest,
+    max: Option<f32>,
+}
+
+impl TileDepth {
+    /// Shades a wide triangle into `tile` with `shade`, unless its depth over the tile is at or
+    /// behind the bound (then every pixel fails the test); lowers the bound when the triangle
+    /// covers the whole tile and `never_discards`. Out of line: the loop over small triangles
+    /// stays as small as it was.
+    #[inline(never)]
+    fn shade<T>(
+        &mut self,
+        band: &mut TargetBand<'_>,
+        tile: &PixelRect,
+        p: &Prepared<T>,
+        never_discards: bool,
+        shade: impl FnOnce(&mut TargetBand<'_>) -> u64,
+    ) {
+        let Some(r) = p.setup.bounds.intersect(tile) else { return };
+        let (near, far) = shade::depth_bounds(&p.depth, &p.setup, &r);
+        let max = *self.max.get_or_insert_with(|| band.max_depth(tile));
+        let hidden = match self.test {
+            DepthTest::Less => near >= max,
+            DepthTest::LessEqual => near > max,
+            DepthTest::Always => false,
+        };
+        if hidden {
+            return;
+        }
+        shade(band);
+        if never_discards && crate::raster::covers_rect(&p.setup, tile) {
+            // Every pixel of the tile now holds at most the triangle's depth there.
+            self.max = Some(max.min(far));
+        }
+    }
 }
 
 /// Pixels of `rect` a triangle covers, without shading them.
