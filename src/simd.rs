@@ -177,10 +177,15 @@ pub enum SpanColor {
     Flat([u8; 4]),
     /// Gouraud planes per channel.
     Smooth([[f64; 3]; 4]),
-    /// Gouraud planes for red, green and blue, and a constant alpha: a triangle whose
-    /// vertices share one alpha (opaque geometry) skips a fourth of the colour arithmetic.
-    /// The same colours as `Smooth` with the alpha plane `[a0, 0, 0]` and `quantize(a0)` here:
-    /// `a0 + f1 * 0 + f2 * 0` is `a0` for finite `f1`, `f2`.
+    /// A triangle's vertex colours when its vertices share one alpha (opaque geometry): planes
+    /// for red, green and blue, and the alpha. The same colours as `Smooth` with the alpha
+    /// plane `[a0, 0, 0]` and `quantize(a0)` here (`a0 + f1 * 0 + f2 * 0` is `a0` for finite
+    /// `f1`, `f2`), with a fourth less arithmetic and no clamps: at a covered pixel centre each
+    /// value is a convex combination of the vertex values (barycentric weights in [0, 1])
+    /// give or take rounding (below 1e-12), so it lies in (-0.5, 255.5), where rounding alone
+    /// gives what clamping and rounding give. Planes that leave that range at a covered pixel
+    /// are outside this variant's contract (the kernels' lanes outside the triangle, masked
+    /// off, may hold anything).
     SmoothRgb([[f64; 3]; 3], u8),
 }
 
@@ -786,16 +791,24 @@ mod x86 {
     }
 
     /// Four lanes of RGBA8 (in `i32` lanes) from planes: red, green, blue and, when `alpha`
-    /// is `None`, the fourth plane's alpha.
+    /// is `None`, the fourth plane's alpha; without `CLAMP`, the values are only rounded (see
+    /// [`SpanColor::SmoothRgb`]).
     #[inline]
     #[target_feature(enable = "avx2")]
-    fn smooth(p: &[[f64; 3]], alpha: Option<u8>, f1: __m256d, f2: __m256d) -> __m128i {
-        let r = quantize(plane(p[0], f1, f2));
-        let g = quantize(plane(p[1], f1, f2));
-        let b = quantize(plane(p[2], f1, f2));
+    fn smooth<const CLAMP: bool>(
+        p: &[[f64; 3]],
+        alpha: Option<u8>,
+        f1: __m256d,
+        f2: __m256d,
+    ) -> __m128i {
+        let channel = |p: [f64; 3]| {
+            let v = plane(p, f1, f2);
+            if CLAMP { quantize(v) } else { _mm256_cvtpd_epi32(v) }
+        };
+        let (r, g, b) = (channel(p[0]), channel(p[1]), channel(p[2]));
         let a = match alpha {
             Some(a) => _mm_set1_epi32(i32::from(a) << 24),
-            None => _mm_slli_epi32::<24>(quantize(plane(p[3], f1, f2))),
+            None => _mm_slli_epi32::<24>(channel(p[3])),
         };
         _mm_or_si128(
             _mm_or_si128(r, _mm_slli_epi32::<8>(g)),
@@ -815,11 +828,11 @@ mod x86 {
                     $body
                 }
                 SpanColor::Smooth(p) => {
-                    let $rgba = move |f1, f2| smooth(&p, None, f1, f2);
+                    let $rgba = move |f1, f2| smooth::<true>(&p, None, f1, f2);
                     $body
                 }
                 SpanColor::SmoothRgb(p, alpha) => {
-                    let $rgba = move |f1, f2| smooth(&p, Some(alpha), f1, f2);
+                    let $rgba = move |f1, f2| smooth::<false>(&p, Some(alpha), f1, f2);
                     $body
                 }
             }
@@ -1253,20 +1266,26 @@ mod tests {
         ]
     }
 
-    /// A random flat or smooth colour (four planes, or three and a constant alpha); now and
-    /// then a smooth one with a NaN or infinite channel (the quantizers map NaN to 0 and clamp
-    /// infinities).
+    /// A random flat or smooth colour (four planes, or three within [0, 255] and a constant
+    /// alpha); now and then one of four planes with a NaN or infinite channel (the quantizers
+    /// map NaN to 0 and clamp infinities).
     fn random_color(rng: &mut SmallRng, round: usize) -> SpanColor {
         if rng.random() {
             return SpanColor::Flat([rng.random(), rng.random(), rng.random(), rng.random()]);
         }
+        if rng.random() {
+            // Within its contract: values inside [0, 255] wherever the tests evaluate them
+            // (numerators below 2^42), near the ends of the range.
+            let plane = |rng: &mut SmallRng| {
+                let a0 = [0.2, 254.8, rng.random_range(2.0..253.0)][rng.random_range(0..3)];
+                let g = |rng: &mut SmallRng| rng.random_range(-0.09..0.09) / (1u64 << 42) as f64;
+                [a0, g(rng), g(rng)]
+            };
+            return SpanColor::SmoothRgb([0; 3].map(|_| plane(rng)), rng.random());
+        }
         let mut planes: [[f64; 3]; 4] = std::array::from_fn(|_| random_plane(rng, 255.0));
         if round.is_multiple_of(89) {
             planes[round % 4][0] = [f64::NAN, f64::INFINITY, -f64::INFINITY][round % 3];
-        }
-        if rng.random() {
-            let [r, g, b, _] = planes;
-            return SpanColor::SmoothRgb([r, g, b], rng.random());
         }
         SpanColor::Smooth(planes)
     }
