@@ -421,9 +421,9 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 ///
 /// Hierarchical depth (1x, `Less` or `LessEqual`, no overdraw buffer, which counts hidden
 /// fragments too): each tile keeps a bound on the largest depth stored in it, and a wide
-/// triangle whose depth over the tile is at or behind it fails the test at every pixel, so
-/// the tile is skipped. The bound starts as the tile's largest depth (computed when a wide
-/// triangle first needs it) and drops to a triangle's largest depth when it covers the whole
+/// triangle (at least half a tile wide) whose depth over the tile is at or behind
+/// it fails the test at every pixel, so the tile is skipped. The bound starts as the tile's
+/// largest depth (computed when a wide triangle first needs it) and drops to a triangle's largest depth when it covers the whole
 /// tile without discarding. Wide triangles' fragments are then counted once per triangle, not
 /// tile by tile (skipped tiles are not shaded, so shading cannot count them).
 #[allow(clippy::too_many_arguments)]
@@ -444,8 +444,9 @@ where
     let (width, height) = (target.width(), target.height());
     let hierarchical =
         !multisampled && depth_test != DepthTest::Always && target.overdraw.is_none();
-    let wide =
-        |p: &Prepared<T>| hierarchical && p.setup.bounds.x1 - p.setup.bounds.x0 >= HIDDEN_MIN_WIDTH;
+    let wide = |p: &Prepared<T>| {
+        hierarchical && p.setup.bounds.x1 - p.setup.bounds.x0 + 1 >= HIDDEN_MIN_WIDTH
+    };
     // Counted while binning, which reads every record anyway (a pass of its own was a
     // twentieth of a frame of small triangles, waiting on memory).
     let wide_coverage = AtomicU64::new(0);

@@ -13,7 +13,7 @@
 //! edge), an upper bound `floor(..)` when `a < 0` (a right edge), and all-or-nothing for a
 //! horizontal edge. The divisions are exact integer ceil/floor, so the spans are those of the
 //! edge-function rasterizer, ties included. Along a run of rows between two sloped edges the
-//! bounds are carried as quotient and remainder ([`EdgeWalker`], an exact DDA): two divisions
+//! bounds are carried as quotient and remainder (`EdgeWalker`, an exact DDA): two divisions
 //! per edge for the run instead of two per row (the divisions were half the cost of the rows
 //! of large triangles).
 
