@@ -1,4 +1,4 @@
-//! Binning: triangles sorted into 64 x 64 pixel tiles, then tiles rendered in parallel.
+//! Binning: triangles sorted into 128 x 128 pixel tiles, then tiles rendered in parallel.
 //!
 //! Contract: `draw_binned` writes exactly what drawing the same triangles one after another
 //! with [`shade::shade_triangle`] over the whole target writes, bit for bit, whatever the
@@ -26,8 +26,9 @@ use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
 use crate::simd::{SimdLevel, SpanColor};
 use crate::target::{Target, TargetBand};
 
-/// Tile side in pixels.
-pub const TILE: u32 = 64;
+/// Tile side in pixels: a tile's colour and depth (128 KB at 1x) stay in a 512 KB L2 cache;
+/// 128 was faster than 32, 64 and 256 on every bench scene.
+pub const TILE: u32 = 128;
 
 /// Triangles per batch: bounds the memory of set-up triangles and bins (at most about
 /// 160 MB). Larger batches sweep the target fewer times per frame (each batch visits every

@@ -36,7 +36,7 @@ pub enum Backend {
     /// The reference: each triangle rasterized and shaded over the whole target in turn. The
     /// oracle the tiled path is tested against.
     Reference,
-    /// Binned into 64 x 64 tiles, set up and rendered in parallel on the current rayon pool.
+    /// Binned into 128 x 128 tiles, set up and rendered in parallel on the current rayon pool.
     #[default]
     Tiled,
 }

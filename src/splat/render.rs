@@ -12,7 +12,7 @@
 //!
 //! Traversal goes level by level, each level's nodes classified in parallel chunks and
 //! concatenated in index order; drawing then uses the triangles' machinery: splats binned into
-//! 64 x 64 tiles ([`Bins`]) in that order, rows of tiles ([`Target::bands`]) drawn in parallel
+//! 128 x 128 tiles ([`Bins`]) in that order, rows of tiles ([`Target::bands`]) drawn in parallel
 //! with the depth test. So the image does not depend on the thread count.
 
 use glam::{Mat3, Mat4, Vec3, Vec3A, Vec4};
@@ -494,7 +494,7 @@ impl<'a> PartBuilder<'a> {
     }
 }
 
-/// Draws splats through the triangles' tiles: runs binned into 64 x 64 tiles in part order,
+/// Draws splats through the triangles' tiles: runs binned into 128 x 128 tiles in part order,
 /// rows of tiles drawn in parallel, each tile's runs in order; returns pixels written. Per
 /// tile, that is every splat overlapping it in traversal order, as if binned one by one.
 fn draw_splats(target: &mut Target, parts: &[Part], grid: &TileGrid, shape: SplatShape) -> u64 {
