@@ -92,7 +92,8 @@ fn window_scenes_match_the_reference() {
 /// Hierarchical depth (on at 1x without an overdraw buffer): large overlapping triangles,
 /// drawn front to back (most are hidden tile by tile), back to front (each covering one lowers
 /// the tiles' depth bound) and in random order, full-screen quads at one depth (ties, where
-/// `Less` and `LessEqual` differ), translucent and opaque, with and without span kernels;
+/// `Less` and `LessEqual` differ), axis-aligned rectangles (right triangles that cover all of
+/// a block's part inside their box, not the block), translucent and opaque, with and without span kernels;
 /// drawn twice on one target so the second draw starts from a written depth buffer. The tiled
 /// backend still writes exactly what the reference writes, and counts the same fragments.
 #[test]
@@ -135,6 +136,18 @@ fn hidden_tiles_match_the_reference() {
         for k in 0..3 {
             let at = rng.random_range(0..=tris.len());
             tris.insert(at, if k % 2 == 0 { [a, b, c] } else { [b, d, c] });
+        }
+        // Axis-aligned rectangles (pairs of right triangles) at whole pixels: a triangle that
+        // covers all of the part of a tile's block inside its box, but not the whole block.
+        for _ in 0..6 {
+            let (x0, y0) = (rng.random_range(-20..w as i32), rng.random_range(-20..h as i32));
+            let (x1, y1) = (x0 + rng.random_range(20..200), y0 + rng.random_range(20..200));
+            let z = rng.random_range(0.0..1.0);
+            let corner = |x: i32, y: i32| Vertex::new(x as f32, y as f32, z, [40, 200, 90, 255]);
+            let (a, b, c, d) = (corner(x0, y0), corner(x1, y0), corner(x0, y1), corner(x1, y1));
+            let at = rng.random_range(0..=tris.len());
+            tris.insert(at, [a, b, c]);
+            tris.insert(at + 1, [b, d, c]);
         }
         let shading = [Shading::Flat, Shading::Smooth, Shading::Perspective][(round / 3) % 3];
         let depth_test = [DepthTest::Less, DepthTest::LessEqual][(round / 9) % 2];
