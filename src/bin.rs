@@ -422,7 +422,7 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 ///
 /// Hierarchical depth (1x, `Less` or `LessEqual`, no overdraw buffer, which counts hidden
 /// fragments too): each block of a tile keeps a bound on the largest depth stored in it
-/// ([`TileDepth`]), and a wide triangle (at least half a tile wide) whose depth over a block
+/// (`TileDepth`), and a wide triangle (at least half a tile wide) whose depth over a block
 /// is at or behind it fails the test at every pixel there, so the block is skipped. A bound
 /// starts as the block's largest depth (computed when a wide triangle first needs it) and
 /// drops to a triangle's largest depth when it covers the whole block without discarding.
