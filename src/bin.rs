@@ -120,6 +120,14 @@ impl<T> Sink<'_, T> {
         }
     }
 
+    /// Takes one prepared piece (as `take(Ok(piece))`, without building a `Result` of a
+    /// record first).
+    #[inline]
+    pub fn push(&mut self, piece: Prepared<T>) {
+        self.stats.rasterized += 1;
+        self.out.push(piece);
+    }
+
     /// Counts `n` pieces skipped for the same reason at once.
     #[inline]
     pub fn skip_many(&mut self, why: Skipped, n: usize) {

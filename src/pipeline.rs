@@ -463,7 +463,13 @@ impl FrontEnd {
                 let k = start + j;
                 if t.inside & (1 << j) != 0 {
                     // Passed the corner tests: straight to setup.
-                    sink.take(self.setup_passed(each_ref(&vertices(k)), first_id + k));
+                    let owned = vertices(k);
+                    let tri = each_ref(&owned);
+                    let xy = tri.map(|v| v.xy.map(i64::from));
+                    match TriangleSetup::from_snapped(xy, self.cull) {
+                        Ok(setup) => sink.push(self.finish_passed(setup, tri, first_id + k)),
+                        Err(why) => sink.skip_many(why.into(), 1),
+                    }
                 } else {
                     self.prepare(each_ref(&vertices(k)), first_id + k, |p| sink.take(p));
                 }
@@ -515,16 +521,27 @@ impl FrontEnd {
     }
 
     /// Setup and planes of a snapped triangle inside the clip volume that passed the corner
-    /// tests (zero area, culling, no sample in the box). Inlined into the loops that call it,
-    /// so that the record is built in the batch buffer rather than returned and copied.
-    #[inline]
+    /// tests (zero area, culling, no sample in the box).
     fn setup_passed<V: Varyings>(
         &self,
         tri: [&ShadedVertex<V>; 3],
         id: usize,
     ) -> Result<Prepared<TriangleData<V>>, Skipped> {
         let setup = TriangleSetup::from_snapped(tri.map(|v| v.xy.map(i64::from)), self.cull)?;
-        Ok(self.finish(setup, tri.map(|v| v.clip.varyings), tri.map(|v| [v.z, v.inv_w]), id))
+        Ok(self.finish_passed(setup, tri, id))
+    }
+
+    /// [`FrontEnd::finish`] for a triangle inside the clip volume. Inlined into the loops that
+    /// call it, so that the record is built in the batch buffer rather than returned and
+    /// copied.
+    #[inline]
+    fn finish_passed<V: Varyings>(
+        &self,
+        setup: TriangleSetup,
+        tri: [&ShadedVertex<V>; 3],
+        id: usize,
+    ) -> Prepared<TriangleData<V>> {
+        self.finish(setup, tri.map(|v| v.clip.varyings), tri.map(|v| [v.z, v.inv_w]), id)
     }
 
     fn setup<V: Varyings>(

@@ -177,17 +177,17 @@ pub fn draw(
         for (b, batch) in triangles.chunks(BATCH).enumerate() {
             let counts = prepared.prepare(batch.len(), |k, sink| {
                 let tri = &batch[k];
-                sink.take(TriangleSetup::new(tri, options.cull).map_err(Skipped::from).and_then(
-                    |setup| {
-                        if bin::coverage_bounds(&setup, multisampled, &visible).is_none() {
-                            return Err(Skipped::Empty);
-                        }
-                        let shader = TriangleShader::new(tri, &setup, options.shading);
-                        let (depth, payload) = shader.into_parts();
-                        let id = (b * BATCH + k) as i32;
-                        Ok(Prepared { setup, depth, id, payload })
-                    },
-                ));
+                let setup = match TriangleSetup::new(tri, options.cull) {
+                    Ok(setup) => setup,
+                    Err(why) => return sink.skip_many(why.into(), 1),
+                };
+                if bin::coverage_bounds(&setup, multisampled, &visible).is_none() {
+                    return sink.skip_many(Skipped::Empty, 1);
+                }
+                let (depth, payload) =
+                    TriangleShader::new(tri, &setup, options.shading).into_parts();
+                let id = (b * BATCH + k) as i32;
+                sink.push(Prepared { setup, depth, id, payload });
             });
             stats = stats.merged(&counts);
             if let Some(clip) = clip {
