@@ -476,12 +476,12 @@ where
             }
             let p = prepared.get(i);
             let kernel = kernel(&p.payload);
-            let shade = |band: &mut TargetBand<'_>, clip: &PixelRect| {
+            let shade = |band: &mut TargetBand<'_>, rect: &PixelRect| {
                 shade::shade_triangle(
                     band,
                     &p.setup,
                     coverage_algorithm(&p.setup),
-                    clip,
+                    rect,
                     &p.depth,
                     depth_test,
                     p.id,
@@ -508,6 +508,7 @@ const DEPTH_BLOCK: i32 = 64;
 
 /// Blocks per row of a tile.
 const DEPTH_BLOCKS: usize = (TILE as i32 / DEPTH_BLOCK) as usize;
+const _: () = assert!(TILE as i32 % DEPTH_BLOCK == 0, "blocks must tile a tile");
 
 /// A tile's hierarchical depth: per block of [`DEPTH_BLOCK`] pixels square, a bound on the
 /// largest depth stored in it, once a wide triangle needs it.

@@ -287,11 +287,26 @@ pub fn depth_at(plane: &PlaneEquation, e1: f64, e2: f64) -> f32 {
 
 /// Bounds of the depth a triangle can write at the pixel centres of `rect`: [`depth_at`] at
 /// any of them lies in `[lo, hi]`. A plane's extremes over a rectangle are at its corners; the
-/// evaluation's three roundings move a value by less than `2^-51` of the terms' magnitudes,
+/// evaluation's four roundings move a value by less than `2^-50` of the terms' magnitudes,
 /// and the bounds are widened by `2^-40` of them before the (monotonic) conversion to `f32`
-/// and clamp, so they hold for the computed values, not only the exact ones.
+/// and clamp, so they hold for the computed values, not only the exact ones. A plane that is
+/// not finite there gives `(-inf, inf)`: nothing is hidden behind it, and nothing hides it.
 #[must_use]
 pub fn depth_bounds(plane: &PlaneEquation, setup: &TriangleSetup, rect: &PixelRect) -> (f32, f32) {
+    let Some((lo, hi)) = plane_bounds(plane, setup, rect) else {
+        return (f32::NEG_INFINITY, f32::INFINITY);
+    };
+    let to_depth = |v: f64| (v as f32).clamp(0.0, 1.0);
+    (to_depth(lo), to_depth(hi))
+}
+
+/// [`depth_bounds`] before the conversion to depth: bounds of `plane.eval` at the pixel
+/// centres of `rect`, as computed (`None` when not finite).
+fn plane_bounds(
+    plane: &PlaneEquation,
+    setup: &TriangleSetup,
+    rect: &PixelRect,
+) -> Option<(f64, f64)> {
     let [a0, g1, g2] = plane.coefficients();
     let (mut lo, mut hi, mut scale) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
     for (x, y) in [(rect.x0, rect.y0), (rect.x1, rect.y0), (rect.x0, rect.y1), (rect.x1, rect.y1)] {
@@ -301,9 +316,11 @@ pub fn depth_bounds(plane: &PlaneEquation, setup: &TriangleSetup, rect: &PixelRe
         (lo, hi) = (lo.min(v), hi.max(v));
         scale = scale.max(a0.abs() + (e1 * g1).abs() + (e2 * g2).abs());
     }
+    if !(lo <= hi && scale.is_finite()) {
+        return None;
+    }
     let margin = scale * 2f64.powi(-40);
-    let to_depth = |v: f64| (v as f32).clamp(0.0, 1.0);
-    (to_depth(lo - margin), to_depth(hi + margin))
+    Some((lo - margin, hi + margin))
 }
 
 /// The one fragment loop every pipeline shares. For each pixel with covered samples: count
@@ -551,15 +568,18 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     /// `depth_bounds` holds every pixel's depth over random rectangles of random triangles
-    /// (large and small, steep and flat depth, some beyond [0, 1] so the clamp matters), and
-    /// is reached: some pixel lies at each bound when the rectangle is one pixel.
+    /// (small to the edge of the fixed-point range, slivers, steep, flat and nearly flat depth
+    /// whose steps are as small as its rounding errors, some beyond
+    /// [0, 1] so the clamp matters), and is tight: within two `f32` steps on one pixel. A NaN
+    /// plane hides nothing.
     #[test]
     fn depth_bounds_hold_every_pixel() {
         let mut rng = SmallRng::seed_from_u64(31);
         let mut checked = 0;
-        while checked < 400 {
-            let scale = [4.0, 60.0, 2000.0][checked % 3];
-            let tri: [Vertex; 3] = std::array::from_fn(|_| {
+        while checked < 1200 {
+            // Up to the edge of the fixed-point range (numerators near 2^49), and slivers.
+            let scale = [4.0, 60.0, 2000.0, 32000.0][checked % 4];
+            let mut tri: [Vertex; 3] = std::array::from_fn(|_| {
                 Vertex::new(
                     rng.random_range(-scale..scale),
                     rng.random_range(-scale..scale),
@@ -567,12 +587,25 @@ mod tests {
                     [0; 4],
                 )
             });
+            if checked % 5 == 0 {
+                tri[2].x = tri[0].x + rng.random_range(-2.0..2.0);
+                tri[2].y = tri[0].y + rng.random_range(-2.0..2.0);
+            }
+
             let Ok(setup) = TriangleSetup::new(&tri, crate::setup::CullMode::None) else {
                 continue;
             };
             checked += 1;
-            let plane = PlaneEquation::new(tri.map(|v| f64::from(v.z)), &setup);
-            let (x0, y0) = (rng.random_range(-40..40), rng.random_range(-40..40));
+            let mut values = tri.map(|v| f64::from(v.z));
+            if checked % 3 == 0 {
+                // Nearly flat: steps of the plane as small as its rounding errors.
+                let tiny = |rng: &mut SmallRng| values[0] * 1e-15 * rng.random_range(-4.0..4.0);
+                values = [values[0], values[0] + tiny(&mut rng), values[0] + tiny(&mut rng)];
+            }
+            let plane = PlaneEquation::new(values, &setup);
+            // Near a vertex, where the far corners' numerators are largest.
+            let mut near = |v: f32| v as i32 + rng.random_range(-40..40);
+            let (x0, y0) = (near(tri[0].x), near(tri[0].y));
             let rect = PixelRect {
                 x0,
                 y0,
@@ -580,12 +613,18 @@ mod tests {
                 y1: y0 + rng.random_range(0..24),
             };
             let (lo, hi) = depth_bounds(&plane, &setup, &rect);
+            let (lo64, hi64) = plane_bounds(&plane, &setup, &rect).unwrap();
             assert!(lo <= hi);
             for y in rect.y0..=rect.y1 {
                 for x in rect.x0..=rect.x1 {
                     let (e1, e2) = setup
                         .barycentric_numerators(fixed::pixel_centre(x), fixed::pixel_centre(y));
-                    let z = depth_at(&plane, e1 as f64, e2 as f64);
+                    let (e1, e2) = (e1 as f64, e2 as f64);
+                    // The computed values themselves, not only their rounding to `f32` (which
+                    // hides most rounding errors of the plane).
+                    let v = plane.eval(e1, e2);
+                    assert!(lo64 <= v && v <= hi64, "{v} outside [{lo64}, {hi64}] at ({x}, {y})");
+                    let z = depth_at(&plane, e1, e2);
                     assert!(lo <= z && z <= hi, "{z} outside [{lo}, {hi}] at ({x}, {y})");
                 }
             }
@@ -596,6 +635,11 @@ mod tests {
             let (lo, hi) = depth_bounds(&plane, &setup, &one);
             assert!(lo <= z && z <= hi && hi - lo <= 2.0 * f32::EPSILON, "{lo} {z} {hi}");
         }
+        let tri = [(0.0, 0.0), (9.0, 0.0), (0.0, 9.0)].map(|(x, y)| Vertex::new(x, y, 0.5, [0; 4]));
+        let setup = TriangleSetup::new(&tri, crate::setup::CullMode::None).unwrap();
+        let nan = PlaneEquation::new([f64::NAN, 0.5, 0.5], &setup);
+        let rect = PixelRect { x0: 0, y0: 0, x1: 4, y1: 4 };
+        assert_eq!(depth_bounds(&nan, &setup, &rect), (f32::NEG_INFINITY, f32::INFINITY));
     }
 
     /// The quantizer rounds half to even after clamping, as `f64::round_ties_even` would, for

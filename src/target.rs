@@ -283,6 +283,7 @@ impl TargetBand<'_> {
     /// ignored (no depth passes a test against them), `-inf` when there are only those.
     #[must_use]
     pub fn max_depth(&self, rect: &PixelRect) -> f32 {
+        debug_assert!(self.samples.count() == 1, "max_depth reads one depth per pixel");
         // Eight running maxima, so that the loop compiles to vector maxima.
         let mut lanes = [f32::NEG_INFINITY; 8];
         for y in rect.y0..=rect.y1 {
