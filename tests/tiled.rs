@@ -468,6 +468,11 @@ fn reused_targets_draw_what_fresh_ones_draw() {
         .collect();
     let triangles: Vec<[u32; 3]> =
         (0..400).map(|_| std::array::from_fn(|_| rng.random_range(0..600))).collect();
+    let large_vertices: Vec<Vec3> = (0..5000)
+        .map(|_| Vec3::new(rng.random_range(-1.5..1.5), rng.random_range(-1.5..1.5), 0.5))
+        .collect();
+    let large_triangles: Vec<[u32; 3]> =
+        (0..3000).map(|_| std::array::from_fn(|_| rng.random_range(0..5000))).collect();
     let vs = |p: &Vec3| (p.extend(1.0), *p);
     let fs = |f: &Fragment<Vec3>| Some(f.varyings.extend(1.0));
     let pipeline = Pipeline::default().with_cull(FaceCull::None);
@@ -485,6 +490,13 @@ fn reused_targets_draw_what_fresh_ones_draw() {
             reused.clear([0, 0, 0, 255]);
             pipeline.draw(&mut reused, &vs, &fs, &vertices, &triangles).unwrap();
             assert_same(&expected_3d, &reused, &format!("3D after 2D, {threads} threads"));
+            // The pipeline's own buffers (shaded vertices, corners, records) reused after a
+            // larger mesh: a stale vertex or record would show.
+            reused.clear([0, 0, 0, 255]);
+            pipeline.draw(&mut reused, &vs, &fs, &large_vertices, &large_triangles).unwrap();
+            reused.clear([0, 0, 0, 255]);
+            pipeline.draw(&mut reused, &vs, &fs, &vertices, &triangles).unwrap();
+            assert_same(&expected_3d, &reused, &format!("3D after 3D, {threads} threads"));
             reused.clear([0, 0, 0, 255]);
             trirast::draw(&mut reused, &small, &options).unwrap();
             assert_same(&expected, &reused, &format!("2D after 3D, {threads} threads"));
