@@ -202,8 +202,8 @@ impl Pipeline {
             let (position, varyings) = vertex_shader.shade(v);
             front.vertex(ClipVertex { position, varyings })
         };
-        // Buffers a previous draw call on this target left: refilled, not reallocated (a
-        // fresh vector's pages were a twentieth of a small mesh's frame).
+        // Buffers a previous draw call on this target left: refilled, not reallocated (fresh
+        // vectors had their pages faulted in and zeroed by the kernel every frame).
         let mut scratch: Scratch<VS::Varyings> = target.take_scratch();
         let Scratch { shaded, window, prepared } = &mut scratch;
         shaded.clear();
