@@ -425,15 +425,16 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 
 /// Renders prepared triangles through tiles on the current rayon thread pool; returns the
 /// number of covered samples.
-/// `fragment(payload, x, y, e1, e2, z)` shades one pixel; where `kernel(payload)` gives a span
-/// kernel, it shades 1x spans instead, and `fragment` must not discard.
+/// `fragment(payload, x, y, e1, e2, z)` shades one pixel (`None` discards it, which only
+/// `may_discard` allows); where `kernel(payload)` gives a span kernel, it shades 1x spans
+/// instead.
 ///
 /// Hierarchical depth (1x, `Less` or `LessEqual`, no overdraw buffer, which counts hidden
 /// fragments too): each block of a tile keeps a bound on the largest depth stored in it
 /// (`TileDepth`), and a wide triangle (at least half a tile wide) whose depth over a block
 /// is at or behind it fails the test at every pixel there, so the block is skipped. A bound
 /// starts as the block's largest depth (computed when a wide triangle first needs it) and
-/// drops to a triangle's largest depth when it covers the whole block without discarding.
+/// drops to a triangle's largest depth when it covers the whole block and nothing discards.
 /// Wide triangles' fragments are counted once per triangle while binning, not tile by tile
 /// (skipped blocks are not shaded, so shading cannot count them).
 #[allow(clippy::too_many_arguments)]
@@ -444,6 +445,7 @@ pub fn draw_binned<T, K, F>(
     clip: &PixelRect,
     kernel: K,
     fragment: F,
+    may_discard: bool,
 ) -> u64
 where
     T: Sync,
@@ -491,7 +493,7 @@ where
             };
             if wide(p) {
                 // Its fragments were counted while binning.
-                tile_depth.shade(band, tile, p, kernel.is_some(), shade);
+                tile_depth.shade(band, tile, p, !may_discard, shade);
             } else {
                 covered += shade(band, tile);
             }

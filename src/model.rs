@@ -254,6 +254,10 @@ impl FragmentShader<ModelVaryings> for ModelFragment<'_> {
     fn normal(&self, f: &Fragment<ModelVaryings>) -> Option<Vec3> {
         Some((self.view_to_world * self.normal_at(f)).normalize_or_zero())
     }
+
+    fn may_discard(&self) -> bool {
+        false
+    }
 }
 
 /// Renders `mesh` seen by `camera` into `target` (which the caller clears).

@@ -92,6 +92,14 @@ pub trait FragmentShader<V>: Sync {
     fn normal(&self, _fragment: &Fragment<V>) -> Option<Vec3> {
         None
     }
+
+    /// Whether [`FragmentShader::shade`] may discard (return `None`). A shader that says
+    /// `false` lets large triangles that cover a block of the target lower its depth bound,
+    /// so later triangles behind them are skipped there (see ARCHITECTURE.md, hierarchical
+    /// depth); saying `false` and then discarding draws wrong pictures.
+    fn may_discard(&self) -> bool {
+        true
+    }
 }
 
 impl<V, F: Fn(&Fragment<V>) -> Option<Vec4> + Sync> FragmentShader<V> for F {
@@ -327,6 +335,7 @@ impl Pipeline {
                         &front.clip,
                         |_| None,
                         shade,
+                        fragment_shader.may_discard(),
                     );
                 }
             }

@@ -198,6 +198,7 @@ pub fn draw(
                     &clip,
                     |shader| shader.span_color().map(|c| (level, c)),
                     |shader, _, _, e1, e2, _| Some(color(shader, e1, e2)),
+                    false,
                 );
             }
         }

@@ -236,6 +236,52 @@ fn hidden_tiles_respect_discards() {
     }
 }
 
+/// Hierarchical depth in the 3D pipeline with a fragment shader that says it never discards
+/// (so screen-filling triangles lower the blocks' depth bounds): large triangles in front of,
+/// between and behind two screen-filling quads, in an order that hides many of them.
+#[test]
+fn hidden_tiles_with_shaders_that_never_discard() {
+    struct Opaque;
+    impl trirast::pipeline::FragmentShader<f32> for Opaque {
+        fn shade(&self, f: &Fragment<f32>) -> Option<Vec4> {
+            Some(Vec4::new(f.varyings, 1.0 - f.varyings, 0.5, 1.0))
+        }
+        fn may_discard(&self) -> bool {
+            false
+        }
+    }
+    let quad = |z: f32| {
+        [[-1.2, -1.2], [1.2, -1.2], [1.2, 1.2], [-1.2, 1.2]].map(|[x, y]| Vec4::new(x, y, z, 1.0))
+    };
+    let mut rng = SmallRng::seed_from_u64(11);
+    let mut vertices: Vec<Vec4> = quad(0.7).into_iter().chain(quad(0.9)).collect();
+    let mut triangles = vec![[4, 5, 6], [4, 6, 7], [0, 1, 2], [0, 2, 3]];
+    for k in 0..120 {
+        // Sloped: a triangle's largest depth over a block differs from its smallest.
+        vertices.extend((0..3).map(|_| {
+            let (x, y) = (rng.random_range(-3.0..3.0), rng.random_range(-3.0..3.0));
+            Vec4::new(x, y, rng.random_range(0.05..0.95), 1.0)
+        }));
+        let at = rng.random_range(0..=triangles.len());
+        triangles.insert(at, [8 + 3 * k, 9 + 3 * k, 10 + 3 * k]);
+    }
+    let vs = |p: &Vec4| (*p, p.z);
+    let pipeline = Pipeline::default().with_cull(FaceCull::None);
+    let mut reference = Target::new(300, 200).unwrap().with_ids();
+    let ref_stats = pipeline
+        .with_backend(Backend::Reference)
+        .draw(&mut reference, &vs, &Opaque, &vertices, &triangles)
+        .unwrap();
+    for threads in [1, 2, 7] {
+        let mut tiled = Target::new(300, 200).unwrap().with_ids();
+        let stats = pool(threads)
+            .install(|| pipeline.draw(&mut tiled, &vs, &Opaque, &vertices, &triangles))
+            .unwrap();
+        assert_eq!(stats, ref_stats);
+        assert_same(&reference, &tiled, &format!("{threads} threads"));
+    }
+}
+
 /// Watertight tilings through the tiled backend: still exactly one fragment per pixel, and the
 /// same buffers as the reference.
 #[test]
