@@ -227,7 +227,8 @@ impl TriangleShader {
 
 impl TriangleColor {
     /// The colour as a SIMD span kernel takes it; `None` for perspective shading, which has
-    /// no kernel.
+    /// no kernel. For the triangle's covered pixels only: an opaque triangle's colour is a
+    /// [`SpanColor::SmoothRgb`], which does not clamp.
     #[must_use]
     pub fn span_color(&self) -> Option<SpanColor> {
         match &self.0 {
