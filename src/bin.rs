@@ -19,8 +19,10 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
 
+use crate::fixed;
 use crate::raster::Algorithm;
 use crate::render::DrawStats;
+use crate::sample::SampleCount;
 use crate::setup::{self, PixelRect, Rejection, TriangleSetup};
 use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
 use crate::simd::{SimdLevel, SpanColor};
@@ -429,8 +431,9 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 /// `may_discard` allows); where `kernel(payload)` gives a span kernel, it shades 1x spans
 /// instead.
 ///
-/// Hierarchical depth (1x, `Less` or `LessEqual`, no overdraw buffer, which counts hidden
-/// fragments too): each block of a tile keeps a bound on the largest depth stored in it
+/// Hierarchical depth (`Less` or `LessEqual`, no overdraw buffer, which counts hidden
+/// fragments too; at any sample count, with depths bounded over each pixel's samples): each
+/// block of a tile keeps a bound on the largest depth stored in it
 /// (`TileDepth`), and a wide triangle (at least half a tile wide) whose depth over a block
 /// is at or behind it fails the test at every pixel there, so the block is skipped. A bound
 /// starts as the block's largest depth (computed when a wide triangle first needs it) and
@@ -454,8 +457,8 @@ where
 {
     let multisampled = target.samples().count() > 1;
     let (width, height) = (target.width(), target.height());
-    let hierarchical =
-        !multisampled && depth_test != DepthTest::Always && target.overdraw.is_none();
+    let samples = target.samples();
+    let hierarchical = depth_test != DepthTest::Always && target.overdraw.is_none();
     let wide = |p: &Prepared<T>| {
         hierarchical && p.setup.bounds.x1 - p.setup.bounds.x0 + 1 >= HIDDEN_MIN_WIDTH
     };
@@ -464,14 +467,14 @@ where
     let wide_coverage = AtomicU64::new(0);
     let bins = Bins::of_batch(prepared, multisampled, clip, width, height, |p| {
         if wide(p)
-            && let Some(r) = p.setup.bounds.intersect(clip)
+            && let Some(r) = coverage_bounds(&p.setup, multisampled, clip)
         {
-            wide_coverage.fetch_add(coverage_count(&p.setup, &r), Ordering::Relaxed);
+            wide_coverage.fetch_add(coverage_count(&p.setup, &r, samples), Ordering::Relaxed);
         }
     });
     let shaded = bins.draw(target, clip, |band, tile, list| {
         let mut covered = 0;
-        let mut tile_depth = TileDepth::new(depth_test);
+        let mut tile_depth = TileDepth::new(depth_test, multisampled);
         for (j, &i) in list.iter().enumerate() {
             if let Some(&ahead) = list.get(j + PREFETCH_AHEAD) {
                 crate::simd::prefetch(prepared.get(ahead));
@@ -516,12 +519,16 @@ const _: () = assert!(TILE as i32 % DEPTH_BLOCK == 0, "blocks must tile a tile")
 /// largest depth stored in it, once a wide triangle needs it.
 struct TileDepth {
     test: DepthTest,
+    /// How far (fixed point) a pixel's samples lie from its centre, at most: half a pixel
+    /// when multisampled.
+    reach: i64,
     max: [Option<f32>; DEPTH_BLOCKS * DEPTH_BLOCKS],
 }
 
 impl TileDepth {
-    fn new(test: DepthTest) -> Self {
-        Self { test, max: [None; DEPTH_BLOCKS * DEPTH_BLOCKS] }
+    fn new(test: DepthTest, multisampled: bool) -> Self {
+        let reach = if multisampled { i64::from(fixed::ONE) / 2 } else { 0 };
+        Self { test, reach, max: [None; DEPTH_BLOCKS * DEPTH_BLOCKS] }
     }
 
     /// Shades a wide triangle into `tile` with `shade(band, clip)`, except in the blocks where
@@ -539,7 +546,7 @@ impl TileDepth {
         never_discards: bool,
         mut shade: impl FnMut(&mut TargetBand<'_>, &PixelRect) -> u64,
     ) {
-        let Some(r) = p.setup.bounds.intersect(tile) else { return };
+        let Some(r) = coverage_bounds(&p.setup, self.reach > 0, tile) else { return };
         // Blocks are aligned to the unclipped tile.
         let origin = |v: i32| v - v % TILE as i32;
         let (ox, oy) = (origin(tile.x0), origin(tile.y0));
@@ -590,7 +597,7 @@ impl TileDepth {
         never_discards: bool,
         slot: usize,
     ) -> Option<PixelRect> {
-        let (near, far) = shade::depth_bounds(&p.depth, &p.setup, b);
+        let (near, far) = shade::depth_bounds(&p.depth, &p.setup, b, self.reach);
         let slot = &mut self.max[slot];
         let max = *slot.get_or_insert_with(|| band.max_depth(whole));
         let hidden = match self.test {
@@ -601,7 +608,7 @@ impl TileDepth {
         if hidden {
             return None;
         }
-        if never_discards && crate::raster::covers_rect(&p.setup, whole) {
+        if never_discards && covers_samples(&p.setup, whole, self.reach) {
             // Every pixel of the block will hold at most the triangle's depth there.
             *slot = Some(max.min(far));
         }
@@ -609,12 +616,28 @@ impl TileDepth {
     }
 }
 
-/// Pixels of `rect` a triangle covers, without shading them.
-fn coverage_count(setup: &TriangleSetup, rect: &PixelRect) -> u64 {
-    if crate::raster::covers_rect(setup, rect) {
-        return ((rect.x1 - rect.x0 + 1) as u64) * ((rect.y1 - rect.y0 + 1) as u64);
+/// Does the triangle cover every point within `reach` of the pixel centres of `rect` (every
+/// sample of its pixels)? The covered set is convex (each edge's inside is a half-plane), so
+/// the four outermost corners decide.
+fn covers_samples(setup: &TriangleSetup, rect: &PixelRect, reach: i64) -> bool {
+    let [x0, y0] = [rect.x0, rect.y0].map(|v| fixed::pixel_centre(v) - reach);
+    let [x1, y1] = [rect.x1, rect.y1].map(|v| fixed::pixel_centre(v) + reach);
+    [(x0, y0), (x1, y0), (x0, y1), (x1, y1)].iter().all(|&(x, y)| setup.covers_point(x, y))
+}
+
+/// Samples of the pixels of `rect` a triangle covers, without shading them.
+fn coverage_count(setup: &TriangleSetup, rect: &PixelRect, samples: SampleCount) -> u64 {
+    let n = samples.count();
+    let reach = if n > 1 { i64::from(fixed::ONE) / 2 } else { 0 };
+    if covers_samples(setup, rect, reach) {
+        return ((rect.x1 - rect.x0 + 1) as u64) * ((rect.y1 - rect.y0 + 1) as u64) * n as u64;
     }
-    let mut n = 0;
-    crate::raster::rasterize(Algorithm::Scanline, setup, rect, |s| n += s.len() as u64);
-    n
+    let mut covered = 0;
+    for s in 0..n {
+        let offset = if n > 1 { samples.offset(s) } else { [0, 0] };
+        crate::raster::rasterize_sample(Algorithm::Scanline, setup, rect, offset, |span| {
+            covered += span.len() as u64;
+        });
+    }
+    covered
 }

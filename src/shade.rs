@@ -292,9 +292,18 @@ pub fn depth_at(plane: &PlaneEquation, e1: f64, e2: f64) -> f32 {
 /// and the bounds are widened by `2^-40` of them before the (monotonic) conversion to `f32`
 /// and clamp, so they hold for the computed values, not only the exact ones. A plane that is
 /// not finite there gives `(-inf, inf)`: nothing is hidden behind it, and nothing hides it.
+///
+/// With `reach` (fixed-point units), the bounds hold at every point within `reach` of those
+/// centres on each axis: the samples of a multisampled pixel, whose offsets are within half a
+/// pixel (128).
 #[must_use]
-pub fn depth_bounds(plane: &PlaneEquation, setup: &TriangleSetup, rect: &PixelRect) -> (f32, f32) {
-    let Some((lo, hi)) = plane_bounds(plane, setup, rect) else {
+pub fn depth_bounds(
+    plane: &PlaneEquation,
+    setup: &TriangleSetup,
+    rect: &PixelRect,
+    reach: i64,
+) -> (f32, f32) {
+    let Some((lo, hi)) = plane_bounds(plane, setup, rect, reach) else {
         return (f32::NEG_INFINITY, f32::INFINITY);
     };
     let to_depth = |v: f64| (v as f32).clamp(0.0, 1.0);
@@ -302,16 +311,19 @@ pub fn depth_bounds(plane: &PlaneEquation, setup: &TriangleSetup, rect: &PixelRe
 }
 
 /// [`depth_bounds`] before the conversion to depth: bounds of `plane.eval` at the pixel
-/// centres of `rect`, as computed (`None` when not finite).
+/// centres of `rect` (and within `reach` of them), as computed (`None` when not finite).
 fn plane_bounds(
     plane: &PlaneEquation,
     setup: &TriangleSetup,
     rect: &PixelRect,
+    reach: i64,
 ) -> Option<(f64, f64)> {
     let [a0, g1, g2] = plane.coefficients();
     let (mut lo, mut hi, mut scale) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
-    for (x, y) in [(rect.x0, rect.y0), (rect.x1, rect.y0), (rect.x0, rect.y1), (rect.x1, rect.y1)] {
-        let (e1, e2) = setup.barycentric_numerators(fixed::pixel_centre(x), fixed::pixel_centre(y));
+    let [x0, y0] = [rect.x0, rect.y0].map(|v| fixed::pixel_centre(v) - reach);
+    let [x1, y1] = [rect.x1, rect.y1].map(|v| fixed::pixel_centre(v) + reach);
+    for (x, y) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1)] {
+        let (e1, e2) = setup.barycentric_numerators(x, y);
         let (e1, e2) = (e1 as f64, e2 as f64);
         let v = plane.eval(e1, e2);
         (lo, hi) = (lo.min(v), hi.max(v));
@@ -565,14 +577,15 @@ fn shade_single_sample(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sample::SampleCount;
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
 
     /// `depth_bounds` holds every pixel's depth over random rectangles of random triangles
     /// (small to the edge of the fixed-point range, slivers, steep, flat and nearly flat depth
     /// whose steps are as small as its rounding errors, some beyond
-    /// [0, 1] so the clamp matters), and is tight: within two `f32` steps on one pixel. A NaN
-    /// plane hides nothing.
+    /// [0, 1] so the clamp matters), and, with half a pixel's reach, every 8x sample; it is
+    /// tight: within two `f32` steps on one pixel. A NaN plane hides nothing.
     #[test]
     fn depth_bounds_hold_every_pixel() {
         let mut rng = SmallRng::seed_from_u64(31);
@@ -613,8 +626,9 @@ mod tests {
                 x1: x0 + rng.random_range(0..24),
                 y1: y0 + rng.random_range(0..24),
             };
-            let (lo, hi) = depth_bounds(&plane, &setup, &rect);
-            let (lo64, hi64) = plane_bounds(&plane, &setup, &rect).unwrap();
+            let (lo, hi) = depth_bounds(&plane, &setup, &rect, 0);
+            let (lo64, hi64) = plane_bounds(&plane, &setup, &rect, 0).unwrap();
+            let samples = depth_bounds(&plane, &setup, &rect, i64::from(fixed::ONE) / 2);
             assert!(lo <= hi);
             for y in rect.y0..=rect.y1 {
                 for x in rect.x0..=rect.x1 {
@@ -627,20 +641,29 @@ mod tests {
                     assert!(lo64 <= v && v <= hi64, "{v} outside [{lo64}, {hi64}] at ({x}, {y})");
                     let z = depth_at(&plane, e1, e2);
                     assert!(lo <= z && z <= hi, "{z} outside [{lo}, {hi}] at ({x}, {y})");
+                    // Every sample of the pixel at 8x, within half a pixel of its centre.
+                    for s in 0..SampleCount::X8.count() {
+                        let [ox, oy] = SampleCount::X8.offset(s);
+                        let (cx, cy) = (fixed::pixel_centre(x) + ox, fixed::pixel_centre(y) + oy);
+                        let (e1, e2) = setup.barycentric_numerators(cx, cy);
+                        let z = depth_at(&plane, e1 as f64, e2 as f64);
+                        let (lo, hi) = samples;
+                        assert!(lo <= z && z <= hi, "sample {s}: {z} outside [{lo}, {hi}]");
+                    }
                 }
             }
             let one = PixelRect { x1: rect.x0, y1: rect.y0, ..rect };
             let (e1, e2) = setup
                 .barycentric_numerators(fixed::pixel_centre(one.x0), fixed::pixel_centre(one.y0));
             let z = depth_at(&plane, e1 as f64, e2 as f64);
-            let (lo, hi) = depth_bounds(&plane, &setup, &one);
+            let (lo, hi) = depth_bounds(&plane, &setup, &one, 0);
             assert!(lo <= z && z <= hi && hi - lo <= 2.0 * f32::EPSILON, "{lo} {z} {hi}");
         }
         let tri = [(0.0, 0.0), (9.0, 0.0), (0.0, 9.0)].map(|(x, y)| Vertex::new(x, y, 0.5, [0; 4]));
         let setup = TriangleSetup::new(&tri, crate::setup::CullMode::None).unwrap();
         let nan = PlaneEquation::new([f64::NAN, 0.5, 0.5], &setup);
         let rect = PixelRect { x0: 0, y0: 0, x1: 4, y1: 4 };
-        assert_eq!(depth_bounds(&nan, &setup, &rect), (f32::NEG_INFINITY, f32::INFINITY));
+        assert_eq!(depth_bounds(&nan, &setup, &rect, 0), (f32::NEG_INFINITY, f32::INFINITY));
     }
 
     /// The quantizer rounds half to even after clamping, as `f64::round_ties_even` would, for

@@ -279,15 +279,16 @@ impl TargetBand<'_> {
         self.samples
     }
 
-    /// The largest depth stored at the pixels of `rect` (within the band, 1x); NaN depths are
-    /// ignored (no depth passes a test against them), `-inf` when there are only those.
+    /// The largest depth stored at the pixels of `rect` (within the band; every sample); NaN
+    /// depths are ignored (no depth passes a test against them), `-inf` when there are only
+    /// those.
     #[must_use]
     pub fn max_depth(&self, rect: &PixelRect) -> f32 {
-        debug_assert!(self.samples.count() == 1, "max_depth reads one depth per pixel");
+        let n = self.samples.count();
         // Eight running maxima, so that the loop compiles to vector maxima.
         let mut lanes = [f32::NEG_INFINITY; 8];
         for y in rect.y0..=rect.y1 {
-            let row = &self.depth[self.index(rect.x0, y)..=self.index(rect.x1, y)];
+            let row = &self.depth[self.index(rect.x0, y) * n..(self.index(rect.x1, y) + 1) * n];
             let chunks = row.chunks_exact(8);
             for &z in chunks.remainder() {
                 lanes[0] = lanes[0].max(z);
