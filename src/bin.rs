@@ -19,7 +19,6 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
 
-use crate::fixed;
 use crate::raster::Algorithm;
 use crate::render::DrawStats;
 use crate::sample::SampleCount;
@@ -474,7 +473,7 @@ where
     });
     let shaded = bins.draw(target, clip, |band, tile, list| {
         let mut covered = 0;
-        let mut tile_depth = TileDepth::new(depth_test, multisampled);
+        let mut tile_depth = TileDepth::new(depth_test, samples);
         for (j, &i) in list.iter().enumerate() {
             if let Some(&ahead) = list.get(j + PREFETCH_AHEAD) {
                 crate::simd::prefetch(prepared.get(ahead));
@@ -519,16 +518,13 @@ const _: () = assert!(TILE as i32 % DEPTH_BLOCK == 0, "blocks must tile a tile")
 /// largest depth stored in it, once a wide triangle needs it.
 struct TileDepth {
     test: DepthTest,
-    /// How far (fixed point) a pixel's samples lie from its centre, at most: half a pixel
-    /// when multisampled.
-    reach: i64,
+    samples: SampleCount,
     max: [Option<f32>; DEPTH_BLOCKS * DEPTH_BLOCKS],
 }
 
 impl TileDepth {
-    fn new(test: DepthTest, multisampled: bool) -> Self {
-        let reach = if multisampled { i64::from(fixed::ONE) / 2 } else { 0 };
-        Self { test, reach, max: [None; DEPTH_BLOCKS * DEPTH_BLOCKS] }
+    fn new(test: DepthTest, samples: SampleCount) -> Self {
+        Self { test, samples, max: [None; DEPTH_BLOCKS * DEPTH_BLOCKS] }
     }
 
     /// Shades a wide triangle into `tile` with `shade(band, clip)`, except in the blocks where
@@ -546,7 +542,8 @@ impl TileDepth {
         never_discards: bool,
         mut shade: impl FnMut(&mut TargetBand<'_>, &PixelRect) -> u64,
     ) {
-        let Some(r) = coverage_bounds(&p.setup, self.reach > 0, tile) else { return };
+        let multisampled = self.samples.count() > 1;
+        let Some(r) = coverage_bounds(&p.setup, multisampled, tile) else { return };
         // Blocks are aligned to the unclipped tile.
         let origin = |v: i32| v - v % TILE as i32;
         let (ox, oy) = (origin(tile.x0), origin(tile.y0));
@@ -597,7 +594,8 @@ impl TileDepth {
         never_discards: bool,
         slot: usize,
     ) -> Option<PixelRect> {
-        let (near, far) = shade::depth_bounds(&p.depth, &p.setup, b, self.reach);
+        let reach = self.samples.reach();
+        let (near, far) = shade::depth_bounds(&p.depth, &p.setup, b, reach);
         let slot = &mut self.max[slot];
         let max = *slot.get_or_insert_with(|| band.max_depth(whole));
         let hidden = match self.test {
@@ -608,7 +606,7 @@ impl TileDepth {
         if hidden {
             return None;
         }
-        if never_discards && covers_samples(&p.setup, whole, self.reach) {
+        if never_discards && crate::raster::covers_rect_within(&p.setup, whole, reach) {
             // Every pixel of the block will hold at most the triangle's depth there.
             *slot = Some(max.min(far));
         }
@@ -616,25 +614,15 @@ impl TileDepth {
     }
 }
 
-/// Does the triangle cover every point within `reach` of the pixel centres of `rect` (every
-/// sample of its pixels)? The covered set is convex (each edge's inside is a half-plane), so
-/// the four outermost corners decide.
-fn covers_samples(setup: &TriangleSetup, rect: &PixelRect, reach: i64) -> bool {
-    let [x0, y0] = [rect.x0, rect.y0].map(|v| fixed::pixel_centre(v) - reach);
-    let [x1, y1] = [rect.x1, rect.y1].map(|v| fixed::pixel_centre(v) + reach);
-    [(x0, y0), (x1, y0), (x0, y1), (x1, y1)].iter().all(|&(x, y)| setup.covers_point(x, y))
-}
-
 /// Samples of the pixels of `rect` a triangle covers, without shading them.
 fn coverage_count(setup: &TriangleSetup, rect: &PixelRect, samples: SampleCount) -> u64 {
     let n = samples.count();
-    let reach = if n > 1 { i64::from(fixed::ONE) / 2 } else { 0 };
-    if covers_samples(setup, rect, reach) {
+    if crate::raster::covers_rect_within(setup, rect, samples.reach()) {
         return ((rect.x1 - rect.x0 + 1) as u64) * ((rect.y1 - rect.y0 + 1) as u64) * n as u64;
     }
     let mut covered = 0;
     for s in 0..n {
-        let offset = if n > 1 { samples.offset(s) } else { [0, 0] };
+        let offset = samples.offset(s);
         crate::raster::rasterize_sample(Algorithm::Scanline, setup, rect, offset, |span| {
             covered += span.len() as u64;
         });

@@ -58,4 +58,29 @@ impl SampleCount {
     pub fn offset(self, s: usize) -> [i64; 2] {
         self.pattern()[s].map(|v| i64::from(v) * 16)
     }
+
+    /// How far (fixed point, on either axis) the samples lie from the pixel centre at most:
+    /// 0 at 1x, 96 at 4x, 112 at 8x.
+    #[must_use]
+    pub fn reach(self) -> i64 {
+        (0..self.count()).flat_map(|s| self.offset(s)).map(i64::abs).max().unwrap_or(0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every sample lies within `reach` of the centre on both axes, and some sample reaches it.
+    #[test]
+    fn reach_bounds_every_sample() {
+        for (samples, reach) in
+            [(SampleCount::X1, 0), (SampleCount::X4, 96), (SampleCount::X8, 112)]
+        {
+            assert_eq!(samples.reach(), reach);
+            for s in 0..samples.count() {
+                assert!(samples.offset(s).iter().all(|v| v.abs() <= reach));
+            }
+        }
+    }
 }

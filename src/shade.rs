@@ -294,8 +294,7 @@ pub fn depth_at(plane: &PlaneEquation, e1: f64, e2: f64) -> f32 {
 /// not finite there gives `(-inf, inf)`: nothing is hidden behind it, and nothing hides it.
 ///
 /// With `reach` (fixed-point units), the bounds hold at every point within `reach` of those
-/// centres on each axis: the samples of a multisampled pixel, whose offsets are within half a
-/// pixel (128).
+/// centres on each axis: every sample, with the pattern's [`crate::sample::SampleCount::reach`].
 #[must_use]
 pub fn depth_bounds(
     plane: &PlaneEquation,
@@ -320,9 +319,7 @@ fn plane_bounds(
 ) -> Option<(f64, f64)> {
     let [a0, g1, g2] = plane.coefficients();
     let (mut lo, mut hi, mut scale) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
-    let [x0, y0] = [rect.x0, rect.y0].map(|v| fixed::pixel_centre(v) - reach);
-    let [x1, y1] = [rect.x1, rect.y1].map(|v| fixed::pixel_centre(v) + reach);
-    for (x, y) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1)] {
+    for [x, y] in raster::rect_corners(rect, reach) {
         let (e1, e2) = setup.barycentric_numerators(x, y);
         let (e1, e2) = (e1 as f64, e2 as f64);
         let v = plane.eval(e1, e2);
@@ -628,7 +625,7 @@ mod tests {
             };
             let (lo, hi) = depth_bounds(&plane, &setup, &rect, 0);
             let (lo64, hi64) = plane_bounds(&plane, &setup, &rect, 0).unwrap();
-            let samples = depth_bounds(&plane, &setup, &rect, i64::from(fixed::ONE) / 2);
+            let samples = depth_bounds(&plane, &setup, &rect, SampleCount::X8.reach());
             assert!(lo <= hi);
             for y in rect.y0..=rect.y1 {
                 for x in rect.x0..=rect.x1 {

@@ -14,6 +14,7 @@
 pub mod edge;
 pub mod scanline;
 
+use crate::fixed;
 use crate::setup::{PixelRect, TriangleSetup};
 
 /// Covered pixels `x_start..x_end` (half-open) on row `y`.
@@ -88,9 +89,25 @@ pub fn rasterize_sample(
 /// arithmetic per row.
 #[must_use]
 pub fn covers_rect(tri: &TriangleSetup, rect: &PixelRect) -> bool {
-    [(rect.x0, rect.y0), (rect.x1, rect.y0), (rect.x0, rect.y1), (rect.x1, rect.y1)]
-        .iter()
-        .all(|&(x, y)| tri.covers(x, y))
+    covers_rect_within(tri, rect, 0)
+}
+
+/// Does the triangle cover every point within `reach` (fixed point, on either axis) of the
+/// pixel centres of `rect`, so every sample of its pixels when `reach` is the sample pattern's
+/// ([`crate::sample::SampleCount::reach`])? The covered set is convex, so the four outermost
+/// points decide.
+#[must_use]
+pub fn covers_rect_within(tri: &TriangleSetup, rect: &PixelRect, reach: i64) -> bool {
+    rect_corners(rect, reach).iter().all(|&[x, y]| tri.covers_point(x, y))
+}
+
+/// The four corners (fixed point) of the pixel centres of `rect` pushed out by `reach` on
+/// each axis: any point within `reach` of a centre of `rect` lies in their rectangle.
+#[must_use]
+pub fn rect_corners(rect: &PixelRect, reach: i64) -> [[i64; 2]; 4] {
+    let [x0, y0] = [rect.x0, rect.y0].map(|v| fixed::pixel_centre(v) - reach);
+    let [x1, y1] = [rect.x1, rect.y1].map(|v| fixed::pixel_centre(v) + reach);
+    [[x0, y0], [x1, y0], [x0, y1], [x1, y1]]
 }
 
 /// Collects the spans of one triangle (convenient for tests and tools).
