@@ -1257,6 +1257,21 @@ mod tests {
         }
     }
 
+    /// Buffers of `n` pixels a kernel starts from: depth (a quarter of it 0.5, so that planes
+    /// tie with it now and then), colour, ids and overdraw.
+    fn random_buffers(
+        rng: &mut SmallRng,
+        n: usize,
+    ) -> (Vec<f32>, Vec<[u8; 4]>, Vec<i32>, Vec<u32>) {
+        let depth = (0..n)
+            .map(|_| if rng.random_range(0..4) == 0 { 0.5 } else { rng.random_range(0.0..1.0) })
+            .collect();
+        let color = (0..n).map(|_| [rng.random(); 4]).collect();
+        let ids = (0..n).map(|_| rng.random_range(-1..5)).collect();
+        let overdraw = (0..n).map(|_| rng.random_range(0..3)).collect();
+        (depth, color, ids, overdraw)
+    }
+
     /// A random plane `[a0, g1, g2]` whose values over a span leave [0, scale] on either side.
     fn random_plane(rng: &mut SmallRng, scale: f64) -> [f64; 3] {
         [
@@ -1328,13 +1343,9 @@ mod tests {
             let color = random_color(&mut rng, round);
             let depth_test = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always][round % 3];
             let extras = round % 4 < 2;
-            let depth0: Vec<f32> = (0..len).map(|_| rng.random_range(0.0..1.0)).collect();
-            let color0: Vec<[u8; 4]> = (0..len).map(|_| [rng.random(); 4]).collect();
-            let ids0: Vec<i32> = (0..len).map(|_| rng.random_range(-1..5)).collect();
-            let over0: Vec<u32> = (0..len).map(|_| rng.random_range(0..3)).collect();
+            let buffers = random_buffers(&mut rng, len);
             let run = |level: SimdLevel| {
-                let (mut d, mut c, mut i, mut o) =
-                    (depth0.clone(), color0.clone(), ids0.clone(), over0.clone());
+                let (mut d, mut c, mut i, mut o) = buffers.clone();
                 let covered = shade_narrow(
                     level,
                     NarrowJob {
@@ -1385,15 +1396,9 @@ mod tests {
             let e2 = rng.random_range(-(1i64 << 40)..(1 << 40));
             let step1 = rng.random_range(-(1i64 << 30)..(1 << 30));
             let step2 = rng.random_range(-(1i64 << 30)..(1 << 30));
-            let depth0: Vec<f32> = (0..n)
-                .map(|_| if rng.random_range(0..4) == 0 { 0.5 } else { rng.random_range(0.0..1.0) })
-                .collect();
-            let color0: Vec<[u8; 4]> = (0..n).map(|_| [rng.random(); 4]).collect();
-            let ids0: Vec<i32> = (0..n).map(|_| rng.random_range(-1..5)).collect();
-            let over0: Vec<u32> = (0..n).map(|_| rng.random_range(0..3)).collect();
+            let buffers = random_buffers(&mut rng, n);
             let run = |level: SimdLevel| {
-                let (mut d, mut c, mut i, mut o) =
-                    (depth0.clone(), color0.clone(), ids0.clone(), over0.clone());
+                let (mut d, mut c, mut i, mut o) = buffers.clone();
                 shade_span(
                     level,
                     SpanJob {

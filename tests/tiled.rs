@@ -192,15 +192,41 @@ fn hidden_tiles_match_the_reference() {
     }
 }
 
+/// Two triangles filling clip space at depth `z` (and a margin past it), as four vertices.
+fn screen_quad(z: f32) -> [Vec4; 4] {
+    [[-1.2, -1.2], [1.2, -1.2], [1.2, 1.2], [-1.2, 1.2]].map(|[x, y]| Vec4::new(x, y, z, 1.0))
+}
+
+/// Clip-space positions (depth as the varying) through the 3D pipeline without culling, into
+/// 300 x 200 targets with ids: the tiled backend on 1, 2 and 7 threads against the reference.
+fn assert_pipeline_matches_reference<FS: trirast::pipeline::FragmentShader<f32>>(
+    vertices: &[Vec4],
+    triangles: &[[u32; 3]],
+    fs: &FS,
+) {
+    let vs = |p: &Vec4| (*p, p.z);
+    let pipeline = Pipeline::default().with_cull(FaceCull::None);
+    let mut reference = Target::new(300, 200).unwrap().with_ids();
+    let ref_stats = pipeline
+        .with_backend(Backend::Reference)
+        .draw(&mut reference, &vs, fs, vertices, triangles)
+        .unwrap();
+    for threads in [1, 2, 7] {
+        let mut tiled = Target::new(300, 200).unwrap().with_ids();
+        let stats = pool(threads)
+            .install(|| pipeline.draw(&mut tiled, &vs, fs, vertices, triangles))
+            .unwrap();
+        assert_eq!(stats, ref_stats);
+        assert_same(&reference, &tiled, &format!("{threads} threads"));
+    }
+}
+
 /// Hierarchical depth in the 3D pipeline, whose fragment shaders may discard: a screen-filling
 /// quad in front that discards half its pixels must not lower the tiles' depth bound, or the
 /// triangles behind it would be skipped where it left holes.
 #[test]
 fn hidden_tiles_respect_discards() {
-    let quad = |z: f32| {
-        [[-1.2, -1.2], [1.2, -1.2], [1.2, 1.2], [-1.2, 1.2]].map(|[x, y]| Vec4::new(x, y, z, 1.0))
-    };
-    let mut vertices: Vec<Vec4> = quad(0.1).into_iter().chain(quad(0.5)).collect();
+    let mut vertices: Vec<Vec4> = screen_quad(0.1).into_iter().chain(screen_quad(0.5)).collect();
     // Large triangles between and behind the quads.
     let mut rng = SmallRng::seed_from_u64(5);
     for _ in 0..60 {
@@ -213,7 +239,6 @@ fn hidden_tiles_respect_discards() {
     }
     let mut triangles = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
     triangles.extend((0..60).map(|k| [8 + 3 * k, 9 + 3 * k, 10 + 3 * k]));
-    let vs = |p: &Vec4| (*p, p.z);
     // The near quad (depth 0.1) discards a checkerboard.
     let fs = |f: &Fragment<f32>| {
         if f.varyings < 0.15 && (f.x + f.y) % 2 == 0 {
@@ -221,20 +246,7 @@ fn hidden_tiles_respect_discards() {
         }
         Some(Vec4::new(f.varyings, 0.5, 1.0 - f.varyings, 1.0))
     };
-    let pipeline = Pipeline::default().with_cull(FaceCull::None);
-    let mut reference = Target::new(300, 200).unwrap().with_ids();
-    let ref_stats = pipeline
-        .with_backend(Backend::Reference)
-        .draw(&mut reference, &vs, &fs, &vertices, &triangles)
-        .unwrap();
-    for threads in [1, 2, 7] {
-        let mut tiled = Target::new(300, 200).unwrap().with_ids();
-        let stats = pool(threads)
-            .install(|| pipeline.draw(&mut tiled, &vs, &fs, &vertices, &triangles))
-            .unwrap();
-        assert_eq!(stats, ref_stats);
-        assert_same(&reference, &tiled, &format!("{threads} threads"));
-    }
+    assert_pipeline_matches_reference(&vertices, &triangles, &fs);
 }
 
 /// Hierarchical depth in the 3D pipeline with a fragment shader that says it never discards
@@ -251,11 +263,8 @@ fn hidden_tiles_with_shaders_that_never_discard() {
             false
         }
     }
-    let quad = |z: f32| {
-        [[-1.2, -1.2], [1.2, -1.2], [1.2, 1.2], [-1.2, 1.2]].map(|[x, y]| Vec4::new(x, y, z, 1.0))
-    };
     let mut rng = SmallRng::seed_from_u64(11);
-    let mut vertices: Vec<Vec4> = quad(0.7).into_iter().chain(quad(0.9)).collect();
+    let mut vertices: Vec<Vec4> = screen_quad(0.7).into_iter().chain(screen_quad(0.9)).collect();
     let mut triangles = vec![[4, 5, 6], [4, 6, 7], [0, 1, 2], [0, 2, 3]];
     for k in 0..120 {
         // Sloped: a triangle's largest depth over a block differs from its smallest.
@@ -266,21 +275,7 @@ fn hidden_tiles_with_shaders_that_never_discard() {
         let at = rng.random_range(0..=triangles.len());
         triangles.insert(at, [8 + 3 * k, 9 + 3 * k, 10 + 3 * k]);
     }
-    let vs = |p: &Vec4| (*p, p.z);
-    let pipeline = Pipeline::default().with_cull(FaceCull::None);
-    let mut reference = Target::new(300, 200).unwrap().with_ids();
-    let ref_stats = pipeline
-        .with_backend(Backend::Reference)
-        .draw(&mut reference, &vs, &Opaque, &vertices, &triangles)
-        .unwrap();
-    for threads in [1, 2, 7] {
-        let mut tiled = Target::new(300, 200).unwrap().with_ids();
-        let stats = pool(threads)
-            .install(|| pipeline.draw(&mut tiled, &vs, &Opaque, &vertices, &triangles))
-            .unwrap();
-        assert_eq!(stats, ref_stats);
-        assert_same(&reference, &tiled, &format!("{threads} threads"));
-    }
+    assert_pipeline_matches_reference(&vertices, &triangles, &Opaque);
 }
 
 /// Watertight tilings through the tiled backend: still exactly one fragment per pixel, and the
