@@ -544,6 +544,7 @@ impl TileDepth {
     ) {
         let multisampled = self.samples.count() > 1;
         let Some(r) = coverage_bounds(&p.setup, multisampled, tile) else { return };
+        let reach = self.samples.reach();
         // Blocks are aligned to the unclipped tile.
         let origin = |v: i32| v - v % TILE as i32;
         let (ox, oy) = (origin(tile.x0), origin(tile.y0));
@@ -565,7 +566,7 @@ impl TileDepth {
                 } else {
                     block(bx, by).and_then(|(whole, b)| {
                         let slot = by as usize * DEPTH_BLOCKS + bx as usize;
-                        self.visible(band, p, &whole, &b, never_discards, slot)
+                        self.visible(band, p, (&whole, &b, reach), never_discards, slot)
                     })
                 };
                 match (visible, &mut run) {
@@ -581,20 +582,19 @@ impl TileDepth {
         }
     }
 
-    /// The pixels `b` of a block (`whole` within the tile, bound `slot`) that lie in the
-    /// triangle's box, when the triangle may pass the depth test there; `None` when it is
+    /// The pixels `b` of a block (`whole` within the tile, bound `slot`, samples within `reach`
+    /// of the centres) that lie in the triangle's box, when the triangle may pass the depth
+    /// test there; `None` when it is
     /// hidden. Lowers the block's bound as [`TileDepth::shade`] says, ahead of the shading
     /// (which follows before any other triangle is drawn).
     fn visible<T>(
         &mut self,
         band: &TargetBand<'_>,
         p: &Prepared<T>,
-        whole: &PixelRect,
-        b: &PixelRect,
+        (whole, b, reach): (&PixelRect, &PixelRect, i64),
         never_discards: bool,
         slot: usize,
     ) -> Option<PixelRect> {
-        let reach = self.samples.reach();
         let (near, far) = shade::depth_bounds(&p.depth, &p.setup, b, reach);
         let slot = &mut self.max[slot];
         let max = *slot.get_or_insert_with(|| band.max_depth(whole));
