@@ -1,0 +1,435 @@
+//! The AVX2 kernels: four pixels (or eight vertices, eight triangles) per step.
+
+use std::arch::x86_64::*;
+
+use glam::Vec4;
+
+use super::{Corner, CornerGroup, CornerTests, KernelTarget, NarrowJob, SpanColor, SpanJob};
+use crate::clip::MIN_W;
+use crate::fixed;
+use crate::setup::{CullMode, PixelRect};
+use crate::shade::DepthTest;
+
+/// [`super::corner_tests`] for eight triangles at once: areas in two halves of four
+/// `i64` lanes (corner differences are below 2^24, so products are exact), boxes and
+/// their first and last pixel centres in eight `i32` lanes (`ceil((v - 128) / 256)` is
+/// `(v + 127) >> 8`, `floor((v - 128) / 256)` is `(v - 128) >> 8`, arithmetic shifts).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn corner_tests_avx2(
+    group: &CornerGroup,
+    cull: CullMode,
+    clip: &PixelRect,
+) -> CornerTests {
+    // Element by element: the rows were just written by 4-byte stores, which a 32-byte
+    // load cannot take from the store buffer (it would wait for them to reach the cache).
+    let row = |r: &[i32; 8]| _mm256_setr_epi32(r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]);
+    let x = [row(&group.x[0]), row(&group.x[1]), row(&group.x[2])];
+    let y = [row(&group.y[0]), row(&group.y[1]), row(&group.y[2])];
+    tests(x, y, cull, clip)
+}
+
+/// [`super::corner_tests_indexed`]: each corner read from the window as one 8-byte
+/// `[x, y]` straight into a vector (memory written long before, so no store-forwarding
+/// wait), four triangles' pairs per half, then split into rows of x and of y.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn corner_tests_indexed_avx2(
+    tris: &[[u32; 3]; 8],
+    window: &[Corner],
+    base: u32,
+    cull: CullMode,
+    clip: &PixelRect,
+) -> CornerTests {
+    // A corner's 8 bytes as the low half of a vector; slice indexing checks the index.
+    let corner = |k: usize, v: usize| -> __m128i {
+        let c: &Corner = &window[tris[k][v].wrapping_sub(base) as usize];
+        // SAFETY: `c` is a reference to 8 readable bytes; the load has no alignment
+        // requirement.
+        unsafe { _mm_loadl_epi64(std::ptr::from_ref(c).cast::<__m128i>()) }
+    };
+    let mut x = [_mm256_setzero_si256(); 3];
+    let mut y = [_mm256_setzero_si256(); 3];
+    for v in 0..3 {
+        // [x y] pairs of triangles 0-3 and 4-7, in 32-bit lanes.
+        let pairs = |first: usize| {
+            let lo = _mm_unpacklo_epi64(corner(first, v), corner(first + 1, v));
+            let hi = _mm_unpacklo_epi64(corner(first + 2, v), corner(first + 3, v));
+            _mm256_set_m128i(hi, lo)
+        };
+        let (p, q) = (_mm256_castsi256_ps(pairs(0)), _mm256_castsi256_ps(pairs(4)));
+        // Per 128-bit half: lanes [t0 t1 t4 t5 | t2 t3 t6 t7]; the permute restores
+        // triangle order.
+        let xs = _mm256_castps_si256(_mm256_shuffle_ps::<0b10_00_10_00>(p, q));
+        let ys = _mm256_castps_si256(_mm256_shuffle_ps::<0b11_01_11_01>(p, q));
+        x[v] = _mm256_permute4x64_epi64::<0b11_01_10_00>(xs);
+        y[v] = _mm256_permute4x64_epi64::<0b11_01_10_00>(ys);
+    }
+    tests(x, y, cull, clip)
+}
+
+/// The corner tests on eight triangles' corners in rows (`x[v]`: corner `v`'s x).
+#[inline]
+#[target_feature(enable = "avx2")]
+fn tests(x: [__m256i; 3], y: [__m256i; 3], cull: CullMode, clip: &PixelRect) -> CornerTests {
+    let ([x0, x1, x2], [y0, y1, y2]) = (x, y);
+    // Lanes with a corner equal to OUTSIDE take no tests.
+    let (ox, oy) = (_mm256_set1_epi32(super::OUTSIDE[0]), _mm256_set1_epi32(super::OUTSIDE[1]));
+    let out = |x, y| _mm256_and_si256(_mm256_cmpeq_epi32(x, ox), _mm256_cmpeq_epi32(y, oy));
+    let any_outside = _mm256_or_si256(out(x0, y0), _mm256_or_si256(out(x1, y1), out(x2, y2)));
+    let lanes = !(_mm256_movemask_ps(_mm256_castsi256_ps(any_outside)) as u8);
+    // Signed area, twice: (x1 - x0)(y2 - y0) - (x2 - x0)(y1 - y0), as in `signed_area2`.
+    let (d1x, d1y) = (_mm256_sub_epi32(x1, x0), _mm256_sub_epi32(y1, y0));
+    let (d2x, d2y) = (_mm256_sub_epi32(x2, x0), _mm256_sub_epi32(y2, y0));
+    let half = |v: __m256i, high: bool| {
+        let h = if high { _mm256_extracti128_si256::<1>(v) } else { _mm256_castsi256_si128(v) };
+        _mm256_cvtepi32_epi64(h)
+    };
+    let (mut zero, mut positive, mut negative) = (0u8, 0u8, 0u8);
+    for (shift, high) in [(0, false), (4, true)] {
+        let area = _mm256_sub_epi64(
+            _mm256_mul_epi32(half(d1x, high), half(d2y, high)),
+            _mm256_mul_epi32(half(d2x, high), half(d1y, high)),
+        );
+        let bits = |m: __m256i| (_mm256_movemask_pd(_mm256_castsi256_pd(m)) as u8) << shift;
+        let z = _mm256_setzero_si256();
+        zero |= bits(_mm256_cmpeq_epi64(area, z));
+        positive |= bits(_mm256_cmpgt_epi64(area, z));
+        negative |= bits(_mm256_cmpgt_epi64(z, area));
+    }
+    // The box's first and last pixel centres, clipped.
+    let min3 = |a, b, c| _mm256_min_epi32(_mm256_min_epi32(a, b), c);
+    let max3 = |a, b, c| _mm256_max_epi32(_mm256_max_epi32(a, b), c);
+    let first = |v| _mm256_srai_epi32::<8>(_mm256_add_epi32(v, _mm256_set1_epi32(127)));
+    let last = |v| _mm256_srai_epi32::<8>(_mm256_sub_epi32(v, _mm256_set1_epi32(128)));
+    let px0 = _mm256_max_epi32(first(min3(x0, x1, x2)), _mm256_set1_epi32(clip.x0));
+    let px1 = _mm256_min_epi32(last(max3(x0, x1, x2)), _mm256_set1_epi32(clip.x1));
+    let py0 = _mm256_max_epi32(first(min3(y0, y1, y2)), _mm256_set1_epi32(clip.y0));
+    let py1 = _mm256_min_epi32(last(max3(y0, y1, y2)), _mm256_set1_epi32(clip.y1));
+    let empty = _mm256_or_si256(_mm256_cmpgt_epi32(px0, px1), _mm256_cmpgt_epi32(py0, py1));
+    let empty = _mm256_movemask_ps(_mm256_castsi256_ps(empty)) as u8;
+    let degenerate = zero & lanes;
+    let culled = match cull {
+        CullMode::None => 0,
+        CullMode::Clockwise => positive,
+        CullMode::CounterClockwise => negative,
+    } & lanes;
+    CornerTests { inside: lanes, degenerate, culled, empty: empty & lanes & !degenerate & !culled }
+}
+
+/// [`super::window_corner`] of eight positions: the same `f32` operations lane by lane
+/// (distances to the clip planes, `1 / w`, the viewport, no fused multiply-adds), and the
+/// snap as a round-half-even of `x * 256` in `f32`, which is exact: `x * 256` is (a power
+/// of two scale) and, within the range, so is its rounding to an integer below 2^23.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn window_corners_avx2(
+    p: &[Vec4; 8],
+    guard: [f32; 2],
+    half: [f32; 2],
+) -> [Corner; 8] {
+    let lane = |c: usize| {
+        _mm256_setr_ps(p[0][c], p[1][c], p[2][c], p[3][c], p[4][c], p[5][c], p[6][c], p[7][c])
+    };
+    let (x, y, z, w) = (lane(0), lane(1), lane(2), lane(3));
+    let zero = _mm256_setzero_ps();
+    let lt = |a, b| _mm256_cmp_ps::<_CMP_LT_OQ>(a, b);
+    let or = |a, b| _mm256_or_ps(a, b);
+    let and = |a, b| _mm256_and_ps(a, b);
+    // Finite: |v| < inf (false for NaN).
+    let inf = _mm256_set1_ps(f32::INFINITY);
+    let abs = |v| _mm256_andnot_ps(_mm256_set1_ps(-0.0), v);
+    let finite = |v| lt(abs(v), inf);
+    let all_finite = and(and(finite(x), finite(y)), and(finite(z), finite(w)));
+    // Outside any plane: the distances of `ClipVolume::distance`, each `< 0`.
+    let (gx, gy) = (_mm256_mul_ps(_mm256_set1_ps(guard[0]), w), {
+        _mm256_mul_ps(_mm256_set1_ps(guard[1]), w)
+    });
+    let outside = or(
+        or(
+            or(lt(z, zero), lt(_mm256_sub_ps(w, z), zero)),
+            lt(_mm256_sub_ps(w, _mm256_set1_ps(MIN_W)), zero),
+        ),
+        or(
+            or(lt(_mm256_add_ps(x, gx), zero), lt(_mm256_sub_ps(gx, x), zero)),
+            or(lt(_mm256_add_ps(y, gy), zero), lt(_mm256_sub_ps(gy, y), zero)),
+        ),
+    );
+    // `Viewport::map`.
+    let one = _mm256_set1_ps(1.0);
+    let inv_w = _mm256_div_ps(one, w);
+    let wx = _mm256_mul_ps(_mm256_add_ps(_mm256_mul_ps(x, inv_w), one), _mm256_set1_ps(half[0]));
+    let wy = _mm256_mul_ps(_mm256_sub_ps(one, _mm256_mul_ps(y, inv_w)), _mm256_set1_ps(half[1]));
+    let wz = _mm256_mul_ps(z, inv_w);
+    // `fixed::snap`: in [MIN_COORD, MAX_COORD), and the rounded value below 2^23.
+    let snap = |v: __m256| {
+        let in_range = and(
+            _mm256_cmp_ps::<_CMP_GE_OQ>(v, _mm256_set1_ps(fixed::MIN_COORD)),
+            lt(v, _mm256_set1_ps(fixed::MAX_COORD)),
+        );
+        let scaled = _mm256_mul_ps(v, _mm256_set1_ps(fixed::ONE as f32));
+        let rounded = _mm256_round_ps::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(scaled);
+        let limit = _mm256_set1_ps(fixed::MAX_COORD * fixed::ONE as f32);
+        (and(in_range, lt(rounded, limit)), _mm256_cvtps_epi32(rounded))
+    };
+    let (x_ok, sx) = snap(wx);
+    let (y_ok, sy) = snap(wy);
+    let valid = and(
+        _mm256_andnot_ps(outside, all_finite),
+        and(and(x_ok, y_ok), and(finite(wz), finite(inv_w))),
+    );
+    let valid = _mm256_castps_si256(valid);
+    let min = _mm256_set1_epi32(i32::MIN);
+    let sx = _mm256_blendv_epi8(min, sx, valid);
+    let sy = _mm256_blendv_epi8(min, sy, valid);
+    let mut xs = [0i32; 8];
+    let mut ys = [0i32; 8];
+    // SAFETY: each array holds eight i32 (32 bytes); unaligned stores need no alignment.
+    unsafe {
+        _mm256_storeu_si256(xs.as_mut_ptr() as *mut __m256i, sx);
+        _mm256_storeu_si256(ys.as_mut_ptr() as *mut __m256i, sy);
+    }
+    std::array::from_fn(|k| [xs[k], ys[k]])
+}
+
+/// Four lanes of `(a0 + f1 * g1) + f2 * g2`.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn plane(p: [f64; 3], f1: __m256d, f2: __m256d) -> __m256d {
+    let t = _mm256_add_pd(_mm256_set1_pd(p[0]), _mm256_mul_pd(f1, _mm256_set1_pd(p[1])));
+    _mm256_add_pd(t, _mm256_mul_pd(f2, _mm256_set1_pd(p[2])))
+}
+
+/// `quantize_channel` on four lanes, as i32, in three instructions: `max(v, 0)` returns its
+/// second operand when `v` is NaN, which maps NaN to 0 as the scalar code does, and the
+/// conversion rounds in the default mode, half to even, as the scalar magic-number trick
+/// does.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn quantize(v: __m256d) -> __m128i {
+    let v = _mm256_min_pd(_mm256_set1_pd(255.0), _mm256_max_pd(v, _mm256_setzero_pd()));
+    _mm256_cvtpd_epi32(v)
+}
+
+/// Four lanes of RGBA8 (in `i32` lanes) from planes: red, green, blue and, when `alpha`
+/// is `None`, the fourth plane's alpha; without `CLAMP`, the values are only rounded (see
+/// [`SpanColor::SmoothRgb`]).
+#[inline]
+#[target_feature(enable = "avx2")]
+fn smooth<const CLAMP: bool>(
+    p: &[[f64; 3]],
+    alpha: Option<u8>,
+    f1: __m256d,
+    f2: __m256d,
+) -> __m128i {
+    let channel = |p: [f64; 3]| {
+        let v = plane(p, f1, f2);
+        if CLAMP { quantize(v) } else { _mm256_cvtpd_epi32(v) }
+    };
+    let (r, g, b) = (channel(p[0]), channel(p[1]), channel(p[2]));
+    let a = match alpha {
+        Some(a) => _mm_set1_epi32(i32::from(a) << 24),
+        None => _mm_slli_epi32::<24>(channel(p[3])),
+    };
+    _mm_or_si128(_mm_or_si128(r, _mm_slli_epi32::<8>(g)), _mm_or_si128(_mm_slli_epi32::<16>(b), a))
+}
+
+/// Four lanes of `-1` (covered) or `0`, from the low four bits of an index.
+static LANE_MASKS: [[i32; 4]; 16] = {
+    let mut t = [[0; 4]; 16];
+    let mut bits = 0;
+    while bits < 16 {
+        let mut lane = 0;
+        while lane < 4 {
+            t[bits][lane] = if bits & (1 << lane) != 0 { -1 } else { 0 };
+            lane += 1;
+        }
+        bits += 1;
+    }
+    t
+};
+
+/// A group of four pixels at `at` whose lanes in `cover` (each 0 or -1) are covered,
+/// with barycentric numerators `f1`, `f2`: overdraw, depth test, writes, as the scalar
+/// `KernelTarget::pixel` does lane by lane. Read-blend-write of the whole group (masked
+/// stores are microcoded and slow on AMD cores): uncovered lanes are written back as read.
+/// With `SKIP_HIDDEN`, a group where no lane passes the depth test stops there: right
+/// for long spans of large overlapping triangles (fill: twice as fast as without), wrong
+/// for the few groups of a small triangle, where the mispredicted branch costs more than
+/// the colour it saves (soup: 7% faster without).
+///
+/// # Safety
+/// The CPU must support AVX2, and `at + 4` must not exceed `t.checked_len()`.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn group<const SKIP_HIDDEN: bool>(
+    t: &mut KernelTarget<'_>,
+    at: usize,
+    f1: __m256d,
+    f2: __m256d,
+    cover: __m128i,
+    rgba: impl Fn(__m256d, __m256d) -> __m128i,
+) {
+    // SAFETY (every pointer access in this block): the caller guarantees the four
+    // elements at `at` lie in every buffer (they all hold `checked_len()` elements);
+    // unaligned loads and stores have no alignment requirement; `[u8; 4]` is four bytes,
+    // read and written as one i32 lane.
+    unsafe {
+        if let Some(o) = t.overdraw.as_deref_mut() {
+            let p = o.as_mut_ptr().add(at) as *mut __m128i;
+            // Covered lanes are -1: subtracting them counts one fragment.
+            _mm_storeu_si128(p, _mm_sub_epi32(_mm_loadu_si128(p), cover));
+        }
+        let z = _mm256_cvtpd_ps(plane(t.depth_plane, f1, f2));
+        let z = _mm_min_ps(_mm_set1_ps(1.0), _mm_max_ps(_mm_setzero_ps(), z));
+        let dp = t.depth.as_mut_ptr().add(at);
+        let stored = _mm_loadu_ps(dp);
+        let cover_ps = _mm_castsi128_ps(cover);
+        let pass = match t.depth_test {
+            DepthTest::Less => _mm_and_ps(_mm_cmp_ps::<_CMP_LT_OQ>(z, stored), cover_ps),
+            DepthTest::LessEqual => _mm_and_ps(_mm_cmp_ps::<_CMP_LE_OQ>(z, stored), cover_ps),
+            DepthTest::Always => cover_ps,
+        };
+        if SKIP_HIDDEN && _mm_movemask_ps(pass) == 0 {
+            return;
+        }
+        _mm_storeu_ps(dp, _mm_blendv_ps(stored, z, pass));
+        let pass = _mm_castps_si128(pass);
+        let cp = t.color_out.as_mut_ptr().add(at) as *mut __m128i;
+        _mm_storeu_si128(cp, _mm_blendv_epi8(_mm_loadu_si128(cp), rgba(f1, f2), pass));
+        if let Some(ids) = t.ids.as_deref_mut() {
+            let ip = ids.as_mut_ptr().add(at) as *mut __m128i;
+            let id = _mm_set1_epi32(t.id);
+            _mm_storeu_si128(ip, _mm_blendv_epi8(_mm_loadu_si128(ip), id, pass));
+        }
+    }
+}
+
+/// The lane mask of the low four bits of `bits`.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn lane_mask(bits: u32) -> __m128i {
+    let row = &LANE_MASKS[(bits & 0xF) as usize];
+    // SAFETY: `row` is four i32 (16 bytes); unaligned loads need no alignment.
+    unsafe { _mm_loadu_si128(row.as_ptr() as *const __m128i) }
+}
+
+/// [`super::shade_narrow`] in AVX2: each row of the box as one or two groups of four
+/// pixels. The edge values are stepped in `f64` lanes (integers below 2^49 plus steps below
+/// 2^35: exact), so coverage is the sign bit of `e0 | e1 | e2` as in the scalar test, and
+/// the barycentric numerators are the edge values minus the fill-rule biases, exactly.
+/// Lanes past the box's columns are uncovered, so their pixels (of the same band: this
+/// thread's) are written back as read. Every group of the box goes through the same
+/// steps, covered or not, without branches on coverage or depth: a small triangle has a
+/// few groups each, and mispredicted branches cost more than the work they would skip.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn shade_narrow_avx2(job: NarrowJob<'_>) -> u64 {
+    // SAFETY: the CPU supports AVX2 (this function's contract).
+    with_rgba!(job.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe { narrow_groups(job, rgba) })
+}
+
+/// [`shade_narrow_avx2`] for one colour kind.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn narrow_groups(mut job: NarrowJob<'_>, rgba: impl Fn(__m256d, __m256d) -> __m128i) -> u64 {
+    let n = job.target.checked_len();
+    assert!((1..=super::NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not narrow");
+    assert!(job.group_end() <= n, "the box's groups must lie in the buffers");
+    let groups = job.columns.div_ceil(4);
+    let lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
+    // Edge k's offsets from the row's first pixel, for the lanes of groups 0 and 1.
+    let offsets = |k: usize, g: usize| {
+        let step = _mm256_set1_pd(job.step_x[k] as f64);
+        _mm256_mul_pd(_mm256_add_pd(lanes, _mm256_set1_pd(4.0 * g as f64)), step)
+    };
+    let offsets: [[__m256d; 2]; 3] = std::array::from_fn(|k| [offsets(k, 0), offsets(k, 1)]);
+    // The box's columns among each group's lanes.
+    let column_bits = [(1u32 << job.columns.min(4)) - 1, (1u32 << (job.columns.max(4) - 4)) - 1];
+    let bias = job.bias.map(|b| _mm256_set1_pd(b as f64));
+    let mut row = job.edges.map(|e| e as f64);
+    let step_y = job.step_y.map(|s| s as f64);
+    let mut covered = 0u64;
+    for r in 0..job.rows {
+        for g in 0..groups {
+            let e: [__m256d; 3] =
+                std::array::from_fn(|k| _mm256_add_pd(_mm256_set1_pd(row[k]), offsets[k][g]));
+            let out = _mm256_movemask_pd(_mm256_or_pd(_mm256_or_pd(e[0], e[1]), e[2]));
+            let bits = !(out as u32) & column_bits[g];
+            covered += u64::from(bits.count_ones());
+            let (f1, f2) = (_mm256_sub_pd(e[1], bias[0]), _mm256_sub_pd(e[2], bias[1]));
+            let at = job.first + r * job.stride + 4 * g;
+            // SAFETY: `at + 4 <= group_end() <= n` (asserted above).
+            unsafe { group::<false>(&mut job.target, at, f1, f2, lane_mask(bits), &rgba) };
+        }
+        row = std::array::from_fn(|k| row[k] + step_y[k]);
+    }
+    covered
+}
+
+/// The AVX2 kernel: four pixels per step; the last `n % 4` pixels as the span's last four
+/// with those already shaded masked off (spans shorter than four go to the scalar
+/// kernel).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn shade_span_avx2(job: SpanJob<'_>) {
+    if job.target.checked_len() < 4 {
+        return super::shade_span_scalar(job);
+    }
+    // SAFETY: the CPU supports AVX2 (this function's contract).
+    with_rgba!(job.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe { span_groups(job, rgba) })
+}
+
+/// [`shade_span_avx2`] for one colour kind, on a span of at least four pixels.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn span_groups(mut job: SpanJob<'_>, rgba: impl Fn(__m256d, __m256d) -> __m128i) {
+    let n = job.target.checked_len();
+    let lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
+    // The numerators at pixel `first + lane`: exact integers as everywhere
+    // (`(first + lane) * step` is below 2^47, the sum below 2^49).
+    let at = |first: usize| {
+        let k = _mm256_add_pd(lanes, _mm256_set1_pd(first as f64));
+        let f = |e: i64, step: i64| {
+            _mm256_add_pd(_mm256_set1_pd(e as f64), _mm256_mul_pd(k, _mm256_set1_pd(step as f64)))
+        };
+        (f(job.e1, job.step1), f(job.e2, job.step2))
+    };
+    let (mut f1, mut f2) = at(0);
+    let (step1, step2) =
+        (_mm256_set1_pd(4.0 * job.step1 as f64), _mm256_set1_pd(4.0 * job.step2 as f64));
+    let full = n - n % 4;
+    let all = _mm_set1_epi32(-1);
+    let mut k = 0;
+    while k < full {
+        // SAFETY: `k + 4 <= full <= n`.
+        unsafe { group::<true>(&mut job.target, k, f1, f2, all, &rgba) };
+        f1 = _mm256_add_pd(f1, step1);
+        f2 = _mm256_add_pd(f2, step2);
+        k += 4;
+    }
+    if full < n {
+        // The last four pixels, those already shaded masked off.
+        let (f1, f2) = at(n - 4);
+        let done = 4 - n % 4;
+        let cover = lane_mask(0xF << done);
+        // SAFETY: `n - 4 + 4 = n`.
+        unsafe { group::<true>(&mut job.target, n - 4, f1, f2, cover, &rgba) };
+    }
+}
