@@ -57,6 +57,19 @@ pub fn snap(x: f32) -> Option<i32> {
     Some(scaled as i32)
 }
 
+/// The largest `f32` below [`MAX_COORD`] is `MAX_COORD - 2^-9`, which scales to
+/// `2^23 - 0.5` and rounds (half to even) up to `2^23`, past the range; every value below it
+/// snaps inside. So [`snap`] succeeds exactly on `[MIN_COORD, SNAP_LIMIT)`.
+const SNAP_LIMIT: f32 = MAX_COORD - 1.0 / 512.0;
+
+/// Whether [`snap`] succeeds on `x`, as two comparisons (no rounding): a whole array of
+/// coordinates can be checked at vector speed before any is snapped.
+#[inline]
+#[must_use]
+pub fn snaps(x: f32) -> bool {
+    (MIN_COORD..SNAP_LIMIT).contains(&x)
+}
+
 /// The fixed-point coordinate of the centre of pixel column (or row) `p`.
 #[inline]
 #[must_use]
@@ -120,6 +133,24 @@ mod tests {
         assert_eq!(snap(-32768.01), None);
         // f32 holds 9 fraction bits here: 32767.990234375 * 256 is a tie, rounded to even.
         assert_eq!(snap(32767.99), Some((1 << 23) - 2));
+    }
+
+    /// `snaps` is `snap(..).is_some()`: at the ends of the range, their neighbours, ties
+    /// and random values (by bit patterns, so every exponent and the non-finite ones).
+    #[test]
+    fn snaps_predicts_snap() {
+        use rand::{Rng, SeedableRng};
+        let ends = [MIN_COORD, MAX_COORD, SNAP_LIMIT, 0.0, -0.0, 32767.0 + 255.0 / 256.0];
+        let mut values: Vec<f32> = ends
+            .iter()
+            .flat_map(|&x| [x, x.next_up(), x.next_down(), x.next_up().next_up()])
+            .collect();
+        let mut rng = rand::rngs::SmallRng::seed_from_u64(5);
+        values.extend((0..200_000).map(|_| f32::from_bits(rng.random())));
+        values.extend((0..200_000).map(|_| rng.random_range(-33000.0..33000.0f32)));
+        for x in values {
+            assert_eq!(snaps(x), snap(x).is_some(), "{x:e} ({:#x})", x.to_bits());
+        }
     }
 
     #[test]

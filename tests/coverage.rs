@@ -359,16 +359,17 @@ fn range_extremes_do_not_overflow() {
 fn beyond_the_range_is_a_clear_error() {
     let v = |x: f32, y: f32| Vertex::new(x, y, 0.5, [255; 4]);
     let mut target = Target::new(8, 8).unwrap();
-    for bad in [32768.0, -32768.5, 1e9] {
-        let err = trirast::draw(
-            &mut target,
-            &[[v(0.0, 0.0), v(bad, 0.0), v(0.0, 5.0)]],
-            &RenderOptions::default(),
-        )
-        .unwrap_err();
+    // 32767.999 rounds to 2^23 sub-pixels: just past the range.
+    for bad in [32768.0, 32767.999, -32768.5, 1e9] {
+        // The culprit is named among good triangles, and before a second bad one.
+        let good = [v(0.0, 0.0), v(5.0, 0.0), v(0.0, 5.0)];
+        let mut tris = vec![good; 40];
+        tris[17][1].y = bad;
+        tris[30][2].x = bad;
+        let err = trirast::draw(&mut target, &tris, &RenderOptions::default()).unwrap_err();
         let msg = err.to_string();
         assert!(msg.contains("outside the supported window range"), "{msg}");
-        assert!(msg.contains("vertex 1"), "{msg}");
+        assert!(msg.contains("triangle 17") && msg.contains("vertex 1"), "{msg}");
     }
     assert!(Target::new(16385, 1).is_err());
     assert!(Target::new(0, 1).is_err());
