@@ -332,9 +332,11 @@ fn lane_mask(bits: u32) -> __m128i {
 /// # Safety
 /// The CPU must support AVX2.
 #[target_feature(enable = "avx2")]
-pub(super) unsafe fn shade_narrow_avx2(job: NarrowJob<'_>) -> u64 {
+pub(super) unsafe fn shade_narrow_avx2(job: &mut NarrowJob<'_>) -> u64 {
     // SAFETY: the CPU supports AVX2 (this function's contract).
-    with_rgba!(job.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe { narrow_groups(job, rgba) })
+    with_rgba!(job.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
+        narrow_groups(job, rgba)
+    })
 }
 
 /// [`shade_narrow_avx2`] for one colour kind.
@@ -343,7 +345,10 @@ pub(super) unsafe fn shade_narrow_avx2(job: NarrowJob<'_>) -> u64 {
 /// The CPU must support AVX2.
 #[inline]
 #[target_feature(enable = "avx2")]
-unsafe fn narrow_groups(mut job: NarrowJob<'_>, rgba: impl Fn(__m256d, __m256d) -> __m128i) -> u64 {
+unsafe fn narrow_groups(
+    job: &mut NarrowJob<'_>,
+    rgba: impl Fn(__m256d, __m256d) -> __m128i,
+) -> u64 {
     let n = job.target.checked_len();
     assert!((1..=super::NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not narrow");
     assert!(job.group_end() <= n, "the box's groups must lie in the buffers");
@@ -385,12 +390,14 @@ unsafe fn narrow_groups(mut job: NarrowJob<'_>, rgba: impl Fn(__m256d, __m256d) 
 /// # Safety
 /// The CPU must support AVX2.
 #[target_feature(enable = "avx2")]
-pub(super) unsafe fn shade_span_avx2(job: SpanJob<'_>) {
+pub(super) unsafe fn shade_span_avx2(job: &mut SpanJob<'_>) {
     if job.target.checked_len() < 4 {
-        return super::shade_span_scalar(job);
+        return super::span_scalar(job);
     }
     // SAFETY: the CPU supports AVX2 (this function's contract).
-    with_rgba!(job.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe { span_groups(job, rgba) })
+    with_rgba!(job.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
+        span_groups(job, rgba)
+    })
 }
 
 /// [`shade_span_avx2`] for one colour kind, on a span of at least four pixels.
@@ -399,7 +406,7 @@ pub(super) unsafe fn shade_span_avx2(job: SpanJob<'_>) {
 /// The CPU must support AVX2.
 #[inline]
 #[target_feature(enable = "avx2")]
-unsafe fn span_groups(mut job: SpanJob<'_>, rgba: impl Fn(__m256d, __m256d) -> __m128i) {
+unsafe fn span_groups(job: &mut SpanJob<'_>, rgba: impl Fn(__m256d, __m256d) -> __m128i) {
     let n = job.target.checked_len();
     let lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
     // The numerators at pixel `first + lane`: exact integers as everywhere

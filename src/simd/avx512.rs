@@ -119,7 +119,7 @@ fn lanes() -> __m512d {
 /// # Safety
 /// The CPU must support AVX-512 F, VL and DQ.
 #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
-pub(super) unsafe fn shade_narrow(job: NarrowJob<'_>) -> u64 {
+pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
     // SAFETY: the CPU supports AVX-512 F, VL and DQ (this function's contract).
     with_rgba!(job.target.color, __m512d, _mm256_set1_epi32, smooth, rgba => unsafe {
         narrow_rows(job, rgba)
@@ -132,7 +132,7 @@ pub(super) unsafe fn shade_narrow(job: NarrowJob<'_>) -> u64 {
 /// The CPU must support AVX-512 F, VL and DQ.
 #[inline]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
-unsafe fn narrow_rows(mut job: NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) -> __m256i) -> u64 {
+unsafe fn narrow_rows(job: &mut NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) -> __m256i) -> u64 {
     let n = job.target.checked_len();
     assert!((1..=super::NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not narrow");
     assert!(
@@ -172,7 +172,7 @@ unsafe fn narrow_rows(mut job: NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) ->
 /// # Safety
 /// The CPU must support AVX-512 F and VL.
 #[target_feature(enable = "avx512f,avx512vl")]
-pub(super) unsafe fn shade_span(job: SpanJob<'_>) {
+pub(super) unsafe fn shade_span(job: &mut SpanJob<'_>) {
     // SAFETY: the CPU supports AVX-512 F and VL (this function's contract).
     with_rgba!(job.target.color, __m512d, _mm256_set1_epi32, smooth, rgba => unsafe {
         span_groups(job, rgba)
@@ -185,7 +185,7 @@ pub(super) unsafe fn shade_span(job: SpanJob<'_>) {
 /// The CPU must support AVX-512 F and VL.
 #[inline]
 #[target_feature(enable = "avx512f,avx512vl")]
-unsafe fn span_groups(mut job: SpanJob<'_>, rgba: impl Fn(__m512d, __m512d) -> __m256i) {
+unsafe fn span_groups(job: &mut SpanJob<'_>, rgba: impl Fn(__m512d, __m512d) -> __m256i) {
     let n = job.target.checked_len();
     // The numerators at pixel `lane`, then stepped by eight pixels: exact integers as
     // everywhere (below 2^49).

@@ -290,17 +290,17 @@ pub struct SpanJob<'a> {
 }
 
 /// Shades a span at `level` (which must be available; otherwise the scalar kernel runs).
-pub fn shade_span(level: SimdLevel, job: SpanJob<'_>) {
+pub fn shade_span(level: SimdLevel, mut job: SpanJob<'_>) {
     match level {
         #[cfg(target_arch = "x86_64")]
         SimdLevel::Avx512 if SimdLevel::Avx512.is_available() => {
             // SAFETY: AVX-512 support was just checked at run time.
-            unsafe { avx512::shade_span(job) }
+            unsafe { avx512::shade_span(&mut job) }
         }
         #[cfg(target_arch = "x86_64")]
         SimdLevel::Avx2 if SimdLevel::Avx2.is_available() => {
             // SAFETY: AVX2 support was just checked at run time.
-            unsafe { avx2::shade_span_avx2(job) }
+            unsafe { avx2::shade_span_avx2(&mut job) }
         }
         _ => shade_span_scalar(job),
     }
@@ -352,19 +352,19 @@ impl NarrowJob<'_> {
 ///
 /// # Panics
 /// If the box is empty or wider than [`NARROW_COLUMNS`], or the buffers do not hold it.
-pub fn shade_narrow(level: SimdLevel, job: NarrowJob<'_>) -> u64 {
+pub fn shade_narrow(level: SimdLevel, mut job: NarrowJob<'_>) -> u64 {
     match level {
         #[cfg(target_arch = "x86_64")]
         SimdLevel::Avx512 if SimdLevel::Avx512.is_available() => {
             // SAFETY: AVX-512 support was just checked at run time.
-            unsafe { avx512::shade_narrow(job) }
+            unsafe { avx512::shade_narrow(&mut job) }
         }
         #[cfg(target_arch = "x86_64")]
         SimdLevel::Avx2
             if SimdLevel::Avx2.is_available() && job.group_end() <= job.target.depth.len() =>
         {
             // SAFETY: AVX2 support was just checked at run time.
-            unsafe { avx2::shade_narrow_avx2(job) }
+            unsafe { avx2::shade_narrow_avx2(&mut job) }
         }
         _ => shade_narrow_scalar(job),
     }
@@ -395,6 +395,13 @@ pub fn shade_narrow_scalar(mut job: NarrowJob<'_>) -> u64 {
 
 /// The scalar kernel: the reference loop's arithmetic, specialised to plane colours.
 pub fn shade_span_scalar(mut job: SpanJob<'_>) {
+    span_scalar(&mut job);
+}
+
+/// [`shade_span_scalar`] on a borrowed job: the kernels hand each other jobs by reference,
+/// since a job moved into a kernel that is not inlined is copied, and that copy (wide loads
+/// of fields just written by narrow stores) was a twelfth of a frame of small triangles.
+fn span_scalar(job: &mut SpanJob<'_>) {
     let (mut e1, mut e2) = (job.e1, job.e2);
     for k in 0..job.target.depth.len() {
         job.target.pixel(k, e1 as f64, e2 as f64);
