@@ -173,8 +173,11 @@ pub fn draw(
         let multisampled = target.samples().count() > 1;
         // With the scissor off the target nothing is visible, but setup still counts.
         let visible = clip.unwrap_or(PixelRect::EMPTY);
-        let mut prepared: bin::PreparedBatch<TriangleColor> = target.take_scratch();
-        for (b, batch) in triangles.chunks(BATCH).enumerate() {
+        let mut pair: bin::PreparedPair<TriangleColor> = target.take_scratch();
+        let batches = triangles.len().div_ceil(BATCH);
+        let mut fragments = 0;
+        let prepare = |b: usize, prepared: &mut bin::PreparedBatch<TriangleColor>| {
+            let batch = &triangles[b * BATCH..((b + 1) * BATCH).min(triangles.len())];
             let counts = prepared.prepare(batch.len(), |k, sink| {
                 let tri = &batch[k];
                 let setup = match TriangleSetup::new(tri, options.cull) {
@@ -190,10 +193,12 @@ pub fn draw(
                 sink.push(Prepared { setup, depth, id, payload });
             });
             stats = stats.merged(&counts);
+        };
+        let draw = |_, prepared: &bin::PreparedBatch<TriangleColor>| {
             if let Some(clip) = clip {
-                stats.fragments += bin::draw_binned(
+                fragments += bin::draw_binned(
                     target,
-                    &prepared,
+                    prepared,
                     options.depth_test,
                     &clip,
                     |shader| shader.span_color().map(|c| (level, c)),
@@ -201,8 +206,10 @@ pub fn draw(
                     false,
                 );
             }
-        }
-        target.keep_scratch(prepared);
+        };
+        bin::pipelined(batches, &mut pair, prepare, draw);
+        stats.fragments += fragments;
+        target.keep_scratch(pair);
         return Ok(stats);
     }
     for (id, tri) in triangles.iter().enumerate() {

@@ -549,3 +549,50 @@ fn reused_targets_draw_what_fresh_ones_draw() {
     trirast::draw(&mut reused, &small, &options).unwrap();
     assert_same(&expected, &reused, "after release_scratch");
 }
+
+/// Draw calls longer than a batch: batches are set up while the one before is drawn, and
+/// must still be drawn in submission order. Three and a half batches of small triangles piled
+/// on a small target (every pixel is written by triangles of every batch), with the `Always`
+/// test (the last writer wins) and with `Less` against ties, in window space and through the
+/// 3D pipeline: the tiled backend on 1, 2 and 7 threads writes what the reference writes.
+#[test]
+fn batches_are_drawn_in_submission_order() {
+    use trirast::bin::BATCH;
+    let mut rng = SmallRng::seed_from_u64(77);
+    let n = 3 * BATCH + BATCH / 2;
+    let (w, h) = (40.0, 30.0);
+    let tris: Vec<[Vertex; 3]> = (0..n)
+        .map(|_| {
+            let (cx, cy) = (rng.random_range(0.0..w), rng.random_range(0.0..h));
+            // A few depths only, so `Less` meets ties.
+            let z = f32::from(rng.random_range(0u8..4)) / 4.0;
+            std::array::from_fn(|_| {
+                let (x, y) = (cx + rng.random_range(-6.0..6.0), cy + rng.random_range(-6.0..6.0));
+                Vertex::new(x, y, z, [rng.random(), rng.random(), rng.random(), 255])
+            })
+        })
+        .collect();
+    for depth_test in [DepthTest::Always, DepthTest::Less] {
+        let options = RenderOptions::default().with_depth_test(depth_test);
+        let fresh = || Target::new(w as u32, h as u32).unwrap().with_ids().with_overdraw();
+        let mut reference = fresh();
+        let ref_stats =
+            trirast::draw(&mut reference, &tris, &options.with_backend(Backend::Reference))
+                .unwrap();
+        for threads in [1, 2, 7] {
+            let mut tiled = fresh();
+            let stats = pool(threads).install(|| trirast::draw(&mut tiled, &tris, &options));
+            assert_eq!(stats.unwrap(), ref_stats);
+            assert_same(&reference, &tiled, &format!("{depth_test:?}, {threads} threads"));
+        }
+    }
+    // The same triangles as a mesh in clip space (z in [0, 1) at w = 1), ids by triangle.
+    let vertices: Vec<Vec4> = tris
+        .iter()
+        .flatten()
+        .map(|v| Vec4::new(v.x / w * 2.0 - 1.0, 1.0 - v.y / h * 2.0, v.z, 1.0))
+        .collect();
+    let triangles: Vec<[u32; 3]> = (0..n as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+    let fs = |f: &Fragment<f32>| Some(Vec4::new(f.varyings, f.varyings, 0.5, 1.0));
+    assert_pipeline_matches_reference(&vertices, &triangles, &fs);
+}
