@@ -99,38 +99,46 @@ fn kernels(c: &mut Criterion) {
 }
 
 fn narrow(c: &mut Criterion) {
-    // A triangle of about 12 pixels in a 5 x 5 box, on a 64-pixel-wide buffer.
-    let v = [Vertex::new(1.2, 0.7, 0.3, [9; 4]), Vertex::new(5.9, 2.1, 0.5, [99; 4]), {
-        Vertex::new(2.4, 5.6, 0.7, [199; 4])
-    }];
-    let s = TriangleSetup::new(&v, CullMode::None).expect("a triangle");
-    let (x, y) = (fixed::pixel_centre(s.bounds.x0), fixed::pixel_centre(s.bounds.y0));
-    let edges = s.edges.map(|e| e.eval(x, y));
-    let (e1, e2) = s.barycentric_numerators(x, y);
+    // Triangles of about 12 pixels in a 5 x 5 and a 4 x 5 box, on a 64-pixel-wide buffer.
+    let v = |p: [[f32; 2]; 3]| p.map(|[x, y]| Vertex::new(x, y, 0.3 + 0.05 * x, [9; 4]));
+    let boxes = [
+        ("5 x 5", v([[1.2, 0.7], [5.9, 2.1], [2.4, 5.6]])),
+        ("4 x 5", v([[0.6, 0.7], [4.6, 2.1], [2.0, 5.6]])),
+    ];
     let mut g = c.benchmark_group("narrow kernel");
     g.throughput(Throughput::Elements(1));
-    for level in SimdLevel::available() {
-        let mut depth = vec![1.0f32; 64 * 8];
-        let mut color = vec![[0u8; 4]; 64 * 8];
-        g.bench_function(format!("{level:?}, 5 x 5 box smooth"), |b| {
-            b.iter(|| {
-                depth.fill(1.0);
-                simd::shade_narrow(
-                    level,
-                    NarrowJob {
-                        edges,
-                        step_x: s.edges.map(|e| e.a * 256),
-                        step_y: s.edges.map(|e| e.b * 256),
-                        bias: [edges[1] - e1, edges[2] - e2],
-                        columns: (s.bounds.x1 - s.bounds.x0 + 1) as usize,
-                        rows: (s.bounds.y1 - s.bounds.y0 + 1) as usize,
-                        first: 0,
-                        stride: 64,
-                        target: smooth_target(&mut depth, &mut color),
-                    },
-                )
-            })
-        });
+    for (name, mut tri) in boxes {
+        for (k, vertex) in tri.iter_mut().enumerate() {
+            vertex.color = [[9, 50, 99, 255], [99, 150, 199, 255], [199, 250, 9, 255]][k];
+        }
+        let s = TriangleSetup::new(&tri, CullMode::None).expect("a triangle");
+        let (x, y) = (fixed::pixel_centre(s.bounds.x0), fixed::pixel_centre(s.bounds.y0));
+        let edges = s.edges.map(|e| e.eval(x, y));
+        let (e1, e2) = s.barycentric_numerators(x, y);
+        for level in SimdLevel::available() {
+            let mut depth = vec![1.0f32; 64 * 8];
+            let mut color = vec![[0u8; 4]; 64 * 8];
+            g.bench_function(format!("{level:?}, {name} box smooth"), |b| {
+                // The kernels have no branches on depth, so a buffer already written costs
+                // what a fresh one does.
+                b.iter(|| {
+                    simd::shade_narrow(
+                        level,
+                        NarrowJob {
+                            edges,
+                            step_x: s.edges.map(|e| e.a * 256),
+                            step_y: s.edges.map(|e| e.b * 256),
+                            bias: [edges[1] - e1, edges[2] - e2],
+                            columns: (s.bounds.x1 - s.bounds.x0 + 1) as usize,
+                            rows: (s.bounds.y1 - s.bounds.y0 + 1) as usize,
+                            first: 0,
+                            stride: 64,
+                            target: smooth_target(&mut depth, &mut color),
+                        },
+                    )
+                })
+            });
+        }
     }
     g.finish();
 }

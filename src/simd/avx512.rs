@@ -56,38 +56,77 @@ fn smooth<const CLAMP: bool>(
     )
 }
 
-/// The eight pixels at `at` whose bits in `cover` are set, with barycentric numerators `f1`,
-/// `f2`: overdraw, depth test and writes, as `KernelTarget::pixel` does lane by lane. With
-/// `SKIP_HIDDEN`, no colour is computed when no lane passes the depth test.
+/// Eight 32-bit lanes of `p`, those of `m` read and the others zero: from `p + at[0]`, or,
+/// with `PAIR`, lanes 0-3 from `p + at[0]` and 4-7 from `p + at[1]` (two rows of a narrow
+/// triangle).
 ///
 /// # Safety
-/// The CPU must support AVX-512 F and VL; `at` must be at most `t.checked_len()`, and every
-/// lane set in `cover` must lie below it.
+/// The CPU must support AVX-512 F and VL; both offsets must be within the buffer `p` points
+/// into (or one past it), and every lane of `m` must lie in it.
 #[inline]
 #[target_feature(enable = "avx512f,avx512vl")]
-unsafe fn group<const SKIP_HIDDEN: bool>(
+unsafe fn load<const PAIR: bool>(p: *const i32, at: [usize; 2], m: __mmask8) -> __m256i {
+    // SAFETY: the offsets stay in the buffer (the caller's contract); masked loads read only
+    // the lanes of `m`, which lie in it, and need no alignment.
+    unsafe {
+        if PAIR {
+            let lo = _mm_maskz_loadu_epi32(m & 0xF, p.add(at[0]));
+            let hi = _mm_maskz_loadu_epi32(m >> 4, p.add(at[1]));
+            _mm256_inserti128_si256::<1>(_mm256_castsi128_si256(lo), hi)
+        } else {
+            _mm256_maskz_loadu_epi32(m, p.add(at[0]))
+        }
+    }
+}
+
+/// Writes the lanes of `m` of `v` where [`load`] reads them.
+///
+/// # Safety
+/// As [`load`].
+#[inline]
+#[target_feature(enable = "avx512f,avx512vl")]
+unsafe fn store<const PAIR: bool>(p: *mut i32, at: [usize; 2], m: __mmask8, v: __m256i) {
+    // SAFETY: as in `load`: masked stores write only the lanes of `m`.
+    unsafe {
+        if PAIR {
+            _mm_mask_storeu_epi32(p.add(at[0]), m & 0xF, _mm256_castsi256_si128(v));
+            _mm_mask_storeu_epi32(p.add(at[1]), m >> 4, _mm256_extracti128_si256::<1>(v));
+        } else {
+            _mm256_mask_storeu_epi32(p.add(at[0]), m, v);
+        }
+    }
+}
+
+/// The eight pixels at `at` (see [`load`]) whose bits in `cover` are set, with barycentric
+/// numerators `f1`, `f2`: overdraw, depth test and writes, as `KernelTarget::pixel` does lane
+/// by lane. With `SKIP_HIDDEN`, no colour is computed when no lane passes the depth test.
+///
+/// # Safety
+/// The CPU must support AVX-512 F and VL; the offsets must be at most `t.checked_len()`, and
+/// every lane set in `cover` must lie below it.
+#[inline]
+#[target_feature(enable = "avx512f,avx512vl")]
+unsafe fn group<const SKIP_HIDDEN: bool, const PAIR: bool>(
     t: &mut KernelTarget<'_>,
-    at: usize,
+    at: [usize; 2],
     f1: __m512d,
     f2: __m512d,
     cover: __mmask8,
     rgba: impl Fn(__m512d, __m512d) -> __m256i,
 ) {
-    // SAFETY (every pointer access in this block): `at` is within every buffer or one past
-    // its end (they all hold `checked_len()` elements), so the offset pointers stay in their
-    // allocations; the masked loads and stores access only lanes set in `cover` (or in
-    // `pass`, a subset), which the caller guarantees lie in the buffers, and suppress the
-    // others entirely; they need no alignment. `[u8; 4]` is four bytes, one i32 lane.
+    // SAFETY (every access in this block): the buffers all hold `checked_len()` elements, so
+    // the caller's guarantee on `at` and `cover` is `load`'s and `store`'s for each, and for
+    // `pass`, a subset of `cover`; `f32` and `[u8; 4]` are four bytes, one i32 lane.
     unsafe {
         if let Some(o) = t.overdraw.as_deref_mut() {
-            let p = o.as_mut_ptr().add(at).cast::<i32>();
-            let counts = _mm256_maskz_loadu_epi32(cover, p);
-            _mm256_mask_storeu_epi32(p, cover, _mm256_add_epi32(counts, _mm256_set1_epi32(1)));
+            let p = o.as_mut_ptr().cast::<i32>();
+            let counts = load::<PAIR>(p, at, cover);
+            store::<PAIR>(p, at, cover, _mm256_add_epi32(counts, _mm256_set1_epi32(1)));
         }
         let z = _mm512_cvtpd_ps(plane(t.depth_plane, f1, f2));
         let z = _mm256_min_ps(_mm256_set1_ps(1.0), _mm256_max_ps(_mm256_setzero_ps(), z));
-        let dp = t.depth.as_mut_ptr().add(at);
-        let stored = _mm256_maskz_loadu_ps(cover, dp);
+        let dp = t.depth.as_mut_ptr().cast::<i32>();
+        let stored = _mm256_castsi256_ps(load::<PAIR>(dp, at, cover));
         let pass = match t.depth_test {
             DepthTest::Less => _mm256_mask_cmp_ps_mask::<_CMP_LT_OQ>(cover, z, stored),
             DepthTest::LessEqual => _mm256_mask_cmp_ps_mask::<_CMP_LE_OQ>(cover, z, stored),
@@ -96,11 +135,10 @@ unsafe fn group<const SKIP_HIDDEN: bool>(
         if SKIP_HIDDEN && pass == 0 {
             return;
         }
-        _mm256_mask_storeu_ps(dp, pass, z);
-        let cp = t.color_out.as_mut_ptr().add(at).cast::<i32>();
-        _mm256_mask_storeu_epi32(cp, pass, rgba(f1, f2));
+        store::<PAIR>(dp, at, pass, _mm256_castps_si256(z));
+        store::<PAIR>(t.color_out.as_mut_ptr().cast::<i32>(), at, pass, rgba(f1, f2));
         if let Some(ids) = t.ids.as_deref_mut() {
-            _mm256_mask_storeu_epi32(ids.as_mut_ptr().add(at), pass, _mm256_set1_epi32(t.id));
+            store::<PAIR>(ids.as_mut_ptr(), at, pass, _mm256_set1_epi32(t.id));
         }
     }
 }
@@ -139,28 +177,53 @@ unsafe fn narrow_rows(job: &mut NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) -
         job.first + (job.rows - 1) * job.stride + job.columns <= n,
         "the box must lie in the buffers"
     );
-    let offsets: [__m512d; 3] =
-        std::array::from_fn(|k| _mm512_mul_pd(lanes(), _mm512_set1_pd(job.step_x[k] as f64)));
-    let columns = ((1u32 << job.columns) - 1) as __mmask8;
+    // Boxes up to four pixels wide (most small triangles) take two rows per group: lanes 0-3
+    // the first, 4-7 the second.
+    let pair = job.columns <= 4;
+    let (column, row_of_lane, rows_per_group) = if pair {
+        (_mm512_setr_pd(0.0, 1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0), 1.0, 2)
+    } else {
+        (lanes(), 0.0, 1)
+    };
+    let row_of_lane =
+        _mm512_setr_pd(0.0, 0.0, 0.0, 0.0, row_of_lane, row_of_lane, row_of_lane, row_of_lane);
+    // Edge k's offset from the group's first pixel, per lane.
+    let offsets: [__m512d; 3] = std::array::from_fn(|k| {
+        _mm512_add_pd(
+            _mm512_mul_pd(column, _mm512_set1_pd(job.step_x[k] as f64)),
+            _mm512_mul_pd(row_of_lane, _mm512_set1_pd(job.step_y[k] as f64)),
+        )
+    });
+    let row_bits = (1u32 << job.columns) - 1;
+    let columns = if pair { row_bits | row_bits << 4 } else { row_bits } as __mmask8;
     let bias = job.bias.map(|b| _mm512_set1_pd(b as f64));
     let mut row = job.edges.map(|e| e as f64);
-    let step_y = job.step_y.map(|s| s as f64);
+    let step_y = job.step_y.map(|s| (rows_per_group * s) as f64);
     let mut covered = 0u64;
-    for r in 0..job.rows {
+    for r in (0..job.rows).step_by(rows_per_group as usize) {
         let e: [__m512d; 3] =
             std::array::from_fn(|k| _mm512_add_pd(_mm512_set1_pd(row[k]), offsets[k]));
         let any = _mm512_or_si512(
             _mm512_or_si512(_mm512_castpd_si512(e[0]), _mm512_castpd_si512(e[1])),
             _mm512_castpd_si512(e[2]),
         );
-        let cover = !_mm512_movepi64_mask(any) & columns;
-        covered += u64::from(cover.count_ones());
         let (f1, f2) = (_mm512_sub_pd(e[1], bias[0]), _mm512_sub_pd(e[2], bias[1]));
-        // SAFETY: the row's first pixel is in the buffers and so are its `columns` lanes, a
-        // superset of `cover` (asserted above).
-        unsafe {
-            group::<false>(&mut job.target, job.first + r * job.stride, f1, f2, cover, &rgba)
-        };
+        let at = job.first + r * job.stride;
+        if pair {
+            // A last row of its own leaves the upper lanes masked off, at the same address.
+            let (second, lanes) =
+                if r + 1 < job.rows { (at + job.stride, columns) } else { (at, columns & 0xF) };
+            let cover = !_mm512_movepi64_mask(any) & lanes;
+            covered += u64::from(cover.count_ones());
+            // SAFETY: both rows' first pixels are in the buffers and so are their `columns`
+            // lanes, a superset of `cover` (asserted above).
+            unsafe { group::<false, true>(&mut job.target, [at, second], f1, f2, cover, &rgba) };
+        } else {
+            let cover = !_mm512_movepi64_mask(any) & columns;
+            covered += u64::from(cover.count_ones());
+            // SAFETY: as above, for one row.
+            unsafe { group::<false, false>(&mut job.target, [at, at], f1, f2, cover, &rgba) };
+        }
         row = std::array::from_fn(|k| row[k] + step_y[k]);
     }
     covered
@@ -198,7 +261,7 @@ unsafe fn span_groups(job: &mut SpanJob<'_>, rgba: impl Fn(__m512d, __m512d) -> 
     let mut k = 0;
     while k + 8 <= n {
         // SAFETY: `k + 8 <= n`.
-        unsafe { group::<true>(&mut job.target, k, f1, f2, 0xFF, &rgba) };
+        unsafe { group::<true, false>(&mut job.target, [k, k], f1, f2, 0xFF, &rgba) };
         f1 = _mm512_add_pd(f1, step1);
         f2 = _mm512_add_pd(f2, step2);
         k += 8;
@@ -206,6 +269,6 @@ unsafe fn span_groups(job: &mut SpanJob<'_>, rgba: impl Fn(__m512d, __m512d) -> 
     if k < n {
         let tail = ((1u32 << (n - k)) - 1) as __mmask8;
         // SAFETY: `k < n` and the lanes of `tail` are `k..n`.
-        unsafe { group::<true>(&mut job.target, k, f1, f2, tail, &rgba) };
+        unsafe { group::<true, false>(&mut job.target, [k, k], f1, f2, tail, &rgba) };
     }
 }
