@@ -122,18 +122,20 @@ impl PerspectivePlane {
     }
 }
 
-/// The per-triangle colour source.
-#[derive(Clone, Debug)]
+/// The per-triangle colour source: plain data, so that the tiled backend's records need no
+/// drop when a batch's buffers are refilled (a boxed variant made clearing them a fortieth of
+/// a frame of small triangles), and so that the perspective planes fit inline.
+#[derive(Clone, Copy, Debug)]
 enum ColorSource {
-    Flat([u8; 4]),
-    Smooth([PlaneEquation; 4]),
-    // Boxed: rare, and twice the size of the others, which would otherwise size every
-    // triangle the tiled backend keeps in flight.
-    Perspective(Box<[PerspectivePlane; 4]>),
+    /// Flat and affine colours, already as the span kernels take them (three planes or four
+    /// decided once per triangle, not once per tile).
+    Planes(SpanColor),
+    /// Perspective-correct colour: `c / w` per channel over the one `1 / w` plane.
+    Perspective { over_w: [PlaneEquation; 4], inv_w: PlaneEquation },
 }
 
 /// The window pipeline's per-triangle shading: a depth plane and a colour.
-#[derive(Clone, Debug)]
+#[derive(Clone, Copy, Debug)]
 pub struct TriangleShader {
     depth: PlaneEquation,
     color: TriangleColor,
@@ -141,7 +143,7 @@ pub struct TriangleShader {
 
 /// A triangle's colour across it: what the tiled backend keeps per triangle beside the depth
 /// plane it keeps anyway.
-#[derive(Clone, Debug)]
+#[derive(Clone, Copy, Debug)]
 pub struct TriangleColor(ColorSource);
 
 /// The flat colour of a triangle: per channel, the average of the vertex colours rounded to
@@ -177,15 +179,28 @@ impl TriangleShader {
         let depth = PlaneEquation::with_inv_area2(v.map(|p| f64::from(p.z)), inv_area2);
         let channel = |c: usize| v.map(|p| f64::from(p.color[c]));
         let color = match shading {
-            Shading::Flat => ColorSource::Flat(flat_color(v)),
-            Shading::Smooth => ColorSource::Smooth(
-                [0, 1, 2, 3].map(|c| PlaneEquation::with_inv_area2(channel(c), inv_area2)),
-            ),
+            Shading::Flat => ColorSource::Planes(SpanColor::Flat(flat_color(v))),
+            Shading::Smooth => {
+                let [r, g, b, a] = [0, 1, 2, 3]
+                    .map(|c| PlaneEquation::with_inv_area2(channel(c), inv_area2).coefficients());
+                ColorSource::Planes(match a {
+                    // One alpha at every vertex: the same colours with one plane fewer.
+                    [a0, 0.0, 0.0] => SpanColor::SmoothRgb([r, g, b], quantize_channel(a0)),
+                    _ => SpanColor::Smooth([r, g, b, a]),
+                })
+            }
             Shading::Perspective => {
+                // As `PerspectivePlane::new` per channel, with the `1 / w` plane they share
+                // computed once.
                 let inv_w = v.map(|p| f64::from(p.inv_w));
-                ColorSource::Perspective(Box::new(std::array::from_fn(|c| {
-                    PerspectivePlane::new(channel(c), inv_w, setup)
-                })))
+                let over_w = |c: usize| {
+                    let a = channel(c);
+                    [a[0] * inv_w[0], a[1] * inv_w[1], a[2] * inv_w[2]]
+                };
+                ColorSource::Perspective {
+                    over_w: [0, 1, 2, 3].map(|c| PlaneEquation::new(over_w(c), setup)),
+                    inv_w: PlaneEquation::new(inv_w, setup),
+                }
             }
         };
         Self { depth, color: TriangleColor(color) }
@@ -229,45 +244,40 @@ impl TriangleColor {
     /// The colour as a SIMD span kernel takes it; `None` for perspective shading, which has
     /// no kernel. For the triangle's covered pixels only: an opaque triangle's colour is a
     /// [`SpanColor::SmoothRgb`], which does not clamp.
+    #[inline]
     #[must_use]
     pub fn span_color(&self) -> Option<SpanColor> {
-        match &self.0 {
-            ColorSource::Flat(c) => Some(SpanColor::Flat(*c)),
-            ColorSource::Smooth([r, g, b, a]) => Some(match a.coefficients() {
-                // One alpha at every vertex: the same colours with one plane fewer.
-                [a0, 0.0, 0.0] => SpanColor::SmoothRgb(
-                    [r, g, b].map(PlaneEquation::coefficients),
-                    quantize_channel(a0),
-                ),
-                _ => SpanColor::Smooth([r, g, b, a].map(PlaneEquation::coefficients)),
-            }),
-            ColorSource::Perspective(_) => None,
+        match self.0 {
+            ColorSource::Planes(c) => Some(c),
+            ColorSource::Perspective { .. } => None,
         }
     }
 
-    /// Colour at barycentric numerators `(e1, e2)`.
+    /// Colour at barycentric numerators `(e1, e2)` (each channel `quantize_channel` of its
+    /// plane, which is what the kernels compute).
     #[inline]
     #[must_use]
     pub fn color_at(&self, e1: f64, e2: f64) -> [u8; 4] {
-        // Channels written out: `array::map` with a closure here was a sixth of the
-        // instructions of a frame of small triangles.
         match &self.0 {
-            ColorSource::Flat(c) => *c,
-            ColorSource::Smooth([r, g, b, a]) => [
-                quantize_channel(r.eval(e1, e2)),
-                quantize_channel(g.eval(e1, e2)),
-                quantize_channel(b.eval(e1, e2)),
-                quantize_channel(a.eval(e1, e2)),
-            ],
+            ColorSource::Planes(c) => c.at(e1, e2),
             // Out of line, so the common cases above inline into the pixel loop.
-            ColorSource::Perspective(p) => perspective_color_at(p, e1, e2),
+            ColorSource::Perspective { over_w, inv_w } => {
+                perspective_color_at(over_w, inv_w, e1, e2)
+            }
         }
     }
 }
 
+/// [`PerspectivePlane::eval`] per channel, quantized.
 #[inline(never)]
-fn perspective_color_at(p: &[PerspectivePlane; 4], e1: f64, e2: f64) -> [u8; 4] {
-    p.map(|p| quantize_channel(p.eval(e1, e2)))
+fn perspective_color_at(
+    over_w: &[PlaneEquation; 4],
+    inv_w: &PlaneEquation,
+    e1: f64,
+    e2: f64,
+) -> [u8; 4] {
+    let w = inv_w.eval(e1, e2);
+    over_w.map(|p| quantize_channel(p.eval(e1, e2) / w))
 }
 
 /// What a fragment writes once it has passed the depth test.

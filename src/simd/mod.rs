@@ -207,9 +207,11 @@ pub enum SpanColor {
 }
 
 impl SpanColor {
-    /// The colour at barycentric numerators `(f1, f2)`, as the reference computes it.
+    /// The colour at barycentric numerators `(f1, f2)`, as the reference computes it
+    /// (`quantize_channel` of each plane).
     #[inline]
-    fn at(&self, f1: f64, f2: f64) -> [u8; 4] {
+    #[must_use]
+    pub fn at(&self, f1: f64, f2: f64) -> [u8; 4] {
         match *self {
             Self::Flat(c) => c,
             Self::Smooth(p) => p.map(|[a0, g1, g2]| quantize_channel(a0 + f1 * g1 + f2 * g2)),
