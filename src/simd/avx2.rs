@@ -18,7 +18,7 @@ use crate::shade::DepthTest;
 /// # Safety
 /// The CPU must support AVX2.
 #[target_feature(enable = "avx2")]
-pub(super) unsafe fn corner_tests_avx2(
+pub(super) unsafe fn corner_tests(
     group: &CornerGroup,
     cull: CullMode,
     clip: &PixelRect,
@@ -38,7 +38,7 @@ pub(super) unsafe fn corner_tests_avx2(
 /// # Safety
 /// The CPU must support AVX2.
 #[target_feature(enable = "avx2")]
-pub(super) unsafe fn corner_tests_indexed_avx2(
+pub(super) unsafe fn corner_tests_indexed(
     tris: &[[u32; 3]; 8],
     window: &[Corner],
     base: u32,
@@ -129,11 +129,7 @@ fn tests(x: [__m256i; 3], y: [__m256i; 3], cull: CullMode, clip: &PixelRect) -> 
 /// # Safety
 /// The CPU must support AVX2.
 #[target_feature(enable = "avx2")]
-pub(super) unsafe fn window_corners_avx2(
-    p: &[Vec4; 8],
-    guard: [f32; 2],
-    half: [f32; 2],
-) -> [Corner; 8] {
+pub(super) unsafe fn window_corners(p: &[Vec4; 8], guard: [f32; 2], half: [f32; 2]) -> [Corner; 8] {
     let lane = |c: usize| {
         _mm256_setr_ps(p[0][c], p[1][c], p[2][c], p[3][c], p[4][c], p[5][c], p[6][c], p[7][c])
     };
@@ -332,14 +328,14 @@ fn lane_mask(bits: u32) -> __m128i {
 /// # Safety
 /// The CPU must support AVX2.
 #[target_feature(enable = "avx2")]
-pub(super) unsafe fn shade_narrow_avx2(job: &mut NarrowJob<'_>) -> u64 {
+pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
     // SAFETY: the CPU supports AVX2 (this function's contract).
     with_rgba!(job.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
         narrow_groups(job, rgba)
     })
 }
 
-/// [`shade_narrow_avx2`] for one colour kind.
+/// [`shade_narrow`] for one colour kind.
 ///
 /// # Safety
 /// The CPU must support AVX2.
@@ -390,7 +386,7 @@ unsafe fn narrow_groups(
 /// # Safety
 /// The CPU must support AVX2.
 #[target_feature(enable = "avx2")]
-pub(super) unsafe fn shade_span_avx2(job: &mut SpanJob<'_>) {
+pub(super) unsafe fn shade_span(job: &mut SpanJob<'_>) {
     if job.target.checked_len() < 4 {
         return super::span_scalar(job);
     }
@@ -400,7 +396,7 @@ pub(super) unsafe fn shade_span_avx2(job: &mut SpanJob<'_>) {
     })
 }
 
-/// [`shade_span_avx2`] for one colour kind, on a span of at least four pixels.
+/// [`shade_span`] for one colour kind, on a span of at least four pixels.
 ///
 /// # Safety
 /// The CPU must support AVX2.

@@ -302,7 +302,7 @@ pub fn shade_span(level: SimdLevel, mut job: SpanJob<'_>) {
         #[cfg(target_arch = "x86_64")]
         SimdLevel::Avx2 if SimdLevel::Avx2.is_available() => {
             // SAFETY: AVX2 support was just checked at run time.
-            unsafe { avx2::shade_span_avx2(&mut job) }
+            unsafe { avx2::shade_span(&mut job) }
         }
         _ => shade_span_scalar(job),
     }
@@ -366,7 +366,7 @@ pub fn shade_narrow(level: SimdLevel, mut job: NarrowJob<'_>) -> u64 {
             if SimdLevel::Avx2.is_available() && job.group_end() <= job.target.depth.len() =>
         {
             // SAFETY: AVX2 support was just checked at run time.
-            unsafe { avx2::shade_narrow_avx2(&mut job) }
+            unsafe { avx2::shade_narrow(&mut job) }
         }
         _ => shade_narrow_scalar(job),
     }
@@ -454,7 +454,7 @@ pub fn window_corners(
             let p: &[Vec4; 8] = p.try_into().expect("chunks of eight");
             let o: &mut [Corner; 8] = o.try_into().expect("chunks of eight");
             // SAFETY: AVX2 support was just checked at run time.
-            *o = unsafe { avx2::window_corners_avx2(p, volume.guard(), viewport.half_size()) };
+            *o = unsafe { avx2::window_corners(p, volume.guard(), viewport.half_size()) };
             done += 8;
         }
     }
@@ -542,7 +542,7 @@ pub fn corner_tests(
         #[cfg(target_arch = "x86_64")]
         _ if level.has_avx2() => {
             // SAFETY: AVX2 support was just checked at run time.
-            unsafe { avx2::corner_tests_avx2(group, cull, clip) }
+            unsafe { avx2::corner_tests(group, cull, clip) }
         }
         _ => corner_tests_scalar(group, cull, clip),
     }
@@ -566,7 +566,7 @@ pub fn corner_tests_indexed(
     #[cfg(target_arch = "x86_64")]
     if level.has_avx2() {
         // SAFETY: AVX2 support was just checked at run time.
-        return unsafe { avx2::corner_tests_indexed_avx2(tris, window, base, cull, clip) };
+        return unsafe { avx2::corner_tests_indexed(tris, window, base, cull, clip) };
     }
     let mut group = CornerGroup::default();
     for (k, tri) in tris.iter().enumerate() {

@@ -513,12 +513,13 @@ fn draw_splats(target: &mut Target, parts: &[Part], grid: &TileGrid, shape: Spla
     );
     bins.draw(target, &PixelRect::of_target(width, height), |band, tile, list| {
         let mut sum = 0;
+        let plain = plain(band);
         for &k in list {
             let (p, r) = runs[k as usize];
             let part = &parts[p as usize];
             let run = part.runs[r as usize];
             for s in &part.splats[run.start as usize..run.end as usize] {
-                sum += draw_splat(band, s, shape, tile);
+                sum += draw_splat(band, s, shape, tile, plain);
             }
         }
         sum
@@ -540,12 +541,25 @@ fn footprint(x: f32, y: f32, half: f32, clip: &PixelRect) -> Option<PixelRect> {
         .intersect(clip)
 }
 
+/// Whether `band` has one sample per pixel and only colour and depth: [`draw_splat`]'s fast
+/// paths.
+fn plain(band: &TargetBand<'_>) -> bool {
+    band.samples().count() == 1 && band.overdraw.is_none() && band.ids.is_none()
+}
+
 /// Pixels whose centres lie in the splat's square (or disk) get it, where it passes LESS; so
 /// does the pixel containing the splat's centre, so that a splat smaller than a pixel still
 /// covers one (otherwise sub-pixel splats between pixel centres would leave holes).
-fn draw_splat(band: &mut TargetBand<'_>, s: &Splat, shape: SplatShape, clip: &PixelRect) -> u64 {
+///
+/// `plain`: [`plain`]`(band)`, a fact of the band the caller decides once per tile.
+fn draw_splat(
+    band: &mut TargetBand<'_>,
+    s: &Splat,
+    shape: SplatShape,
+    clip: &PixelRect,
+    plain: bool,
+) -> u64 {
     let [x0, y0, x1, y1] = s.rect;
-    let plain = band.samples().count() == 1 && band.overdraw.is_none() && band.ids.is_none();
     if plain && x0 == x1 && y0 == y1 {
         // Most splats at a 1-pixel threshold: the footprint is the pixel containing the
         // centre, which a splat always covers (the run's tile holds it).
@@ -568,7 +582,7 @@ fn draw_splat(band: &mut TargetBand<'_>, s: &Splat, shape: SplatShape, clip: &Pi
         !round || dx * dx + dy * dy <= s.half_squared || (px == hx && py == hy)
     };
     let mut written = 0;
-    if n == 1 && band.overdraw.is_none() && band.ids.is_none() {
+    if plain {
         // The common case, one sample and colour plus depth only: a row's pixels are
         // contiguous, so the loop runs over row slices.
         let len = (r.x1 - r.x0 + 1) as usize;
@@ -724,8 +738,8 @@ mod tests {
                         Visit::Culled => {}
                         Visit::Draw(s) => {
                             let mut band = ordered.band();
-                            let all = band.rect();
-                            drawn += usize::from(draw_splat(&mut band, &s, shape, &all) > 0);
+                            let (all, plain) = (band.rect(), plain(&band));
+                            drawn += usize::from(draw_splat(&mut band, &s, shape, &all, plain) > 0);
                         }
                         Visit::Refine { .. } => next.extend(tree.children(i)),
                     }
