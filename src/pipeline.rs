@@ -36,7 +36,7 @@ use std::borrow::Borrow;
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
-use crate::bin::{self, BATCH, Prepared, Sink, Skipped};
+use crate::bin::{self, Prepared, Sink, Skipped};
 use crate::clip::{ClipVertex, ClipVolume};
 use crate::color::{linear_to_srgb8_rgb, unorm8};
 use crate::error::Error;
@@ -179,7 +179,7 @@ impl Pipeline {
         // Small meshes: every vertex shaded once, up front. Large ones: per batch of
         // triangles (below), so memory stays bounded whatever the mesh size.
         let whole = vertices.len() <= VERTEX_CACHE;
-        let batch_len = if whole { BATCH } else { LARGE_MESH_BATCH };
+        let batch_len = if whole { bin::batch_len(target.samples()) } else { LARGE_MESH_BATCH };
         let index_ranges: Vec<(u32, u32)> = triangles.chunks(batch_len).map(index_range).collect();
         let largest = index_ranges.iter().map(|r| r.1).max().unwrap_or(0);
         if largest as usize >= vertices.len()

@@ -1,6 +1,6 @@
 //! The draw call: runs `setup -> raster -> shade` over a triangle list, in submission order.
 
-use crate::bin::{self, BATCH, Prepared, Skipped};
+use crate::bin::{self, Prepared, Skipped};
 use crate::error::Error;
 use crate::fixed;
 use crate::raster::Algorithm;
@@ -174,10 +174,11 @@ pub fn draw(
         // With the scissor off the target nothing is visible, but setup still counts.
         let visible = clip.unwrap_or(PixelRect::EMPTY);
         let mut pair: bin::PreparedPair<TriangleColor> = target.take_scratch();
-        let batches = triangles.len().div_ceil(BATCH);
+        let batch_len = bin::batch_len(target.samples());
+        let batches = triangles.len().div_ceil(batch_len);
         let mut fragments = 0;
         let prepare = |b: usize, prepared: &mut bin::PreparedBatch<TriangleColor>| {
-            let batch = &triangles[b * BATCH..((b + 1) * BATCH).min(triangles.len())];
+            let batch = &triangles[b * batch_len..((b + 1) * batch_len).min(triangles.len())];
             let counts = prepared.prepare(batch.len(), |k, sink| {
                 let tri = &batch[k];
                 let setup = match TriangleSetup::new(tri, options.cull) {
@@ -189,7 +190,7 @@ pub fn draw(
                 }
                 let (depth, payload) =
                     TriangleShader::new(tri, &setup, options.shading).into_parts();
-                let id = (b * BATCH + k) as i32;
+                let id = (b * batch_len + k) as i32;
                 sink.push(Prepared { setup, depth, id, payload });
             });
             stats = stats.merged(&counts);

@@ -209,16 +209,16 @@ pub enum SpanColor {
 impl SpanColor {
     /// The colour at barycentric numerators `(f1, f2)`, as the reference computes it
     /// (`quantize_channel` of each plane).
-    #[inline]
+    #[inline(always)]
     #[must_use]
     pub fn at(&self, f1: f64, f2: f64) -> [u8; 4] {
-        match *self {
-            Self::Flat(c) => c,
-            Self::Smooth(p) => p.map(|[a0, g1, g2]| quantize_channel(a0 + f1 * g1 + f2 * g2)),
-            Self::SmoothRgb(p, alpha) => {
-                let [r, g, b] = p.map(|[a0, g1, g2]| quantize_channel(a0 + f1 * g1 + f2 * g2));
-                [r, g, b, alpha]
-            }
+        // Always inlined, channels written out: called per pixel by the paths without a
+        // kernel (multisampling, short spans), where a call made fill at 4x 10% slower.
+        let q = |&[a0, g1, g2]: &[f64; 3]| quantize_channel(a0 + f1 * g1 + f2 * g2);
+        match self {
+            Self::Flat(c) => *c,
+            Self::Smooth([r, g, b, a]) => [q(r), q(g), q(b), q(a)],
+            Self::SmoothRgb([r, g, b], alpha) => [q(r), q(g), q(b), *alpha],
         }
     }
 }
