@@ -102,15 +102,47 @@ const PIECE_BITS: u32 = 12;
 /// (never joined: joining copied every ~300-byte record once more). Piece `k` of chunk `c`
 /// has index `c << 12 | k`, so indices grow in submission order. The buffers are reused from
 /// batch to batch, so their pages are faulted in once per draw call, not once per batch.
+///
+/// Beside each chunk's records, the pieces' coverage rectangles ([`coverage_bounds`], with the
+/// clip and sample count the batch was prepared for): binning reads those 16 bytes per
+/// triangle instead of each ~300-byte record, which by then has left the cache.
 #[derive(Debug)]
 pub struct PreparedBatch<T> {
     chunks: Vec<Vec<Prepared<T>>>,
+    covers: Vec<Vec<PixelRect>>,
     used: usize,
+    coverage: Coverage,
 }
 
 impl<T> Default for PreparedBatch<T> {
     fn default() -> Self {
-        Self { chunks: Vec::new(), used: 0 }
+        Self { chunks: Vec::new(), covers: Vec::new(), used: 0, coverage: Coverage::default() }
+    }
+}
+
+/// What a batch's triangles are prepared for: the clip rectangle and whether the samples
+/// are other than the pixel centres (the two inputs of [`coverage_bounds`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Coverage {
+    /// The pixels that may be drawn.
+    pub clip: PixelRect,
+    /// Several samples per pixel.
+    pub multisampled: bool,
+}
+
+impl Default for Coverage {
+    /// Nothing to draw.
+    fn default() -> Self {
+        Self { clip: PixelRect::EMPTY, multisampled: false }
+    }
+}
+
+impl Coverage {
+    /// [`coverage_bounds`] with these.
+    #[inline]
+    #[must_use]
+    pub fn of(&self, setup: &TriangleSetup) -> Option<PixelRect> {
+        coverage_bounds(setup, self.multisampled, &self.clip)
     }
 }
 
@@ -121,6 +153,8 @@ impl<T> Default for PreparedBatch<T> {
 #[derive(Debug)]
 pub struct Sink<'a, T> {
     out: &'a mut Vec<Prepared<T>>,
+    covers: &'a mut Vec<PixelRect>,
+    coverage: Coverage,
     stats: &'a mut DrawStats,
 }
 
@@ -129,20 +163,30 @@ impl<T> Sink<'_, T> {
     #[inline]
     pub fn take(&mut self, piece: Result<Prepared<T>, Skipped>) {
         match piece {
-            Ok(p) => {
-                self.stats.rasterized += 1;
-                self.out.push(p);
-            }
+            Ok(p) => self.push(p),
             Err(why) => self.stats.skip(why),
         }
     }
 
     /// Takes one prepared piece (as `take(Ok(piece))`, without building a `Result` of a
-    /// record first).
+    /// record first). A piece covering no sample (front ends usually drop those before
+    /// computing their shading) is counted as [`Skipped::Empty`].
     #[inline]
     pub fn push(&mut self, piece: Prepared<T>) {
-        self.stats.rasterized += 1;
-        self.out.push(piece);
+        match self.coverage.of(&piece.setup) {
+            Some(r) => {
+                self.stats.rasterized += 1;
+                self.covers.push(r);
+                self.out.push(piece);
+            }
+            None => self.stats.skip(Skipped::Empty),
+        }
+    }
+
+    /// What the batch is prepared for.
+    #[must_use]
+    pub fn coverage(&self) -> Coverage {
+        self.coverage
     }
 
     /// Counts `n` pieces skipped for the same reason at once.
@@ -192,30 +236,34 @@ impl<T: Send> PreparedBatch<T> {
     /// Runs the front end over a batch of `len` triangles in parallel: `prepare(k, sink)`
     /// gives the pieces of the batch's triangle `k` to `sink`. Replaces the previous contents;
     /// returns the counts of what was skipped (skipped triangles take no memory).
-    pub fn prepare<F>(&mut self, len: usize, prepare: F) -> DrawStats
+    pub fn prepare<F>(&mut self, len: usize, coverage: Coverage, prepare: F) -> DrawStats
     where
         F: Fn(usize, &mut Sink<'_, T>) + Sync,
     {
-        self.prepare_ranges(len, |range, sink| range.for_each(|k| prepare(k, sink)))
+        self.prepare_ranges(len, coverage, |range, sink| range.for_each(|k| prepare(k, sink)))
     }
 
     /// [`PreparedBatch::prepare`] with the triangles handed over a chunk at a time:
     /// `prepare(range, sink)` gives the pieces of the batch's triangles `range`, in order.
-    pub fn prepare_ranges<F>(&mut self, len: usize, prepare: F) -> DrawStats
+    pub fn prepare_ranges<F>(&mut self, len: usize, coverage: Coverage, prepare: F) -> DrawStats
     where
         F: Fn(std::ops::Range<usize>, &mut Sink<'_, T>) + Sync,
     {
         self.used = len.div_ceil(CHUNK);
+        self.coverage = coverage;
         if self.chunks.len() < self.used {
             self.chunks.resize_with(self.used, || Vec::with_capacity(CHUNK));
+            self.covers.resize_with(self.used, || Vec::with_capacity(CHUNK));
         }
         self.chunks[..self.used]
             .par_iter_mut()
+            .zip(&mut self.covers[..self.used])
             .enumerate()
-            .map(|(c, out)| {
+            .map(|(c, (out, covers))| {
                 out.clear();
+                covers.clear();
                 let mut stats = DrawStats::default();
-                let mut sink = Sink { out, stats: &mut stats };
+                let mut sink = Sink { out, covers, coverage, stats: &mut stats };
                 prepare(c * CHUNK..((c + 1) * CHUNK).min(len), &mut sink);
                 debug_assert!(sink.out.len() <= 1 << PIECE_BITS, "more pieces than index slots");
                 stats
@@ -232,12 +280,22 @@ impl<T> PreparedBatch<T> {
         &self.chunks[(index >> PIECE_BITS) as usize][(index & ((1 << PIECE_BITS) - 1)) as usize]
     }
 
-    /// The triangles of chunks `chunks` with their indices, in submission order.
-    fn indexed(&self, chunks: std::ops::Range<usize>) -> impl Iterator<Item = (u32, &Prepared<T>)> {
+    /// The coverage rectangles of chunks `chunks` with their triangles' indices, in
+    /// submission order.
+    fn indexed_covers(
+        &self,
+        chunks: std::ops::Range<usize>,
+    ) -> impl Iterator<Item = (u32, PixelRect)> {
         chunks.flat_map(move |c| {
             let base = (c as u32) << PIECE_BITS;
-            self.chunks[c].iter().enumerate().map(move |(k, p)| (base | k as u32, p))
+            self.covers[c].iter().enumerate().map(move |(k, &r)| (base | k as u32, r))
         })
+    }
+
+    /// What the batch was prepared for.
+    #[must_use]
+    pub fn coverage(&self) -> Coverage {
+        self.coverage
     }
 
     /// Number of chunks in use.
@@ -316,15 +374,13 @@ impl Bins {
         )
     }
 
-    /// Bins the triangles of a prepared batch by their coverage bounds within `clip`, calling
-    /// `visit` with each (in parallel, in no particular order).
+    /// Bins the triangles of a prepared batch by their coverage rectangles, calling
+    /// `visit(index, rectangle)` with each (in parallel, in no particular order).
     fn of_batch<T: Sync>(
         batch: &PreparedBatch<T>,
-        multisampled: bool,
-        clip: &PixelRect,
         width: u32,
         height: u32,
-        visit: impl Fn(&Prepared<T>) + Sync,
+        visit: impl Fn(u32, &PixelRect) + Sync,
     ) -> Self {
         let chunks = batch.chunk_count();
         let per_group = chunks.div_ceil(rayon::current_num_threads() * 4).max(4);
@@ -332,9 +388,9 @@ impl Bins {
             chunks.div_ceil(per_group),
             |g| {
                 let range = g * per_group..((g + 1) * per_group).min(chunks);
-                batch.indexed(range).map(|(i, p)| {
-                    visit(p);
-                    (i, coverage_bounds(&p.setup, multisampled, clip))
+                batch.indexed_covers(range).map(|(i, r)| {
+                    visit(i, &r);
+                    (i, Some(r))
                 })
             },
             width,
@@ -476,8 +532,9 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
     }
 }
 
-/// Renders prepared triangles through tiles on the current rayon thread pool; returns the
-/// number of covered samples.
+/// Renders prepared triangles through tiles on the current rayon thread pool, within the clip
+/// rectangle they were prepared for ([`PreparedBatch::coverage`]); returns the number of
+/// covered samples.
 /// `fragment(payload, x, y, e1, e2, z)` shades one pixel (`None` discards it, which only
 /// `may_discard` allows); where `kernel(payload)` gives a span kernel, it shades 1x spans
 /// instead.
@@ -491,12 +548,10 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 /// drops to a triangle's largest depth when it covers the whole block and nothing discards.
 /// Wide triangles' fragments are counted once per triangle while binning, not tile by tile
 /// (skipped blocks are not shaded, so shading cannot count them).
-#[allow(clippy::too_many_arguments)]
 pub fn draw_binned<T, K, F>(
     target: &mut Target,
     prepared: &PreparedBatch<T>,
     depth_test: DepthTest,
-    clip: &PixelRect,
     kernel: K,
     fragment: F,
     may_discard: bool,
@@ -506,21 +561,21 @@ where
     K: Fn(&T) -> Option<(SimdLevel, SpanColor)> + Sync,
     F: Fn(&T, i32, i32, f64, f64, f32) -> Option<FragmentOutput> + Sync,
 {
-    let multisampled = target.samples().count() > 1;
+    let coverage = prepared.coverage();
+    let clip = &coverage.clip;
     let (width, height) = (target.width(), target.height());
     let samples = target.samples();
+    debug_assert_eq!(coverage.multisampled, samples.count() > 1, "prepared for other samples");
     let hierarchical = depth_test != DepthTest::Always && target.overdraw.is_none();
-    let wide = |p: &Prepared<T>| {
-        hierarchical && p.setup.bounds.x1 - p.setup.bounds.x0 + 1 >= HIDDEN_MIN_WIDTH
-    };
-    // Counted while binning, which reads every record anyway (a pass of its own was a
-    // twentieth of a frame of small triangles, waiting on memory).
+    // By the coverage rectangle (clipped), which binning has beside the records.
+    let wide = |r: &PixelRect| hierarchical && r.x1 - r.x0 + 1 >= HIDDEN_MIN_WIDTH;
+    // Counted while binning (a pass of its own was a twentieth of a frame of small
+    // triangles, waiting on memory).
     let wide_coverage = AtomicU64::new(0);
-    let bins = Bins::of_batch(prepared, multisampled, clip, width, height, |p| {
-        if wide(p)
-            && let Some(r) = coverage_bounds(&p.setup, multisampled, clip)
-        {
-            wide_coverage.fetch_add(coverage_count(&p.setup, &r, samples), Ordering::Relaxed);
+    let bins = Bins::of_batch(prepared, width, height, |i, r| {
+        if wide(r) {
+            let p = prepared.get(i);
+            wide_coverage.fetch_add(coverage_count(&p.setup, r, samples), Ordering::Relaxed);
         }
     });
     let shaded = bins.draw(target, clip, |band, tile, list| {
@@ -545,7 +600,8 @@ where
                     |x, y, e1, e2, z| fragment(&p.payload, x, y, e1, e2, z),
                 )
             };
-            if wide(p) {
+            // The rectangle binning had (the same function of the same record).
+            if hierarchical && coverage.of(&p.setup).is_some_and(|r| wide(&r)) {
                 // Its fragments were counted while binning.
                 tile_depth.shade(band, tile, p, !may_discard, shade);
             } else {

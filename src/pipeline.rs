@@ -315,24 +315,28 @@ impl Pipeline {
                                 );
                             });
                     }
-                    let batch_counts = prepared.prepare_ranges(batch.len(), |range, sink| {
-                        let first = b * batch_len;
-                        if whole {
-                            // Vertices by reference: a triangle reads its corners in place.
-                            let vertex = |i: u32| &shaded[i as usize];
-                            let source = (window.as_slice(), 0, vertex);
-                            front.prepare_range(batch, range, first, source, level, sink);
-                        } else if windowed {
-                            let vertex = |i: u32| shade_vertex(&vertices[i as usize]);
-                            let source = (window.as_slice(), lo, vertex);
-                            front.prepare_range(batch, range, first, source, level, sink);
-                        } else {
-                            for k in range {
-                                let owned = batch[k].map(|i| shade_vertex(&vertices[i as usize]));
-                                front.prepare(owned.each_ref(), first + k, |p| sink.take(p));
+                    let coverage =
+                        bin::Coverage { clip: front.clip, multisampled: front.multisampled };
+                    let batch_counts =
+                        prepared.prepare_ranges(batch.len(), coverage, |range, sink| {
+                            let first = b * batch_len;
+                            if whole {
+                                // Vertices by reference: a triangle reads its corners in place.
+                                let vertex = |i: u32| &shaded[i as usize];
+                                let source = (window.as_slice(), 0, vertex);
+                                front.prepare_range(batch, range, first, source, level, sink);
+                            } else if windowed {
+                                let vertex = |i: u32| shade_vertex(&vertices[i as usize]);
+                                let source = (window.as_slice(), lo, vertex);
+                                front.prepare_range(batch, range, first, source, level, sink);
+                            } else {
+                                for k in range {
+                                    let owned =
+                                        batch[k].map(|i| shade_vertex(&vertices[i as usize]));
+                                    front.prepare(owned.each_ref(), first + k, |p| sink.take(p));
+                                }
                             }
-                        }
-                    });
+                        });
                     counts = counts.merged(&batch_counts);
                 };
                 let draw = |_, prepared: &bin::PreparedBatch<_>| {
@@ -340,7 +344,6 @@ impl Pipeline {
                         target,
                         prepared,
                         self.depth_test,
-                        &front.clip,
                         |_| None,
                         shade,
                         fragment_shader.may_discard(),

@@ -179,13 +179,14 @@ pub fn draw(
         let mut fragments = 0;
         let prepare = |b: usize, prepared: &mut bin::PreparedBatch<TriangleColor>| {
             let batch = &triangles[b * batch_len..((b + 1) * batch_len).min(triangles.len())];
-            let counts = prepared.prepare(batch.len(), |k, sink| {
+            let coverage = bin::Coverage { clip: visible, multisampled };
+            let counts = prepared.prepare(batch.len(), coverage, |k, sink| {
                 let tri = &batch[k];
                 let setup = match TriangleSetup::new(tri, options.cull) {
                     Ok(setup) => setup,
                     Err(why) => return sink.skip_many(why.into(), 1),
                 };
-                if bin::coverage_bounds(&setup, multisampled, &visible).is_none() {
+                if sink.coverage().of(&setup).is_none() {
                     return sink.skip_many(Skipped::Empty, 1);
                 }
                 let (depth, payload) =
@@ -196,12 +197,11 @@ pub fn draw(
             stats = stats.merged(&counts);
         };
         let draw = |_, prepared: &bin::PreparedBatch<TriangleColor>| {
-            if let Some(clip) = clip {
+            if clip.is_some() {
                 fragments += bin::draw_binned(
                     target,
                     prepared,
                     options.depth_test,
-                    &clip,
                     |shader| shader.span_color().map(|c| (level, c)),
                     |shader, _, _, e1, e2, _| Some(color(shader, e1, e2)),
                     false,
