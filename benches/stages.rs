@@ -119,8 +119,9 @@ fn narrow(c: &mut Criterion) {
             let mut depth = vec![1.0f32; 64 * 8];
             let mut color = vec![[0u8; 4]; 64 * 8];
             g.bench_function(format!("{level:?}, {name} box smooth"), |b| {
-                // The kernels have no branches on depth, so a buffer already written costs
-                // what a fresh one does.
+                // The SIMD kernels have no branches on depth, so a buffer already written
+                // costs them what a fresh one does (the scalar one, after the first iteration,
+                // times hidden pixels: no colour written).
                 b.iter(|| {
                     simd::shade_narrow(
                         level,

@@ -11,10 +11,11 @@
 //! - threads take whole rows of tiles ([`Target::bands`]: disjoint slices), so no two threads
 //!   write one pixel and no locks are needed.
 //!
-//! Memory is bounded: callers feed triangles in batches of at most [`BATCH`]; a batch is set
-//! up while the one before is binned and rendered ([`pipelined`]), and its buffers are reused
-//! two batches later (the lectures' "flush"), so bin memory never grows with the scene, and
-//! no triangle is ever dropped.
+//! Memory is bounded: callers feed triangles in batches of at most [`BATCH`] (larger ones on
+//! multisampled targets, [`MULTISAMPLED_BATCH`], and for meshes shaded batch by batch); a
+//! batch is set up while the one before is binned and rendered ([`pipelined`]), and its
+//! buffers are reused two batches later (the lectures' "flush"), so bin memory never grows
+//! with the scene, and no triangle is ever dropped.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -52,9 +53,9 @@ pub fn batch_len(samples: SampleCount) -> usize {
     if samples.count() > 1 { MULTISAMPLED_BATCH } else { BATCH }
 }
 
-/// Triangles at least this many pixels wide take the hierarchical depth test in
-/// [`draw_binned`]: narrower ones seldom cover a tile or hide behind one, and testing them
-/// made a frame of small triangles slower.
+/// Triangles whose coverage rectangle (clipped) is at least this many pixels wide take the
+/// hierarchical depth test in [`draw_binned`]: narrower ones seldom cover a tile or hide
+/// behind one, and testing them made a frame of small triangles slower.
 const HIDDEN_MIN_WIDTH: i32 = TILE as i32 / 2;
 
 /// How many triangles ahead of the one being drawn the tile loop prefetches.
@@ -234,8 +235,10 @@ pub fn pipelined<T: Send + Sync>(
 
 impl<T: Send> PreparedBatch<T> {
     /// Runs the front end over a batch of `len` triangles in parallel: `prepare(k, sink)`
-    /// gives the pieces of the batch's triangle `k` to `sink`. Replaces the previous contents;
-    /// returns the counts of what was skipped (skipped triangles take no memory).
+    /// gives the pieces of the batch's triangle `k` to `sink`, which keeps each piece's
+    /// coverage rectangle for `coverage` (the clip and sample count it will be drawn with).
+    /// Replaces the previous contents; returns the counts of what was skipped (skipped
+    /// triangles take no memory).
     pub fn prepare<F>(&mut self, len: usize, coverage: Coverage, prepare: F) -> DrawStats
     where
         F: Fn(usize, &mut Sink<'_, T>) + Sync,
@@ -541,12 +544,12 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 ///
 /// Hierarchical depth (`Less` or `LessEqual`, no overdraw buffer, which counts hidden
 /// fragments too; at any sample count, with depths bounded over each pixel's samples): each
-/// block of a tile keeps a bound on the largest depth stored in it
-/// (`TileDepth`), and a wide triangle (at least half a tile wide) whose depth over a block
-/// is at or behind it fails the test at every pixel there, so the block is skipped. A bound
-/// starts as the block's largest depth (computed when a wide triangle first needs it) and
-/// drops to a triangle's largest depth when it covers the whole block and nothing discards.
-/// Wide triangles' fragments are counted once per triangle while binning, not tile by tile
+/// block of a tile keeps a bound on the largest depth stored in it (`TileDepth`), and a wide
+/// triangle (its clipped coverage at least half a tile wide) whose depth over a block is at
+/// or behind it fails the test at every pixel there, so the block is skipped. A bound starts
+/// as the block's largest depth (computed when a wide triangle first needs it) and drops to
+/// a triangle's largest depth when it covers the whole block and nothing discards. Wide
+/// triangles' fragments are counted once per triangle while binning, not tile by tile
 /// (skipped blocks are not shaded, so shading cannot count them).
 pub fn draw_binned<T, K, F>(
     target: &mut Target,
@@ -736,4 +739,40 @@ fn coverage_count(setup: &TriangleSetup, rect: &PixelRect, samples: SampleCount)
         });
     }
     covered
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Mutex;
+
+    use super::*;
+
+    /// `pipelined` hands each draw the batch prepared for it, draws every batch once and in
+    /// order, whatever the count (none, one, several) and the thread count.
+    #[test]
+    fn pipelined_draws_every_batch_in_order() {
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            for batches in [0, 1, 2, 7] {
+                let drawn = Mutex::new(Vec::new());
+                let mut pair = PreparedPair::<()>::default();
+                pool.install(|| {
+                    pipelined(
+                        batches,
+                        &mut pair,
+                        // Batch `b` is prepared as `b + 1` chunks (of nothing): its mark.
+                        |b, batch| {
+                            batch.prepare_ranges(b * CHUNK + 1, Coverage::default(), |_, _| {});
+                        },
+                        |b, batch| {
+                            assert_eq!(batch.chunk_count(), b + 1, "batch {b} drawn from another");
+                            drawn.lock().unwrap().push(b);
+                        },
+                    );
+                });
+                let drawn = drawn.into_inner().unwrap();
+                assert_eq!(drawn, (0..batches).collect::<Vec<_>>(), "{threads} threads");
+            }
+        }
+    }
 }

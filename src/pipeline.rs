@@ -366,8 +366,8 @@ const CORNER_BLOCK: usize = 1024;
 /// Triangles per batch of a mesh over [`VERTEX_CACHE`] vertices, whose vertices are shaded
 /// batch by batch: most of such a mesh's triangles stop at the corner tests and make no
 /// record, so the small batches that keep records in cache for the back end
-/// ([`BATCH`]) would only multiply the per-batch passes and joins (the dense scene: 0.62 ->
-/// 0.67 s with [`BATCH`]).
+/// ([`bin::BATCH`]) would only multiply the per-batch passes and joins (the dense scene: 0.62
+/// -> 0.67 s with [`bin::BATCH`]).
 const LARGE_MESH_BATCH: usize = 1 << 19;
 
 /// Meshes with at most this many vertices have them all shaded before any triangle; larger

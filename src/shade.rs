@@ -190,16 +190,12 @@ impl TriangleShader {
                 })
             }
             Shading::Perspective => {
-                // As `PerspectivePlane::new` per channel, with the `1 / w` plane they share
-                // computed once.
                 let inv_w = v.map(|p| f64::from(p.inv_w));
-                let over_w = |c: usize| {
-                    let a = channel(c);
-                    [a[0] * inv_w[0], a[1] * inv_w[1], a[2] * inv_w[2]]
-                };
+                let planes = [0, 1, 2, 3].map(|c| PerspectivePlane::new(channel(c), inv_w, setup));
+                // Every channel's `1 / w` plane is the same one: kept once.
                 ColorSource::Perspective {
-                    over_w: [0, 1, 2, 3].map(|c| PlaneEquation::new(over_w(c), setup)),
-                    inv_w: PlaneEquation::new(inv_w, setup),
+                    over_w: planes.map(|p| p.over_w),
+                    inv_w: planes[0].inv_w,
                 }
             }
         };
@@ -268,7 +264,8 @@ impl TriangleColor {
     }
 }
 
-/// [`PerspectivePlane::eval`] per channel, quantized.
+/// [`PerspectivePlane::eval`] per channel, quantized, with the shared `1 / w` evaluated once
+/// (the same value each channel's plane would give: tested).
 #[inline(never)]
 fn perspective_color_at(
     over_w: &[PlaneEquation; 4],
@@ -584,6 +581,42 @@ fn shade_single_sample(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The colour a triangle keeps gives, per channel, `quantize_channel` of the plane the
+    /// definition names: `PlaneEquation::eval` for smooth colours (four planes, or three and
+    /// an alpha), `PerspectivePlane::eval` for perspective ones (whose shared `1 / w` plane is
+    /// evaluated once), at random numerators, for random triangles.
+    #[test]
+    fn triangle_colours_follow_their_planes() {
+        let mut rng = SmallRng::seed_from_u64(12);
+        for round in 0..2000 {
+            let alpha = (round % 2 == 0).then_some(200);
+            let v: [Vertex; 3] = std::array::from_fn(|_| Vertex {
+                x: rng.random_range(-50.0..50.0),
+                y: rng.random_range(-50.0..50.0),
+                z: 0.5,
+                inv_w: rng.random_range(0.1..4.0),
+                color: [rng.random(), rng.random(), rng.random(), alpha.unwrap_or(rng.random())],
+            });
+            let Ok(setup) = TriangleSetup::new(&v, crate::CullMode::None) else { continue };
+            let channel = |c: usize| v.map(|p| f64::from(p.color[c]));
+            let inv_w = v.map(|p| f64::from(p.inv_w));
+            let smooth = TriangleShader::new(&v, &setup, Shading::Smooth);
+            let perspective = TriangleShader::new(&v, &setup, Shading::Perspective);
+            for _ in 0..8 {
+                let e1 = rng.random_range(-1e5..1e5f64).round();
+                let e2 = rng.random_range(-1e5..1e5f64).round();
+                let want: [u8; 4] = std::array::from_fn(|c| {
+                    quantize_channel(PlaneEquation::new(channel(c), &setup).eval(e1, e2))
+                });
+                assert_eq!(smooth.color_at(e1, e2), want);
+                let want: [u8; 4] = std::array::from_fn(|c| {
+                    quantize_channel(PerspectivePlane::new(channel(c), inv_w, &setup).eval(e1, e2))
+                });
+                assert_eq!(perspective.color_at(e1, e2), want);
+            }
+        }
+    }
     use crate::sample::SampleCount;
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};

@@ -552,29 +552,38 @@ fn reused_targets_draw_what_fresh_ones_draw() {
 
 /// Draw calls longer than a batch: batches are set up while the one before is drawn, and
 /// must still be drawn in submission order. Three and a half batches of small triangles piled
-/// on a small target (every pixel is written by triangles of every batch), with the `Always`
-/// test (the last writer wins) and with `Less` against ties, in window space and through the
-/// 3D pipeline: the tiled backend on 1, 2 and 7 threads writes what the reference writes.
+/// on a small target (every pixel is written by triangles of every batch), one in 500 large
+/// (so hierarchical depth, on without an overdraw buffer, meets them in every batch), with
+/// the `Always` test (the last writer wins) and with `Less` against ties, in window space and
+/// through the 3D pipeline: the tiled backend on 1, 2 and 7 threads writes what the reference
+/// writes.
 #[test]
 fn batches_are_drawn_in_submission_order() {
     use trirast::bin::BATCH;
     let mut rng = SmallRng::seed_from_u64(77);
     let n = 3 * BATCH + BATCH / 2;
-    let (w, h) = (40.0, 30.0);
+    let (w, h) = (160.0, 100.0);
     let tris: Vec<[Vertex; 3]> = (0..n)
-        .map(|_| {
+        .map(|k| {
             let (cx, cy) = (rng.random_range(0.0..w), rng.random_range(0.0..h));
             // A few depths only, so `Less` meets ties.
             let z = f32::from(rng.random_range(0u8..4)) / 4.0;
+            let size = if k % 500 == 0 { 150.0 } else { 6.0 };
             std::array::from_fn(|_| {
-                let (x, y) = (cx + rng.random_range(-6.0..6.0), cy + rng.random_range(-6.0..6.0));
+                let (x, y) =
+                    (cx + rng.random_range(-size..size), cy + rng.random_range(-size..size));
                 Vertex::new(x, y, z, [rng.random(), rng.random(), rng.random(), 255])
             })
         })
         .collect();
-    for depth_test in [DepthTest::Always, DepthTest::Less] {
+    for (depth_test, overdraw) in
+        [(DepthTest::Always, true), (DepthTest::Less, true), (DepthTest::Less, false)]
+    {
         let options = RenderOptions::default().with_depth_test(depth_test);
-        let fresh = || Target::new(w as u32, h as u32).unwrap().with_ids().with_overdraw();
+        let fresh = || {
+            let target = Target::new(w as u32, h as u32).unwrap().with_ids();
+            if overdraw { target.with_overdraw() } else { target }
+        };
         let mut reference = fresh();
         let ref_stats =
             trirast::draw(&mut reference, &tris, &options.with_backend(Backend::Reference))
@@ -583,7 +592,8 @@ fn batches_are_drawn_in_submission_order() {
             let mut tiled = fresh();
             let stats = pool(threads).install(|| trirast::draw(&mut tiled, &tris, &options));
             assert_eq!(stats.unwrap(), ref_stats);
-            assert_same(&reference, &tiled, &format!("{depth_test:?}, {threads} threads"));
+            let what = format!("{depth_test:?}, overdraw {overdraw}, {threads} threads");
+            assert_same(&reference, &tiled, &what);
         }
     }
     // The same triangles as a mesh in clip space (z in [0, 1) at w = 1), ids by triangle.

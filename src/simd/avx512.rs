@@ -173,10 +173,8 @@ pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
 unsafe fn narrow_rows(job: &mut NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) -> __m256i) -> u64 {
     let n = job.target.checked_len();
     assert!((1..=super::NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not narrow");
-    assert!(
-        job.first + (job.rows - 1) * job.stride + job.columns <= n,
-        "the box must lie in the buffers"
-    );
+    // Checked arithmetic: the offsets below stay in the buffers only if this holds.
+    assert!(job.end(job.columns) <= n, "the box must lie in the buffers");
     // Boxes up to four pixels wide (most small triangles) take two rows per group: lanes 0-3
     // the first, 4-7 the second.
     let pair = job.columns <= 4;

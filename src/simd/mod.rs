@@ -33,7 +33,7 @@ pub enum SimdLevel {
     Scalar,
     /// AVX2: four pixels per step.
     Avx2,
-    /// AVX-512 (F, VL, DQ, BW): eight pixels per step with mask registers for the shading
+    /// AVX-512 (F, VL, DQ): eight pixels per step with mask registers for the shading
     /// kernels; the front end's corner kernels run their AVX2 versions.
     Avx512,
 }
@@ -68,7 +68,6 @@ impl SimdLevel {
                     && std::arch::is_x86_feature_detected!("avx512f")
                     && std::arch::is_x86_feature_detected!("avx512vl")
                     && std::arch::is_x86_feature_detected!("avx512dq")
-                    && std::arch::is_x86_feature_detected!("avx512bw")
             }
             #[cfg(not(target_arch = "x86_64"))]
             Self::Avx2 | Self::Avx512 => false,
@@ -342,9 +341,21 @@ pub struct NarrowJob<'a> {
 }
 
 impl NarrowJob<'_> {
+    /// One past the last buffer element of the box when each row is `width` elements from its
+    /// first pixel; `usize::MAX` when that overflows (no buffer holds it): the kernels' bounds
+    /// checks rest on this, and a job is public, safe to build with any values.
+    fn end(&self, width: usize) -> usize {
+        self.rows
+            .saturating_sub(1)
+            .checked_mul(self.stride)
+            .and_then(|o| o.checked_add(self.first))
+            .and_then(|o| o.checked_add(width))
+            .unwrap_or(usize::MAX)
+    }
+
     /// One past the last buffer element a kernel reads in four-pixel groups.
     fn group_end(&self) -> usize {
-        self.first + (self.rows - 1) * self.stride + 4 * self.columns.div_ceil(4)
+        self.end(4 * self.columns.div_ceil(4))
     }
 }
 
@@ -970,6 +981,47 @@ mod tests {
             let reference = run(SimdLevel::Scalar);
             for level in SimdLevel::available() {
                 assert_eq!(run(level), reference, "{level:?}, round {round}");
+            }
+        }
+    }
+
+    /// A narrow job whose rows lie past its buffers, or whose offsets overflow (a job is
+    /// public and safe to build), panics at every level instead of writing anywhere.
+    #[test]
+    fn narrow_jobs_past_the_buffers_panic() {
+        for level in SimdLevel::available() {
+            for (rows, stride, first) in
+                [(3, 1usize << 63, 0), (2, usize::MAX / 2 + 1, 5), (2, 40, 50)]
+            {
+                let shade = || {
+                    let (mut depth, mut color) = (vec![1.0f32; 64], vec![[0u8; 4]; 64]);
+                    let target = KernelTarget {
+                        depth_plane: [0.5, 0.0, 0.0],
+                        color: SpanColor::Flat([1; 4]),
+                        depth_test: DepthTest::Less,
+                        id: 0,
+                        depth: &mut depth,
+                        color_out: &mut color,
+                        ids: None,
+                        overdraw: None,
+                    };
+                    // Every pixel of the box covered.
+                    let (edges, step_x, step_y, bias) = ([0; 3], [0; 3], [0; 3], [0; 2]);
+                    let job = NarrowJob {
+                        edges,
+                        step_x,
+                        step_y,
+                        bias,
+                        columns: 2,
+                        rows,
+                        first,
+                        stride,
+                        target,
+                    };
+                    shade_narrow(level, job)
+                };
+                let outcome = std::panic::catch_unwind(shade);
+                assert!(outcome.is_err(), "{level:?}: rows {rows}, stride {stride}");
             }
         }
     }
