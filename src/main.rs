@@ -682,7 +682,10 @@ fn bench(
             .collect()
     };
     let frames = frames.max(1);
+    // What the kernels run on, so that figures from different machines can be told apart.
+    let simd = trirast::simd::SimdLevel::detect();
     if !json {
+        println!("SIMD level: {simd:?} (TRIRAST_SIMD=scalar|avx2|avx512 forces one)");
         println!(
             "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10} {:>10} {:>9} {:>9}",
             "scene",
@@ -708,7 +711,7 @@ fn bench(
                 pool.install(|| bench::run(scene, frames, threads, samples, dense_triangles))?;
             if json {
                 println!(
-                    "{{\"scene\":\"{}\",\"source\":{:?},\"triangles\":{},\"pixels\":{},\"fragments\":{},\"threads\":{},\"msaa\":{},\"median_ms\":{:.3},\"min_ms\":{:.3},\"mtri_per_s\":{:.2},\"gfrag_per_s\":{:.3}}}",
+                    "{{\"scene\":\"{}\",\"source\":{:?},\"triangles\":{},\"pixels\":{},\"fragments\":{},\"threads\":{},\"msaa\":{},\"simd\":\"{simd:?}\",\"median_ms\":{:.3},\"min_ms\":{:.3},\"mtri_per_s\":{:.2},\"gfrag_per_s\":{:.3}}}",
                     r.scene,
                     r.source,
                     r.triangles,

@@ -707,3 +707,35 @@ fn demos_write_pngs() {
     let img = read_png(&dir.path("demo.png"));
     assert_eq!((img.width, img.height), (512, 512));
 }
+
+/// `trirast bench --json` reports each scene with the SIMD level it ran at, and the work it
+/// measures does not depend on that level: forcing the scalar kernels reports the same
+/// triangles and fragments.
+#[test]
+fn bench_reports_its_simd_level_and_the_same_work_at_every_level() {
+    let dir = TempDir::new("bench");
+    let field = |line: &str, name: &str| -> String {
+        let at = line.find(&format!("\"{name}\":")).unwrap_or_else(|| panic!("{name}: {line}"));
+        let rest = &line[at + name.len() + 3..];
+        rest[..rest.find([',', '}']).unwrap()].trim_matches('"').to_string()
+    };
+    let run = |simd: Option<&str>| {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_trirast"));
+        cmd.args(["bench", "fill", "--frames", "1", "--threads", "2", "--json"])
+            .current_dir(&dir.0);
+        if let Some(level) = simd {
+            cmd.env("TRIRAST_SIMD", level);
+        }
+        let out = cmd.output().expect("failed to start the trirast binary");
+        assert!(out.status.success(), "bench failed: {}", stderr_of(&out));
+        String::from_utf8(out.stdout).unwrap().trim().to_string()
+    };
+    let (default, scalar) = (run(None), run(Some("scalar")));
+    assert_eq!(field(&scalar, "simd"), "Scalar");
+    assert!(["Scalar", "Avx2", "Avx512"].contains(&field(&default, "simd").as_str()));
+    for name in ["scene", "triangles", "pixels", "fragments", "msaa"] {
+        assert_eq!(field(&default, name), field(&scalar, name), "{name}");
+    }
+    assert_eq!(field(&default, "triangles"), "256");
+    assert!(field(&default, "median_ms").parse::<f64>().unwrap() > 0.0);
+}
