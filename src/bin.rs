@@ -201,26 +201,32 @@ impl<T> Sink<'_, T> {
 /// drawn.
 pub type PreparedPair<T> = [PreparedBatch<T>; 2];
 
-/// Runs the batches `0..batches` through `prepare(b, batch)` (the front end, filling `batch`)
-/// and `draw(b, batch)` (the back end), preparing batch `b + 1` while batch `b` is drawn, on
+/// Cuts `items` into batches of `batch_len` and runs batch `b` (its items `batch`, the first
+/// of them `items[first]`) through `prepare(b, first, batch, prepared)` (the front end,
+/// filling `prepared`) and `draw(b, prepared)` (the back end), preparing batch `b + 1` while
+/// batch `b` is drawn, on
 /// the current rayon pool: both sides are parallel inside, and each takes up the threads the
 /// other leaves idle (a coherent mesh's batch covers a strip of the target, a row or two of
 /// tiles, which one thread draws while the other sets up the next batch). Batches are drawn
 /// one after another, in order, so the output is what drawing them in turn gives; `prepare`
 /// must not touch what `draw` writes (it writes only its batch).
-pub fn pipelined<T: Send + Sync>(
-    batches: usize,
+pub fn pipelined<I: Sync, T: Send + Sync>(
+    items: &[I],
+    batch_len: usize,
     pair: &mut PreparedPair<T>,
-    mut prepare: impl FnMut(usize, &mut PreparedBatch<T>) + Send,
+    mut prepare: impl FnMut(usize, usize, &[I], &mut PreparedBatch<T>) + Send,
     mut draw: impl FnMut(usize, &PreparedBatch<T>) + Send,
 ) {
+    let batches = items.len().div_ceil(batch_len);
     let [a, b] = pair;
     let (mut filling, mut full) = (a, b);
     for k in 0..=batches {
         rayon::join(
             || {
                 if k < batches {
-                    prepare(k, filling);
+                    let first = k * batch_len;
+                    let batch = &items[first..(first + batch_len).min(items.len())];
+                    prepare(k, first, batch, filling);
                 }
             },
             || {
@@ -753,16 +759,21 @@ mod tests {
     fn pipelined_draws_every_batch_in_order() {
         for threads in [1, 2, 3] {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            for batches in [0, 1, 2, 7] {
+            for batches in [0usize, 1, 2, 7] {
                 let drawn = Mutex::new(Vec::new());
                 let mut pair = PreparedPair::<()>::default();
+                // Batches of 10 items, the last one short.
+                let items: Vec<usize> = (0..(10 * batches).saturating_sub(3)).collect();
                 pool.install(|| {
                     pipelined(
-                        batches,
+                        &items,
+                        10,
                         &mut pair,
                         // Batch `b` is prepared as `b + 1` chunks (of nothing): its mark.
-                        |b, batch| {
-                            batch.prepare_ranges(b * CHUNK + 1, Coverage::default(), |_, _| {});
+                        |b, first, batch, prepared| {
+                            assert_eq!((first, batch[0]), (10 * b, 10 * b), "batch {b}");
+                            assert!(batch.len() == 10 || b + 1 == batches, "batch {b}");
+                            prepared.prepare_ranges(b * CHUNK + 1, Coverage::default(), |_, _| {});
                         },
                         |b, batch| {
                             assert_eq!(batch.chunk_count(), b + 1, "batch {b} drawn from another");

@@ -43,7 +43,7 @@ use crate::error::Error;
 use crate::fixed;
 use crate::raster::Algorithm;
 use crate::render::{Backend, DrawStats};
-use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
+use crate::setup::{self, CullMode, Rejection, TriangleSetup, Vertex};
 use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
 use crate::simd::{self, Corner, CornerGroup, OUTSIDE, SimdLevel};
 use crate::target::Target;
@@ -195,8 +195,10 @@ impl Pipeline {
             });
         }
         let front = FrontEnd {
-            multisampled: target.samples().count() > 1,
-            clip: target.rect(),
+            coverage: bin::Coverage {
+                clip: target.rect(),
+                multisampled: target.samples().count() > 1,
+            },
             volume: ClipVolume::for_target(target.width(), target.height()),
             viewport: Viewport::of(target),
             cull: match self.cull {
@@ -261,7 +263,7 @@ impl Pipeline {
                             &mut target.band(),
                             &p.setup,
                             self.algorithm,
-                            &front.clip,
+                            &front.coverage.clip,
                             &p.depth,
                             self.depth_test,
                             p.id,
@@ -278,12 +280,9 @@ impl Pipeline {
                 if whole {
                     shaded.par_iter().map(ShadedVertex::corner).collect_into_vec(window);
                 }
-                let batches = triangles.len().div_ceil(batch_len);
                 let mut counts = DrawStats::default();
                 let mut fragments = 0;
-                let prepare = |b: usize, prepared: &mut bin::PreparedBatch<_>| {
-                    let end = ((b + 1) * batch_len).min(triangles.len());
-                    let batch = &triangles[b * batch_len..end];
+                let prepare = |b: usize, first, batch: &[_], out: &mut bin::PreparedBatch<_>| {
                     // Vertices of a large mesh: the batch's index range shaded into a scratch
                     // window when it is compact (meshes are mostly stored with locality),
                     // otherwise each corner shaded where it is used.
@@ -315,11 +314,8 @@ impl Pipeline {
                                 );
                             });
                     }
-                    let coverage =
-                        bin::Coverage { clip: front.clip, multisampled: front.multisampled };
                     let batch_counts =
-                        prepared.prepare_ranges(batch.len(), coverage, |range, sink| {
-                            let first = b * batch_len;
+                        out.prepare_ranges(batch.len(), front.coverage, |range, sink| {
                             if whole {
                                 // Vertices by reference: a triangle reads its corners in place.
                                 let vertex = |i: u32| &shaded[i as usize];
@@ -349,7 +345,7 @@ impl Pipeline {
                         fragment_shader.may_discard(),
                     );
                 };
-                bin::pipelined(batches, prepared, prepare, draw);
+                bin::pipelined(triangles, batch_len, prepared, prepare, draw);
                 stats = stats.merged(&counts);
                 stats.fragments += fragments;
             }
@@ -402,8 +398,8 @@ struct TriangleData<V> {
 
 /// The fixed-function stages between the vertex shader and the rasterizer.
 struct FrontEnd {
-    multisampled: bool,
-    clip: PixelRect,
+    /// The pixels that may be drawn, and the sample count.
+    coverage: bin::Coverage,
     volume: ClipVolume,
     viewport: Viewport,
     cull: CullMode,
@@ -462,7 +458,7 @@ impl FrontEnd {
         sink: &mut Sink<'_, TriangleData<V>>,
     ) {
         let vertices = |k: usize| batch[k].map(&vertex);
-        if self.multisampled {
+        if self.coverage.multisampled {
             // Sample boxes differ from the centre boxes the corner tests use.
             for k in range {
                 self.prepare(each_ref(&vertices(k)), first_id + k, |p| sink.take(p));
@@ -472,13 +468,20 @@ impl FrontEnd {
         for start in range.clone().step_by(8) {
             let len = (range.end - start).min(8);
             let t = if let Ok(eight) = <&[[u32; 3]; 8]>::try_from(&batch[start..start + len]) {
-                simd::corner_tests_indexed(level, eight, corners, base, self.cull, &self.clip)
+                simd::corner_tests_indexed(
+                    level,
+                    eight,
+                    corners,
+                    base,
+                    self.cull,
+                    &self.coverage.clip,
+                )
             } else {
                 let mut group = CornerGroup::default();
                 for j in 0..len {
                     group.set(j, batch[start + j].map(|i| corners[(i - base) as usize]));
                 }
-                simd::corner_tests(level, &group, self.cull, &self.clip)
+                simd::corner_tests(level, &group, self.cull, &self.coverage.clip)
             };
             let count = |bits: u8| bits.count_ones() as usize;
             sink.skip_many(Skipped::Rejected(Rejection::Degenerate), count(t.degenerate));
@@ -544,7 +547,8 @@ impl FrontEnd {
         // Zero area, culling and "covers no sample" first, from the corners alone: most
         // triangles of a dense mesh stop here, before their edge functions are built.
         TriangleSetup::signed_area2(xy, self.cull)?;
-        if bin::extent_coverage_bounds(setup::extent(xy), self.multisampled, &self.clip).is_none() {
+        let bin::Coverage { clip, multisampled } = self.coverage;
+        if bin::extent_coverage_bounds(setup::extent(xy), multisampled, &clip).is_none() {
             return Err(Skipped::Empty);
         }
         self.setup_passed(tri, id)
@@ -581,7 +585,7 @@ impl FrontEnd {
     ) -> Result<Prepared<TriangleData<V>>, Skipped> {
         let win = tri.map(|v| self.viewport.map(v.position));
         let setup = TriangleSetup::new(&win, self.cull)?;
-        if bin::coverage_bounds(&setup, self.multisampled, &self.clip).is_none() {
+        if self.coverage.of(&setup).is_none() {
             return Err(Skipped::Empty);
         }
         Ok(self.finish(setup, tri.map(|v| v.varyings), win.map(|v| [v.z, v.inv_w]), id))

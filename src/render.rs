@@ -175,10 +175,8 @@ pub fn draw(
         let visible = clip.unwrap_or(PixelRect::EMPTY);
         let mut pair: bin::PreparedPair<TriangleColor> = target.take_scratch();
         let batch_len = bin::batch_len(target.samples());
-        let batches = triangles.len().div_ceil(batch_len);
         let mut fragments = 0;
-        let prepare = |b: usize, prepared: &mut bin::PreparedBatch<TriangleColor>| {
-            let batch = &triangles[b * batch_len..((b + 1) * batch_len).min(triangles.len())];
+        let prepare = |_, first: usize, batch: &[_], prepared: &mut bin::PreparedBatch<_>| {
             let coverage = bin::Coverage { clip: visible, multisampled };
             let counts = prepared.prepare(batch.len(), coverage, |k, sink| {
                 let tri = &batch[k];
@@ -191,7 +189,7 @@ pub fn draw(
                 }
                 let (depth, payload) =
                     TriangleShader::new(tri, &setup, options.shading).into_parts();
-                let id = (b * batch_len + k) as i32;
+                let id = (first + k) as i32;
                 sink.push(Prepared { setup, depth, id, payload });
             });
             stats = stats.merged(&counts);
@@ -208,7 +206,7 @@ pub fn draw(
                 );
             }
         };
-        bin::pipelined(batches, &mut pair, prepare, draw);
+        bin::pipelined(triangles, batch_len, &mut pair, prepare, draw);
         stats.fragments += fragments;
         target.keep_scratch(pair);
         return Ok(stats);
