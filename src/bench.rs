@@ -96,7 +96,13 @@ impl BenchResult {
 enum Prepared {
     Window { triangles: Vec<[Vertex; 3]>, options: RenderOptions },
     Model { mesh: Box<Mesh>, camera: Camera, options: ModelOptions },
-    Grid { positions: Vec<Vec4>, colors: Vec<Vec3>, triangles: Vec<[u32; 3]> },
+    Grid {
+        positions: Vec<Vec4>,
+        colors: Vec<Vec3>,
+        /// The vertex shader's inputs: the vertex indices (built once, not in every frame).
+        vertices: Vec<u32>,
+        triangles: Vec<[u32; 3]>,
+    },
     Dense { positions: Vec<[f32; 3]>, triangles: Vec<[u32; 3]>, view_proj: glam::Mat4 },
 }
 
@@ -173,7 +179,9 @@ fn prepare(
         }
         BenchScene::Grid => {
             let (positions, colors, triangles) = grid(1000, 500, &mut rng);
-            (Prepared::Grid { positions, colors, triangles }, 1920, 1080, "generated".into())
+            let vertices = (0..positions.len() as u32).collect();
+            let grid = Prepared::Grid { positions, colors, vertices, triangles };
+            (grid, 1920, 1080, "generated".into())
         }
         BenchScene::Dense => {
             // Depth + flat colour with the leanest shaders: positions in, no varyings, one
@@ -233,13 +241,12 @@ fn draw(
             };
             Pipeline::default().draw(target, &vs, &fs, positions, triangles)
         }
-        Prepared::Grid { positions, colors, triangles } => {
-            let vertices: Vec<u32> = (0..positions.len() as u32).collect();
+        Prepared::Grid { positions, colors, vertices, triangles } => {
             let vs = |&i: &u32| (positions[i as usize], colors[i as usize]);
             let fs = |f: &Fragment<Vec3>| Some(f.varyings.extend(1.0));
             Pipeline::default()
                 .with_cull(FaceCull::None)
-                .draw(target, &vs, &fs, &vertices, triangles)
+                .draw(target, &vs, &fs, vertices, triangles)
         }
     }
 }
