@@ -94,8 +94,15 @@ impl BenchResult {
 
 /// A scene ready to draw repeatedly.
 enum Prepared {
-    Window { triangles: Vec<[Vertex; 3]>, options: RenderOptions },
-    Model { mesh: Box<Mesh>, camera: Camera, options: ModelOptions },
+    Window {
+        triangles: Vec<[Vertex; 3]>,
+        options: RenderOptions,
+    },
+    Model {
+        mesh: Box<Mesh>,
+        camera: Camera,
+        options: ModelOptions,
+    },
     Grid {
         positions: Vec<Vec4>,
         colors: Vec<Vec3>,
@@ -103,7 +110,11 @@ enum Prepared {
         vertices: Vec<u32>,
         triangles: Vec<[u32; 3]>,
     },
-    Dense { positions: Vec<[f32; 3]>, triangles: Vec<[u32; 3]>, view_proj: glam::Mat4 },
+    Dense {
+        positions: Vec<[f32; 3]>,
+        triangles: Vec<[u32; 3]>,
+        view_proj: glam::Mat4,
+    },
 }
 
 /// Size of the dense scene, overridable for quick runs.

@@ -498,7 +498,7 @@ impl FrontEnd {
                     // Passed the corner tests: straight to setup.
                     let owned = vertices(k);
                     let tri = each_ref(&owned);
-                    let xy = tri.map(|v| v.xy.map(i64::from));
+                    let xy = setup::widen([tri[0].xy, tri[1].xy, tri[2].xy]);
                     match TriangleSetup::from_snapped(xy, self.cull) {
                         Ok(setup) => sink.push(self.finish_passed(setup, tri, first_id + k)),
                         Err(why) => sink.skip_many(why.into(), 1),
@@ -543,7 +543,7 @@ impl FrontEnd {
         if !tri.iter().all(|v| v.snapped) {
             return Err(Skipped::Rejected(Rejection::NonFinite));
         }
-        let xy = tri.map(|v| v.xy.map(i64::from));
+        let xy = setup::widen([tri[0].xy, tri[1].xy, tri[2].xy]);
         // Zero area, culling and "covers no sample" first, from the corners alone: most
         // triangles of a dense mesh stop here, before their edge functions are built.
         TriangleSetup::signed_area2(xy, self.cull)?;
@@ -561,7 +561,8 @@ impl FrontEnd {
         tri: [&ShadedVertex<V>; 3],
         id: usize,
     ) -> Result<Prepared<TriangleData<V>>, Skipped> {
-        let setup = TriangleSetup::from_snapped(tri.map(|v| v.xy.map(i64::from)), self.cull)?;
+        let xy = setup::widen([tri[0].xy, tri[1].xy, tri[2].xy]);
+        let setup = TriangleSetup::from_snapped(xy, self.cull)?;
         Ok(self.finish_passed(setup, tri, id))
     }
 
@@ -575,7 +576,9 @@ impl FrontEnd {
         tri: [&ShadedVertex<V>; 3],
         id: usize,
     ) -> Prepared<TriangleData<V>> {
-        self.finish(setup, tri.map(|v| v.clip.varyings), tri.map(|v| [v.z, v.inv_w]), id)
+        let [a, b, c] = tri;
+        let varyings = [a.clip.varyings, b.clip.varyings, c.clip.varyings];
+        self.finish(setup, varyings, [[a.z, a.inv_w], [b.z, b.inv_w], [c.z, c.inv_w]], id)
     }
 
     fn setup<V: Varyings>(
@@ -601,10 +604,14 @@ impl FrontEnd {
         id: usize,
     ) -> Prepared<TriangleData<V>> {
         let inv_area2 = 1.0 / setup.area2 as f64;
-        let depth = PlaneEquation::with_inv_area2(z_inv_w.map(|v| f64::from(v[0])), inv_area2);
+        let [a, b, c] = z_inv_w;
+        let depth = PlaneEquation::with_inv_area2(
+            [f64::from(a[0]), f64::from(b[0]), f64::from(c[0])],
+            inv_area2,
+        );
         let payload = TriangleData {
             varyings,
-            inv_w: z_inv_w.map(|v| f64::from(v[1])),
+            inv_w: [f64::from(a[1]), f64::from(b[1]), f64::from(c[1])],
             inv_area2,
             front_facing: !setup.clockwise,
             primitive: id as u32,

@@ -204,7 +204,8 @@ impl TriangleSetup {
         let edges = [edge(p1, p2), edge(p2, p0), edge(p0, p1)];
         let bounds = sample_bounds(extent(xy), [0, 0]);
         debug_assert!(xy.iter().flatten().all(|v| v.abs() <= 1 << 23), "not snapped: {xy:?}");
-        let xy = xy.map(|p| p.map(|v| v as i32));
+        let narrow = |[x, y]: [i64; 2]| [x as i32, y as i32];
+        let xy = [narrow(p0), narrow(p1), narrow(p2)];
         Ok(Self { xy, edges, area2: signed.abs(), clockwise, bounds })
     }
 
@@ -233,8 +234,16 @@ impl TriangleSetup {
 
     /// The snapped bounding box in fixed point: `[[x_min, y_min], [x_max, y_max]]`.
     #[must_use]
+    #[inline]
     pub fn extent(&self) -> [[i64; 2]; 2] {
-        extent(self.xy.map(|p| p.map(i64::from)))
+        extent(self.xy64())
+    }
+
+    /// The snapped vertices as `i64`.
+    #[inline]
+    #[must_use]
+    pub fn xy64(&self) -> [[i64; 2]; 3] {
+        widen(self.xy)
     }
 
     /// Does the triangle cover the centre of pixel `(px, py)`? The definition every
@@ -266,7 +275,19 @@ impl TriangleSetup {
     }
 }
 
+/// Three points' coordinates as `i64`. Written out rather than with `array::map`, which the
+/// compiler left out of line in the hot loops that call this: each call stored the result
+/// with narrow stores that the wide loads reading it back then waited on (store forwarding
+/// fails). The same holds for the other small arrays the per-triangle paths build.
+#[inline]
+#[must_use]
+pub fn widen(xy: [[i32; 2]; 3]) -> [[i64; 2]; 3] {
+    let wide = |[x, y]: [i32; 2]| [i64::from(x), i64::from(y)];
+    [wide(xy[0]), wide(xy[1]), wide(xy[2])]
+}
+
 /// The bounding box of snapped points: `[[x_min, y_min], [x_max, y_max]]`.
+#[inline]
 #[must_use]
 pub fn extent(xy: [[i64; 2]; 3]) -> [[i64; 2]; 2] {
     let [p0, p1, p2] = xy;

@@ -176,13 +176,18 @@ impl TriangleShader {
     #[must_use]
     pub fn new(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> Self {
         let inv_area2 = 1.0 / setup.area2 as f64;
-        let depth = PlaneEquation::with_inv_area2(v.map(|p| f64::from(p.z)), inv_area2);
-        let channel = |c: usize| v.map(|p| f64::from(p.color[c]));
+        // Arrays built element by element, not with `map`: the compiler left `map` out of
+        // line, writing each array to the stack with narrow stores that the wide loads
+        // reading it back waited on (store forwarding fails); that was most of this
+        // function's time, a twelfth of a frame of small triangles.
+        let each = |f: &dyn Fn(&Vertex) -> f64| [f(&v[0]), f(&v[1]), f(&v[2])];
+        let depth = PlaneEquation::with_inv_area2(each(&|p| f64::from(p.z)), inv_area2);
+        let channel = |c: usize| each(&|p: &Vertex| f64::from(p.color[c]));
         let color = match shading {
             Shading::Flat => ColorSource::Planes(SpanColor::Flat(flat_color(v))),
             Shading::Smooth => {
-                let [r, g, b, a] = [0, 1, 2, 3]
-                    .map(|c| PlaneEquation::with_inv_area2(channel(c), inv_area2).coefficients());
+                let plane = |c| PlaneEquation::with_inv_area2(channel(c), inv_area2).coefficients();
+                let [r, g, b, a] = [plane(0), plane(1), plane(2), plane(3)];
                 ColorSource::Planes(match a {
                     // One alpha at every vertex: the same colours with one plane fewer.
                     [a0, 0.0, 0.0] => SpanColor::SmoothRgb([r, g, b], quantize_channel(a0)),
@@ -190,7 +195,7 @@ impl TriangleShader {
                 })
             }
             Shading::Perspective => {
-                let inv_w = v.map(|p| f64::from(p.inv_w));
+                let inv_w = each(&|p| f64::from(p.inv_w));
                 let planes = [0, 1, 2, 3].map(|c| PerspectivePlane::new(channel(c), inv_w, setup));
                 // Every channel's `1 / w` plane is the same one: kept once.
                 ColorSource::Perspective {
@@ -484,10 +489,11 @@ fn shade_single_sample(
         let columns = (r.x1 - r.x0 + 1) as usize;
         if columns <= simd::NARROW_COLUMNS {
             let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
-            let edges = setup.edges.map(|e| e.eval(x, y));
+            let [a, b, c] = &setup.edges;
+            let edges = [a.eval(x, y), b.eval(x, y), c.eval(x, y)];
             let (e1, e2) = setup.barycentric_numerators(x, y);
-            let step_x = setup.edges.map(|e| e.a * PIXEL_STEP);
-            let step_y = setup.edges.map(|e| e.b * PIXEL_STEP);
+            let step_x = [a.a * PIXEL_STEP, b.a * PIXEL_STEP, c.a * PIXEL_STEP];
+            let step_y = [a.b * PIXEL_STEP, b.b * PIXEL_STEP, c.b * PIXEL_STEP];
             let bias = [edges[1] - e1, edges[2] - e2];
             if let Some((level, color)) = kernel {
                 let job = NarrowJob {
@@ -533,7 +539,7 @@ fn shade_single_sample(
         }
     }
     let mut covered = 0u64;
-    let step = [setup.edges[1].a, setup.edges[2].a].map(|a| a * i64::from(fixed::ONE));
+    let step = [setup.edges[1].a * PIXEL_STEP, setup.edges[2].a * PIXEL_STEP];
     let shade_span = |span: Span| {
         covered += span.len() as u64;
         let row = target.index(0, span.y);
