@@ -390,7 +390,7 @@ mod tests {
     fn surface_varyings_draw_what_the_full_ones_draw() {
         let mut mesh = crate::scene::sphere_mesh(3000);
         let n = mesh.positions.len();
-        let wave = |i: usize, k: f32| ((i as f32 * k).sin() * 0.5 + 0.5);
+        let wave = |i: usize, k: f32| (i as f32 * k).sin() * 0.5 + 0.5;
         mesh.colors =
             Some((0..n).map(|i| [wave(i, 0.3), wave(i, 0.7), wave(i, 1.1), 1.0]).collect());
         mesh.texcoords = Some((0..n).map(|i| [wave(i, 0.13), wave(i, 0.29)]).collect());
