@@ -59,10 +59,10 @@ fn binning(c: &mut Criterion) {
 /// The kernels' shading in every bench: smooth opaque colour (three planes and one alpha, as
 /// for a triangle whose vertices share one alpha), LESS depth, no id or overdraw buffer.
 fn smooth_target<'a>(depth: &'a mut [f32], color: &'a mut [[u8; 4]]) -> KernelTarget<'a> {
-    let planes = [[100.0, 1e-9, -2e-9], [50.0, 2e-9, 1e-9], [20.0, 0.0, 3e-9]];
+    const PLANES: [[f64; 3]; 3] = [[100.0, 1e-9, -2e-9], [50.0, 2e-9, 1e-9], [20.0, 0.0, 3e-9]];
     KernelTarget {
         depth_plane: [0.5, 1e-12, 1e-12],
-        color: SpanColor::SmoothRgb(planes, 255),
+        color: &SpanColor::SmoothRgb(PLANES, 255),
         depth_test: DepthTest::Less,
         id: 1,
         depth,

@@ -567,7 +567,7 @@ pub fn draw_binned<T, K, F>(
 ) -> u64
 where
     T: Sync,
-    K: Fn(&T) -> Option<(SimdLevel, SpanColor)> + Sync,
+    K: Fn(&T) -> Option<(SimdLevel, &SpanColor)> + Sync,
     F: Fn(&T, i32, i32, f64, f64, f32) -> Option<FragmentOutput> + Sync,
 {
     let coverage = prepared.coverage();

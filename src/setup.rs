@@ -172,6 +172,11 @@ pub struct TriangleSetup {
 
 impl TriangleSetup {
     /// Snaps and sets up a triangle; see [`Rejection`] for the ways it can produce nothing.
+    ///
+    /// Inlined, like [`TriangleSetup::from_snapped`]: called out of line, its result came back
+    /// through the stack, written with narrow stores and read with wide loads that waited on
+    /// them (store forwarding fails), a tenth of a frame of small triangles.
+    #[inline(always)]
     pub fn new(v: &[Vertex; 3], cull: CullMode) -> Result<Self, Rejection> {
         let finite = v
             .iter()
@@ -190,6 +195,7 @@ impl TriangleSetup {
     }
 
     /// Sets up a triangle from already-snapped coordinates (each within `+-2^23`).
+    #[inline(always)]
     pub fn from_snapped(xy: [[i64; 2]; 3], cull: CullMode) -> Result<Self, Rejection> {
         let signed = Self::signed_area2(xy, cull)?;
         let clockwise = signed > 0;
@@ -297,6 +303,7 @@ pub fn extent(xy: [[i64; 2]; 3]) -> [[i64; 2]; 2] {
 }
 
 /// Pixels `p` whose sample position `256 p + 128 + offset` lies within `extent` on both axes.
+#[inline]
 #[must_use]
 pub fn sample_bounds(extent: [[i64; 2]; 2], offset: [i64; 2]) -> PixelRect {
     let [[x0, y0], [x1, y1]] = extent;

@@ -172,7 +172,10 @@ pub fn quantize_channel(c: f64) -> u8 {
 }
 
 impl TriangleShader {
-    /// Prepares the planes of a triangle with vertices `v` and setup `setup`.
+    /// Prepares the planes of a triangle with vertices `v` and setup `setup`. Inlined, so the
+    /// planes are built where the caller keeps them (returned through the stack, they were
+    /// read back with wide loads that waited on the narrow stores writing them).
+    #[inline(always)]
     #[must_use]
     pub fn new(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> Self {
         let inv_area2 = 1.0 / setup.area2 as f64;
@@ -229,7 +232,7 @@ impl TriangleShader {
     /// The colour as a SIMD span kernel takes it; `None` for perspective shading, which has
     /// no kernel.
     #[must_use]
-    pub fn span_color(&self) -> Option<SpanColor> {
+    pub fn span_color(&self) -> Option<&SpanColor> {
         self.color.span_color()
     }
 
@@ -247,8 +250,8 @@ impl TriangleColor {
     /// [`SpanColor::SmoothRgb`], which does not clamp.
     #[inline]
     #[must_use]
-    pub fn span_color(&self) -> Option<SpanColor> {
-        match self.0 {
+    pub fn span_color(&self) -> Option<&SpanColor> {
+        match &self.0 {
             ColorSource::Planes(c) => Some(c),
             ColorSource::Perspective { .. } => None,
         }
@@ -363,7 +366,7 @@ pub fn shade_triangle(
     depth: &PlaneEquation,
     depth_test: DepthTest,
     id: i32,
-    kernel: Option<(SimdLevel, SpanColor)>,
+    kernel: Option<(SimdLevel, &SpanColor)>,
     mut fragment: impl FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>,
 ) -> u64 {
     let samples = target.samples();
@@ -461,7 +464,7 @@ fn shade_single_sample(
     depth: &PlaneEquation,
     depth_test: DepthTest,
     id: i32,
-    kernel: Option<(SimdLevel, SpanColor)>,
+    kernel: Option<(SimdLevel, &SpanColor)>,
     mut fragment: impl FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>,
 ) -> u64 {
     // One covered pixel with barycentric numerators `(f1, f2)`: overdraw, depth test, the

@@ -330,7 +330,7 @@ fn lane_mask(bits: u32) -> __m128i {
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
     // SAFETY: the CPU supports AVX2 (this function's contract).
-    with_rgba!(job.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
+    with_rgba!(*job.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
         narrow_groups(job, rgba)
     })
 }
@@ -391,7 +391,7 @@ pub(super) unsafe fn shade_span(job: &mut SpanJob<'_>) {
         return super::span_scalar(job);
     }
     // SAFETY: the CPU supports AVX2 (this function's contract).
-    with_rgba!(job.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
+    with_rgba!(*job.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
         span_groups(job, rgba)
     })
 }

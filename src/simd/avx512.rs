@@ -159,7 +159,7 @@ fn lanes() -> __m512d {
 #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
 pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
     // SAFETY: the CPU supports AVX-512 F, VL and DQ (this function's contract).
-    with_rgba!(job.target.color, __m512d, _mm256_set1_epi32, smooth, rgba => unsafe {
+    with_rgba!(*job.target.color, __m512d, _mm256_set1_epi32, smooth, rgba => unsafe {
         narrow_rows(job, rgba)
     })
 }
@@ -235,7 +235,7 @@ unsafe fn narrow_rows(job: &mut NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) -
 #[target_feature(enable = "avx512f,avx512vl")]
 pub(super) unsafe fn shade_span(job: &mut SpanJob<'_>) {
     // SAFETY: the CPU supports AVX-512 F and VL (this function's contract).
-    with_rgba!(job.target.color, __m512d, _mm256_set1_epi32, smooth, rgba => unsafe {
+    with_rgba!(*job.target.color, __m512d, _mm256_set1_epi32, smooth, rgba => unsafe {
         span_groups(job, rgba)
     })
 }

@@ -232,8 +232,9 @@ impl SpanColor {
 pub struct KernelTarget<'a> {
     /// Depth plane `[a0, g1, g2]`.
     pub depth_plane: [f64; 3],
-    /// Colour.
-    pub color: SpanColor,
+    /// Colour, read where the triangle's record keeps it (a copy per triangle, of up to 104
+    /// bytes, was read back with loads spanning its stores, which store forwarding fails).
+    pub color: &'a SpanColor,
     /// Depth comparison.
     pub depth_test: DepthTest,
     /// Id to write.
@@ -970,7 +971,7 @@ mod tests {
                         stride,
                         target: KernelTarget {
                             depth_plane,
-                            color,
+                            color: &color,
                             depth_test,
                             id: 9,
                             depth: &mut d,
@@ -1001,7 +1002,7 @@ mod tests {
                     let (mut depth, mut color) = (vec![1.0f32; 64], vec![[0u8; 4]; 64]);
                     let target = KernelTarget {
                         depth_plane: [0.5, 0.0, 0.0],
-                        color: SpanColor::Flat([1; 4]),
+                        color: &SpanColor::Flat([1; 4]),
                         depth_test: DepthTest::Less,
                         id: 0,
                         depth: &mut depth,
@@ -1060,7 +1061,7 @@ mod tests {
                         step2,
                         target: KernelTarget {
                             depth_plane,
-                            color,
+                            color: &color,
                             depth_test,
                             id: 7,
                             depth: &mut d,
