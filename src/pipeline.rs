@@ -637,12 +637,23 @@ fn each_ref<V, R: Borrow<ShadedVertex<V>>>(v: &[R; 3]) -> [&ShadedVertex<V>; 3] 
 }
 
 /// Perspective-correct barycentric weights from screen-space ones (`l1`, `l2`; `l0` is the
-/// rest) and the vertices' `1/w`.
+/// rest) and the vertices' `1/w`. When the three `1/w` are one positive value (an orthographic
+/// camera, a mesh given in clip space with `w = 1`), perspective-correct weights are the
+/// screen-space ones: returned as they are, without the division per fragment (a twentieth of
+/// a frame of a flat grid), differing from what the division would give by rounding only.
 #[inline]
 fn perspective_weights(l1: f64, l2: f64, q: [f64; 3]) -> [f32; 3] {
-    let w = [(1.0 - l1 - l2) * q[0], l1 * q[1], l2 * q[2]];
+    let l0 = 1.0 - l1 - l2;
+    if q[0] > 0.0 && q[0] == q[1] && q[1] == q[2] {
+        return [l0 as f32, l1 as f32, l2 as f32];
+    }
+    let w = [l0 * q[0], l1 * q[1], l2 * q[2]];
     let sum = w[0] + w[1] + w[2];
-    if sum > 0.0 { w.map(|x| (x / sum) as f32) } else { [1.0 / 3.0; 3] }
+    if sum > 0.0 {
+        [(w[0] / sum) as f32, (w[1] / sum) as f32, (w[2] / sum) as f32]
+    } else {
+        [1.0 / 3.0; 3]
+    }
 }
 
 /// Maps clip space to window space: NDC [-1, 1]^2 x [0, 1] to pixels, row 0 at the top.
@@ -695,5 +706,40 @@ impl Viewport {
             inv_w,
             color: [255; 4],
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::perspective_weights;
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
+
+    /// Weights are `l_i q_i / sum(l_j q_j)` to f32 rounding, whether or not the three `1/w`
+    /// are equal (then they are the screen-space weights, returned without a division), and
+    /// sum to one; a degenerate sum gives thirds.
+    #[test]
+    fn perspective_weights_follow_their_definition() {
+        let mut rng = SmallRng::seed_from_u64(5);
+        for round in 0..100_000 {
+            let (l1, l2) = (rng.random_range(0.0..1.0f64), rng.random_range(0.0..1.0f64));
+            let (l1, l2) = if l1 + l2 > 1.0 { (1.0 - l1, 1.0 - l2) } else { (l1, l2) };
+            let q0 = rng.random_range(0.01..100.0f64);
+            let q = if round % 2 == 0 {
+                [q0; 3]
+            } else {
+                [q0, rng.random_range(0.01..100.0), rng.random_range(0.01..100.0)]
+            };
+            let l = [1.0 - l1 - l2, l1, l2];
+            let sum: f64 = (0..3).map(|i| l[i] * q[i]).sum();
+            let w = perspective_weights(l1, l2, q);
+            for i in 0..3 {
+                let want = l[i] * q[i] / sum;
+                assert!((f64::from(w[i]) - want).abs() <= 1e-6, "{l:?} {q:?}: {w:?}");
+            }
+            assert!((w.iter().map(|&x| f64::from(x)).sum::<f64>() - 1.0).abs() < 1e-6);
+        }
+        assert_eq!(perspective_weights(0.5, 0.5, [0.0; 3]), [1.0 / 3.0; 3]);
+        assert_eq!(perspective_weights(0.2, 0.3, [f64::NAN; 3]), [1.0 / 3.0; 3]);
     }
 }
