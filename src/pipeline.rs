@@ -180,7 +180,9 @@ impl Pipeline {
         // triangles (below), so memory stays bounded whatever the mesh size.
         let whole = vertices.len() <= VERTEX_CACHE;
         let batch_len = if whole { bin::batch_len(target.samples()) } else { LARGE_MESH_BATCH };
-        let index_ranges: Vec<(u32, u32)> = triangles.chunks(batch_len).map(index_range).collect();
+        let level = SimdLevel::detect();
+        let index_ranges: Vec<(u32, u32)> =
+            triangles.chunks(batch_len).map(|b| index_range(level, b)).collect();
         let largest = index_ranges.iter().map(|r| r.1).max().unwrap_or(0);
         if largest as usize >= vertices.len()
             && let Some((t, &bad)) = triangles
@@ -274,7 +276,6 @@ impl Pipeline {
                 }
             }
             Backend::Tiled => {
-                let level = SimdLevel::detect();
                 // The corner tests read corners from a window of them: for a small mesh, all
                 // its vertices'; for a large one, each batch's index range.
                 if whole {
@@ -622,12 +623,11 @@ impl FrontEnd {
 
 /// The smallest and largest index of a batch of triangles, in parallel (a serial pass over
 /// the indices was a tenth of a dense mesh's frame on two threads).
-fn index_range(batch: &[[u32; 3]]) -> (u32, u32) {
-    let range = |(lo, hi): (u32, u32), &i: &u32| (lo.min(i), hi.max(i));
+fn index_range(level: SimdLevel, batch: &[[u32; 3]]) -> (u32, u32) {
     batch
         .as_flattened()
         .par_chunks(1 << 15)
-        .map(|c| c.iter().fold((u32::MAX, 0), range))
+        .map(|c| simd::index_range(level, c))
         .reduce(|| (u32::MAX, 0), |a, b| (a.0.min(b.0), a.1.max(b.1)))
 }
 

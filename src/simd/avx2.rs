@@ -436,3 +436,34 @@ unsafe fn span_groups(job: &mut SpanJob<'_>, rgba: impl Fn(__m256d, __m256d) -> 
         unsafe { group::<true>(&mut job.target, n - 4, f1, f2, cover, &rgba) };
     }
 }
+
+/// [`super::index_range`] of a slice whose length is a multiple of 32: four pairs of
+/// accumulators (eight lanes each), so that the loop waits on loads rather than on the
+/// latency of one min and one max chain.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn index_range(values: &[u32]) -> (u32, u32) {
+    debug_assert_eq!(values.len() % 32, 0);
+    let mut lo = [_mm256_set1_epi32(-1); 4];
+    let mut hi = [_mm256_setzero_si256(); 4];
+    for block in values.chunks_exact(32) {
+        for k in 0..4 {
+            // SAFETY: `block` holds 32 values, so lanes `8k .. 8k + 8` lie within it; the
+            // load is unaligned.
+            let v = unsafe { _mm256_loadu_si256(block.as_ptr().add(8 * k).cast()) };
+            lo[k] = _mm256_min_epu32(lo[k], v);
+            hi[k] = _mm256_max_epu32(hi[k], v);
+        }
+    }
+    let lo = _mm256_min_epu32(_mm256_min_epu32(lo[0], lo[1]), _mm256_min_epu32(lo[2], lo[3]));
+    let hi = _mm256_max_epu32(_mm256_max_epu32(hi[0], hi[1]), _mm256_max_epu32(hi[2], hi[3]));
+    let (mut l, mut h) = ([0u32; 8], [0u32; 8]);
+    // SAFETY: each store writes 32 bytes to an eight-element array of 4-byte values.
+    unsafe {
+        _mm256_storeu_si256(l.as_mut_ptr().cast(), lo);
+        _mm256_storeu_si256(h.as_mut_ptr().cast(), hi);
+    }
+    (l.into_iter().min().unwrap_or(u32::MAX), h.into_iter().max().unwrap_or(0))
+}
