@@ -49,6 +49,19 @@ pub enum Error {
         /// Number of vertices.
         vertices: usize,
     },
+    /// A mesh attribute array whose length does not match what it describes (one entry per
+    /// vertex, or one material per triangle).
+    #[error("mesh has {len} {attribute} for {expected} {of}")]
+    MeshAttributeLength {
+        /// The attribute (`"normals"`, `"texture coordinates"`, ...).
+        attribute: &'static str,
+        /// Its length.
+        len: usize,
+        /// The length it must have.
+        expected: usize,
+        /// What it must match (`"vertices"` or `"triangles"`).
+        of: &'static str,
+    },
     /// A file whose extension names no format trirast reads.
     #[error("{}: unsupported mesh format: expected .obj, .ply or .stl", path.display())]
     UnsupportedFormat {

@@ -190,6 +190,7 @@ pub fn with_vertex_normals(mesh: &mut Mesh) {
 /// Per-vertex data the model shaders read, resolved once.
 struct Surface<'a> {
     mesh: &'a Mesh,
+    /// Vertex normals, model space (empty when no shader reads them).
     normals: std::borrow::Cow<'a, [[f32; 3]]>,
     textures: &'a MaterialTextures,
     /// Linear RGBA per vertex (white when the mesh has no colours).
@@ -294,6 +295,7 @@ pub fn render_mesh(
     options: &ModelOptions,
     textures: &MaterialTextures,
 ) -> Result<DrawStats, Error> {
+    check_mesh(mesh)?;
     let aspect = target.width() as f32 / target.height() as f32;
     // Work relative to the point looked at: a model far from the origin (scans in survey
     // coordinates, say) keeps its f32 precision, since p - origin is exact for nearby values.
@@ -302,9 +304,15 @@ pub fn render_mesh(
     let view = local_camera.view();
     let view_proj = camera.projection(aspect) * view;
     let normal_matrix = Mat3::from_mat4(view).inverse().transpose();
-    // Borrowed when the mesh has normals (callers drawing many frames should fill them once,
-    // see `with_vertex_normals`); computed here otherwise.
+    // Vertex normals, where something reads them: the lighting per vertex or per pixel, or
+    // the normal buffer (flat lighting writes face normals there). Borrowed when the mesh
+    // has them (callers drawing many frames should fill them once, see
+    // `with_vertex_normals`); computed here otherwise; empty when nothing reads them.
+    let lighting = options.lighting;
+    let read_normals = matches!(lighting, Lighting::Gouraud | Lighting::Phong)
+        || (target.normals.is_some() && lighting != Lighting::Flat);
     let normals: std::borrow::Cow<'_, [[f32; 3]]> = match &mesh.normals {
+        _ if !read_normals => std::borrow::Cow::Borrowed(&[]),
         Some(n) => std::borrow::Cow::Borrowed(n),
         None => std::borrow::Cow::Owned(vertex_normals(&mesh.positions, &mesh.triangles)),
     };
@@ -322,7 +330,6 @@ pub fn render_mesh(
     let surface = Surface { mesh, normals, textures, colors, face_normals };
 
     let light = options.light;
-    let lighting = options.lighting;
     // A mesh with neither colours nor materials gets a light clay colour, not pure white,
     // so highlights stay visible.
     let base_albedo = if mesh.colors.is_none() && mesh.materials.is_empty() {
@@ -334,7 +341,10 @@ pub fn render_mesh(
         let i = i as usize;
         let p = (Vec3::from(mesh.positions[i]) - origin).extend(1.0);
         let view_pos = (view * p).truncate();
-        let n = (normal_matrix * Vec3::from(surface.normals[i])).normalize_or_zero();
+        let n = surface
+            .normals
+            .get(i)
+            .map_or(Vec3::ZERO, |&n| (normal_matrix * Vec3::from(n)).normalize_or_zero());
         let uv = mesh.texcoords.as_ref().map_or(Vec2::ZERO, |t| Vec2::from(t[i]));
         let mut color = surface.colors.as_ref().map_or(base_albedo, |c| c[i]);
         if lighting == Lighting::Gouraud {
@@ -364,6 +374,36 @@ pub fn render_mesh(
     pipeline.draw(target, &surface_vertex, &fragment, &indices, &mesh.triangles)
 }
 
+/// The errors the shaders would otherwise meet as out-of-bounds reads: a per-vertex array
+/// shorter or longer than the positions, a material list not one per triangle, an index past
+/// the vertices. The loaders never build such a mesh; a program filling [`Mesh`] itself may.
+fn check_mesh(mesh: &Mesh) -> Result<(), Error> {
+    let vertices = mesh.positions.len();
+    let per_vertex = [
+        ("normals", mesh.normals.as_ref().map(Vec::len)),
+        ("texture coordinates", mesh.texcoords.as_ref().map(Vec::len)),
+        ("colours", mesh.colors.as_ref().map(Vec::len)),
+    ];
+    for (attribute, len) in per_vertex {
+        if let Some(len) = len.filter(|&len| len != vertices) {
+            let of = "vertices";
+            return Err(Error::MeshAttributeLength { attribute, len, expected: vertices, of });
+        }
+    }
+    let triangles = mesh.triangles.len();
+    if let Some(len) = mesh.triangle_materials.as_ref().map(Vec::len).filter(|&n| n != triangles) {
+        let (attribute, of) = ("triangle materials", "triangles");
+        return Err(Error::MeshAttributeLength { attribute, len, expected: triangles, of });
+    }
+    match mesh.triangles.iter().position(|t| t.iter().any(|&i| i as usize >= vertices)) {
+        Some(triangle) => {
+            let indices = mesh.triangles[triangle];
+            Err(Error::IndexOutOfRange { triangle, indices, vertices })
+        }
+        None => Ok(()),
+    }
+}
+
 fn face_normals(mesh: &Mesh, view: &Mat4, origin: Vec3) -> Vec<Vec3> {
     mesh.triangles
         .iter()
@@ -380,6 +420,53 @@ mod tests {
     use super::*;
     use crate::camera::{self, Projection};
     use crate::mesh::Material;
+
+    /// A mesh whose arrays do not match (built by a program, not a loader) is an error
+    /// naming the array, and an index past the vertices is one naming the triangle, for every
+    /// lighting model (flat lighting reads the positions through the indices before the
+    /// pipeline does), never a panic.
+    #[test]
+    fn mismatched_meshes_are_errors() {
+        let good = crate::scene::sphere_mesh(200);
+        let camera = Camera::framing_sphere(
+            Vec3::ZERO,
+            1.0,
+            0.4,
+            0.3,
+            1.0,
+            Projection::Perspective { fov_y: 1.0 },
+        );
+        let (n, t) = (good.positions.len(), good.triangles.len());
+        type Breaks = Box<dyn Fn(&mut Mesh)>;
+        let broken: [(&str, Breaks); 5] = [
+            ("normals", Box::new(move |m| m.normals = Some(vec![[0.0, 0.0, 1.0]; n - 1]))),
+            ("texture coordinates", Box::new(move |m| m.texcoords = Some(vec![[0.0; 2]; n + 1]))),
+            ("colours", Box::new(|m| m.colors = Some(Vec::new()))),
+            ("triangle materials", Box::new(move |m| m.triangle_materials = Some(vec![0; t - 1]))),
+            ("index", Box::new(|m| m.triangles[7][1] = 1 << 30)),
+        ];
+        for (what, breaks) in &broken {
+            for lighting in [Lighting::Unlit, Lighting::Flat, Lighting::Gouraud, Lighting::Phong] {
+                let mut mesh = good.clone();
+                breaks(&mut mesh);
+                let mut target = Target::new(32, 32).unwrap();
+                let options = ModelOptions::default().with_lighting(lighting);
+                let textures = MaterialTextures::default();
+                let err =
+                    render_mesh(&mut target, &mesh, &camera, &options, &textures).expect_err(what);
+                let message = err.to_string();
+                let named = if *what == "index" {
+                    message.contains("triangle 7")
+                } else {
+                    message.contains(what)
+                };
+                assert!(named, "{what}, {lighting:?}: {message}");
+            }
+        }
+        let mut target = Target::new(32, 32).unwrap();
+        let options = ModelOptions::default();
+        render_mesh(&mut target, &good, &camera, &options, &MaterialTextures::default()).unwrap();
+    }
 
     /// Unlit and Gouraud lighting interpolate only the texture coordinate and colour when the
     /// target has no normal buffer ([`SurfaceVaryings`]); with one they take the full

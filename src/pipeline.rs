@@ -499,7 +499,7 @@ impl FrontEnd {
                     // Passed the corner tests: straight to setup.
                     let owned = vertices(k);
                     let tri = each_ref(&owned);
-                    let xy = setup::widen([tri[0].xy, tri[1].xy, tri[2].xy]);
+                    let xy = snapped(tri);
                     match TriangleSetup::from_snapped(xy, self.cull) {
                         Ok(setup) => sink.push(self.finish_passed(setup, tri, first_id + k)),
                         Err(why) => sink.skip_many(why.into(), 1),
@@ -544,7 +544,7 @@ impl FrontEnd {
         if !tri.iter().all(|v| v.snapped) {
             return Err(Skipped::Rejected(Rejection::NonFinite));
         }
-        let xy = setup::widen([tri[0].xy, tri[1].xy, tri[2].xy]);
+        let xy = snapped(tri);
         // Zero area, culling and "covers no sample" first, from the corners alone: most
         // triangles of a dense mesh stop here, before their edge functions are built.
         TriangleSetup::signed_area2(xy, self.cull)?;
@@ -562,7 +562,7 @@ impl FrontEnd {
         tri: [&ShadedVertex<V>; 3],
         id: usize,
     ) -> Result<Prepared<TriangleData<V>>, Skipped> {
-        let xy = setup::widen([tri[0].xy, tri[1].xy, tri[2].xy]);
+        let xy = snapped(tri);
         let setup = TriangleSetup::from_snapped(xy, self.cull)?;
         Ok(self.finish_passed(setup, tri, id))
     }
@@ -629,6 +629,12 @@ fn index_range(level: SimdLevel, batch: &[[u32; 3]]) -> (u32, u32) {
         .par_chunks(1 << 15)
         .map(|c| simd::index_range(level, c))
         .reduce(|| (u32::MAX, 0), |a, b| (a.0.min(b.0), a.1.max(b.1)))
+}
+
+/// The snapped window positions of three vertices, as `i64` for setup.
+#[inline]
+fn snapped<V>(tri: [&ShadedVertex<V>; 3]) -> [[i64; 2]; 3] {
+    setup::widen([tri[0].xy, tri[1].xy, tri[2].xy])
 }
 
 /// Three borrowed vertices as references.
@@ -733,6 +739,10 @@ mod tests {
             let l = [1.0 - l1 - l2, l1, l2];
             let sum: f64 = (0..3).map(|i| l[i] * q[i]).sum();
             let w = perspective_weights(l1, l2, q);
+            if round % 2 == 0 {
+                // Equal `1/w`: the screen-space weights themselves.
+                assert_eq!(w, l.map(|x| x as f32), "{q:?}");
+            }
             for i in 0..3 {
                 let want = l[i] * q[i] / sum;
                 assert!((f64::from(w[i]) - want).abs() <= 1e-6, "{l:?} {q:?}: {w:?}");

@@ -242,14 +242,7 @@ impl TriangleSetup {
     #[must_use]
     #[inline]
     pub fn extent(&self) -> [[i64; 2]; 2] {
-        extent(self.xy64())
-    }
-
-    /// The snapped vertices as `i64`.
-    #[inline]
-    #[must_use]
-    pub fn xy64(&self) -> [[i64; 2]; 3] {
-        widen(self.xy)
+        extent(widen(self.xy))
     }
 
     /// Does the triangle cover the centre of pixel `(px, py)`? The definition every

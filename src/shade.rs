@@ -179,13 +179,8 @@ impl TriangleShader {
     #[must_use]
     pub fn new(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> Self {
         let inv_area2 = 1.0 / setup.area2 as f64;
-        // Arrays built element by element, not with `map`: the compiler left `map` out of
-        // line, writing each array to the stack with narrow stores that the wide loads
-        // reading it back waited on (store forwarding fails); that was most of this
-        // function's time, a twelfth of a frame of small triangles.
-        let each = |f: &dyn Fn(&Vertex) -> f64| [f(&v[0]), f(&v[1]), f(&v[2])];
-        let depth = PlaneEquation::with_inv_area2(each(&|p| f64::from(p.z)), inv_area2);
-        let channel = |c: usize| each(&|p: &Vertex| f64::from(p.color[c]));
+        let depth = PlaneEquation::with_inv_area2(each_vertex(v, |p| f64::from(p.z)), inv_area2);
+        let channel = |c: usize| each_vertex(v, |p| f64::from(p.color[c]));
         let color = match shading {
             Shading::Flat => ColorSource::Planes(SpanColor::Flat(flat_color(v))),
             Shading::Smooth => {
@@ -198,12 +193,13 @@ impl TriangleShader {
                 })
             }
             Shading::Perspective => {
-                let inv_w = each(&|p| f64::from(p.inv_w));
-                let planes = [0, 1, 2, 3].map(|c| PerspectivePlane::new(channel(c), inv_w, setup));
+                let inv_w = each_vertex(v, |p| f64::from(p.inv_w));
+                let plane = |c| PerspectivePlane::new(channel(c), inv_w, setup);
+                let [r, g, b, a] = [plane(0), plane(1), plane(2), plane(3)];
                 // Every channel's `1 / w` plane is the same one: kept once.
                 ColorSource::Perspective {
-                    over_w: planes.map(|p| p.over_w),
-                    inv_w: planes[0].inv_w,
+                    over_w: [r.over_w, g.over_w, b.over_w, a.over_w],
+                    inv_w: r.inv_w,
                 }
             }
         };
@@ -283,6 +279,14 @@ fn perspective_color_at(
 ) -> [u8; 4] {
     let w = inv_w.eval(e1, e2);
     over_w.map(|p| quantize_channel(p.eval(e1, e2) / w))
+}
+
+/// `f` of each of a triangle's vertices, written out rather than with `array::map`, which the
+/// compiler left out of line: it stored the array with narrow stores that the caller's wide
+/// loads then waited on (store forwarding fails), most of `TriangleShader::new`'s time.
+#[inline(always)]
+fn each_vertex(v: &[Vertex; 3], f: impl Fn(&Vertex) -> f64) -> [f64; 3] {
+    [f(&v[0]), f(&v[1]), f(&v[2])]
 }
 
 /// What a fragment writes once it has passed the depth test.

@@ -437,18 +437,19 @@ unsafe fn span_groups(job: &mut SpanJob<'_>, rgba: impl Fn(__m256d, __m256d) -> 
     }
 }
 
-/// [`super::index_range`] of a slice whose length is a multiple of 32: four pairs of
-/// accumulators (eight lanes each), so that the loop waits on loads rather than on the
-/// latency of one min and one max chain.
+/// [`super::index_range`]: 32 values a step in four pairs of accumulators (eight lanes each),
+/// so that the loop waits on loads rather than on the latency of one min and one max chain;
+/// the last `len % 32` values one at a time.
 ///
 /// # Safety
 /// The CPU must support AVX2.
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn index_range(values: &[u32]) -> (u32, u32) {
-    debug_assert_eq!(values.len() % 32, 0);
+    let blocks = values.chunks_exact(32);
+    let (tail_lo, tail_hi) = super::index_range_scalar(blocks.remainder());
     let mut lo = [_mm256_set1_epi32(-1); 4];
     let mut hi = [_mm256_setzero_si256(); 4];
-    for block in values.chunks_exact(32) {
+    for block in blocks {
         for k in 0..4 {
             // SAFETY: `block` holds 32 values, so lanes `8k .. 8k + 8` lie within it; the
             // load is unaligned.
@@ -465,5 +466,5 @@ pub(super) unsafe fn index_range(values: &[u32]) -> (u32, u32) {
         _mm256_storeu_si256(l.as_mut_ptr().cast(), lo);
         _mm256_storeu_si256(h.as_mut_ptr().cast(), hi);
     }
-    (l.into_iter().min().unwrap_or(u32::MAX), h.into_iter().max().unwrap_or(0))
+    (l.into_iter().fold(tail_lo, u32::min), h.into_iter().fold(tail_hi, u32::max))
 }

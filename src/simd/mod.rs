@@ -1,7 +1,8 @@
 //! SIMD kernels: spans and narrow triangles (shading), window corners and corner tests (the
-//! 3D front end, eight vertices or triangles at once), and small SSE2 helpers (four floors, a
-//! unit clamp, cache prefetch hints): the only module with `unsafe` and `core::arch`. Each
-//! has a scalar path it is tested against.
+//! 3D front end, eight vertices or triangles at once), index ranges (the 3D pipeline's pass
+//! over a mesh's indices), and small SSE2 helpers (four floors, a unit clamp, cache prefetch
+//! hints): the only module with `unsafe` and `core::arch`. Each has a scalar path it is
+//! tested against.
 //!
 //! The shading kernels shade a 1x span, or a whole narrow triangle, of a window-space
 //! triangle with flat or smooth colour: the same arithmetic as the reference per-pixel loop in
@@ -26,7 +27,7 @@ use crate::pipeline::Viewport;
 use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup};
 use crate::shade::{DepthTest, quantize_channel};
 
-/// Instruction set used by the span kernels.
+/// Instruction set used by the kernels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum SimdLevel {
     /// Plain Rust, one pixel at a time.
@@ -34,7 +35,8 @@ pub enum SimdLevel {
     /// AVX2: four pixels per step.
     Avx2,
     /// AVX-512 (F, VL, DQ): eight pixels per step with mask registers for the shading
-    /// kernels; the front end's corner kernels run their AVX2 versions.
+    /// kernels; the front end's corner kernels and the index ranges run their AVX2
+    /// versions.
     Avx512,
 }
 
@@ -484,17 +486,12 @@ pub fn window_corners(
 /// where AVX2's `vpminud`/`vpmaxud` keep up with memory.
 #[must_use]
 pub fn index_range(level: SimdLevel, values: &[u32]) -> (u32, u32) {
-    let mut rest = values;
-    let mut range = (u32::MAX, 0);
     #[cfg(target_arch = "x86_64")]
     if level.has_avx2() {
-        let whole = values.len() / 32 * 32;
         // SAFETY: AVX2 support was just checked at run time.
-        range = unsafe { avx2::index_range(&values[..whole]) };
-        rest = &values[whole..];
+        return unsafe { avx2::index_range(values) };
     }
-    let (lo, hi) = index_range_scalar(rest);
-    (range.0.min(lo), range.1.max(hi))
+    index_range_scalar(values)
 }
 
 /// [`index_range`] one value at a time.
