@@ -53,6 +53,17 @@ pub fn batch_len(samples: SampleCount) -> usize {
     if samples.count() > 1 { MULTISAMPLED_BATCH } else { BATCH }
 }
 
+/// The length of the batches [`pipelined`] cuts `items` items into: as many batches as
+/// batches of `max` would make, of equal length (the last one shorter by less than one item
+/// per batch). A mesh just over one batch (the bunny's 69k triangles) is cut in halves, not
+/// into 64k and 5k, so the batch prepared before any is drawn, alone, is half the mesh rather
+/// than nearly all of it.
+#[must_use]
+pub fn even_batch_len(items: usize, max: usize) -> usize {
+    let max = max.max(1);
+    items.div_ceil(items.div_ceil(max).max(1)).max(1)
+}
+
 /// Triangles whose coverage rectangle (clipped) is at least this many pixels wide take the
 /// hierarchical depth test in [`draw_binned`]: narrower ones seldom cover a tile or hide
 /// behind one, and testing them made a frame of small triangles slower.
@@ -217,6 +228,7 @@ pub fn pipelined<I: Sync, T: Send + Sync>(
     mut prepare: impl FnMut(usize, usize, &[I], &mut PreparedBatch<T>) + Send,
     mut draw: impl FnMut(usize, &PreparedBatch<T>) + Send,
 ) {
+    let batch_len = even_batch_len(items.len(), batch_len);
     let batches = items.len().div_ceil(batch_len);
     let [a, b] = pair;
     let (mut filling, mut full) = (a, b);
@@ -757,13 +769,27 @@ mod tests {
     /// order, whatever the count (none, one, several) and the thread count.
     #[test]
     fn pipelined_draws_every_batch_in_order() {
+        // The batch lengths: as many batches as of `max` items, none longer, the last
+        // shorter than the others by less than the batch count, none empty.
+        for n in 0..600 {
+            for max in 1..70 {
+                let len = even_batch_len(n, max);
+                let batches = n.div_ceil(len);
+                assert!(len <= max && batches == n.div_ceil(max), "{n} items, max {max}");
+                if n > 0 {
+                    let last = n - (batches - 1) * len;
+                    assert!(last >= 1 && len - last < batches, "{n} items, max {max}");
+                }
+            }
+        }
         for threads in [1, 2, 3] {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             for batches in [0usize, 1, 2, 7] {
                 let drawn = Mutex::new(Vec::new());
                 let mut pair = PreparedPair::<()>::default();
-                // Batches of 10 items, the last one short.
+                // As many batches as batches of 10 would make, of equal length but the last.
                 let items: Vec<usize> = (0..(10 * batches).saturating_sub(3)).collect();
+                let len = even_batch_len(items.len(), 10);
                 pool.install(|| {
                     pipelined(
                         &items,
@@ -771,8 +797,8 @@ mod tests {
                         &mut pair,
                         // Batch `b` is prepared as `b + 1` chunks (of nothing): its mark.
                         |b, first, batch, prepared| {
-                            assert_eq!((first, batch[0]), (10 * b, 10 * b), "batch {b}");
-                            assert!(batch.len() == 10 || b + 1 == batches, "batch {b}");
+                            assert_eq!((first, batch[0]), (len * b, len * b), "batch {b}");
+                            assert!(batch.len() == len || b + 1 == batches, "batch {b}");
                             prepared.prepare_ranges(b * CHUNK + 1, Coverage::default(), |_, _| {});
                         },
                         |b, batch| {

@@ -181,8 +181,11 @@ impl Pipeline {
         let whole = vertices.len() <= VERTEX_CACHE;
         let batch_len = if whole { bin::batch_len(target.samples()) } else { LARGE_MESH_BATCH };
         let level = SimdLevel::detect();
-        let index_ranges: Vec<(u32, u32)> =
-            triangles.chunks(batch_len).map(|b| index_range(level, b)).collect();
+        // The batches `bin::pipelined` will cut.
+        let index_ranges: Vec<(u32, u32)> = triangles
+            .chunks(bin::even_batch_len(triangles.len(), batch_len))
+            .map(|b| index_range(level, b))
+            .collect();
         let largest = index_ranges.iter().map(|r| r.1).max().unwrap_or(0);
         if largest as usize >= vertices.len()
             && let Some((t, &bad)) = triangles
