@@ -175,7 +175,7 @@ impl TriangleSetup {
     ///
     /// Inlined, like [`TriangleSetup::from_snapped`]: called out of line, its result came back
     /// through the stack, written with narrow stores and read with wide loads that waited on
-    /// them (store forwarding fails), a tenth of a frame of small triangles.
+    /// them (store forwarding fails).
     #[inline(always)]
     pub fn new(v: &[Vertex; 3], cull: CullMode) -> Result<Self, Rejection> {
         let finite = v
