@@ -63,7 +63,20 @@ impl Light {
     /// seen along `view` (unit, from the surface to the eye): `(diffuse + ambient, specular)`.
     #[must_use]
     pub fn shade(&self, n: Vec3, view: Vec3) -> (f32, f32) {
-        let l = self.direction.normalize_or(Vec3::Z);
+        self.shade_towards(self.unit_direction(), n, view)
+    }
+
+    /// The direction towards the light, normalised (`+z` when it is zero or not finite).
+    #[must_use]
+    pub fn unit_direction(&self) -> Vec3 {
+        self.direction.normalize_or(Vec3::Z)
+    }
+
+    /// [`Light::shade`] with the light's [`Light::unit_direction`] `l` computed once by the
+    /// caller, not once per vertex or fragment (the same result, bit for bit).
+    #[inline]
+    #[must_use]
+    pub fn shade_towards(&self, l: Vec3, n: Vec3, view: Vec3) -> (f32, f32) {
         let diffuse = self.ambient + self.diffuse * n.dot(l).max(0.0);
         let h = (l + view).normalize_or(Vec3::Z);
         let spec = if n.dot(l) > 0.0 {
@@ -207,6 +220,8 @@ struct ModelFragment<'a> {
     surface: &'a Surface<'a>,
     options: &'a ModelOptions,
     view_to_world: Mat3,
+    /// The light's unit direction.
+    light_direction: Vec3,
 }
 
 impl ModelFragment<'_> {
@@ -251,7 +266,8 @@ impl FragmentShader<ModelVaryings> for ModelFragment<'_> {
             Lighting::Unlit | Lighting::Gouraud => albedo,
             Lighting::Flat | Lighting::Phong => {
                 let view = (-f.varyings.3).normalize_or(Vec3::Z);
-                let (d, s) = self.options.light.shade(self.normal_at(f), view);
+                let (d, s) =
+                    self.options.light.shade_towards(self.light_direction, self.normal_at(f), view);
                 (albedo.truncate() * d + Vec3::splat(s)).extend(albedo.w)
             }
         };
@@ -331,6 +347,7 @@ pub fn render_mesh(
     let surface = Surface { mesh, normals, textures, colors, face_normals };
 
     let light = options.light;
+    let light_direction = light.unit_direction();
     // A mesh with neither colours nor materials gets a light clay colour, not pure white,
     // so highlights stay visible.
     let base_albedo = if mesh.colors.is_none() && mesh.materials.is_empty() {
@@ -350,7 +367,7 @@ pub fn render_mesh(
         let mut color = surface.colors.as_ref().map_or(base_albedo, |c| c[i]);
         if lighting == Lighting::Gouraud {
             // Per-vertex lighting; texture and material still modulate per pixel.
-            let (d, s) = light.shade(n, (-view_pos).normalize_or(Vec3::Z));
+            let (d, s) = light.shade_towards(light_direction, n, (-view_pos).normalize_or(Vec3::Z));
             color = (color.truncate() * d + Vec3::splat(s)).extend(color.w);
         }
         (view_proj * p, (n, uv, color, view_pos))
@@ -359,6 +376,7 @@ pub fn render_mesh(
         surface: &surface,
         options,
         view_to_world: Mat3::from_mat4(view).transpose(),
+        light_direction,
     };
     let indices: Vec<u32> = (0..mesh.positions.len() as u32).collect();
     let pipeline = Pipeline::default().with_cull(options.cull).with_depth_test(options.depth_test);
