@@ -228,6 +228,8 @@ impl Pipeline {
         }
         let shaded = &*shaded;
         let want_normal = target.normals.is_some();
+        // What the tile loop will bin for, so that batches are binned as they are prepared.
+        let bin_target = bin::BinTarget::of(target, self.depth_test);
         let shade = |t: &TriangleData<VS::Varyings>, x, y, e1: f64, e2: f64, z| {
             let w = perspective_weights(e1 * t.inv_area2, e2 * t.inv_area2, t.inv_w);
             let fragment = Fragment {
@@ -338,6 +340,11 @@ impl Pipeline {
                             }
                         });
                     counts = counts.merged(&batch_counts);
+                    // Binned here but for the first batch (see `PreparedBatch::bin`), and for
+                    // a large mesh, whose front end (the corner tests) is the busier side.
+                    if b > 0 && whole {
+                        out.bin(bin_target);
+                    }
                 };
                 let draw = |_, prepared: &bin::PreparedBatch<_>| {
                     fragments += bin::draw_binned(

@@ -176,7 +176,8 @@ pub fn draw(
         let mut pair: bin::PreparedPair<TriangleColor> = target.take_scratch();
         let batch_len = bin::batch_len(target.samples());
         let mut fragments = 0;
-        let prepare = |_, first: usize, batch: &[_], prepared: &mut bin::PreparedBatch<_>| {
+        let bin_target = bin::BinTarget::of(target, options.depth_test);
+        let prepare = |b, first: usize, batch: &[_], prepared: &mut bin::PreparedBatch<_>| {
             let coverage = bin::Coverage { clip: visible, multisampled };
             let counts = prepared.prepare(batch.len(), coverage, |k, sink| {
                 let tri = &batch[k];
@@ -193,6 +194,10 @@ pub fn draw(
                 sink.push(Prepared { setup, depth, id, payload });
             });
             stats = stats.merged(&counts);
+            // Binned here, but for the first batch (see `PreparedBatch::bin`).
+            if b > 0 && clip.is_some() {
+                prepared.bin(bin_target);
+            }
         };
         let draw = |_, prepared: &bin::PreparedBatch<TriangleColor>| {
             if clip.is_some() {
