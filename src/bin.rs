@@ -597,9 +597,6 @@ where
     let samples = target.samples();
     debug_assert_eq!(coverage.multisampled, samples.count() > 1, "prepared for other samples");
     let bin_target = BinTarget::of(target, depth_test);
-    let hierarchical = bin_target.hierarchical;
-    // By the coverage rectangle (clipped), which binning has beside the records.
-    let wide = |r: &PixelRect| hierarchical && r.x1 - r.x0 + 1 >= HIDDEN_MIN_WIDTH;
     let computed;
     let (bins, wide_coverage) = match &prepared.binned {
         Some((bins, wide, binned_for)) if *binned_for == bin_target => (bins, *wide),
@@ -631,7 +628,8 @@ where
                 )
             };
             // The rectangle binning had (the same function of the same record).
-            if hierarchical && coverage.of(&p.setup).is_some_and(|r| wide(&r)) {
+            if bin_target.hierarchical && coverage.of(&p.setup).is_some_and(|r| bin_target.wide(&r))
+            {
                 // Its fragments were counted while binning.
                 tile_depth.shade(band, tile, p, !may_discard, shade);
             } else {
@@ -656,6 +654,12 @@ pub struct BinTarget {
 }
 
 impl BinTarget {
+    /// Whether a triangle with (clipped) coverage rectangle `r` takes the hierarchical depth
+    /// test: binning and the tile loop ask this of the same rectangle.
+    fn wide(&self, r: &PixelRect) -> bool {
+        self.hierarchical && r.x1 - r.x0 + 1 >= HIDDEN_MIN_WIDTH
+    }
+
     /// What `target`, drawn with `depth_test`, bins for.
     #[must_use]
     pub fn of(target: &Target, depth_test: DepthTest) -> Self {
@@ -671,13 +675,12 @@ impl BinTarget {
 /// Bins a prepared batch for `to`, counting the samples of the wide triangles (whose
 /// fragments hierarchical depth may leave unshaded) as it goes.
 fn bin_batch<T: Sync>(prepared: &PreparedBatch<T>, to: BinTarget) -> (Bins, u64) {
-    let BinTarget { width, height, samples, hierarchical } = to;
-    let wide = |r: &PixelRect| hierarchical && r.x1 - r.x0 + 1 >= HIDDEN_MIN_WIDTH;
+    let BinTarget { width, height, samples, .. } = to;
     // Counted while binning (a pass of its own was a twentieth of a frame of small
     // triangles, waiting on memory).
     let wide_coverage = AtomicU64::new(0);
     let bins = Bins::of_batch(prepared, width, height, |i, r| {
-        if wide(r) {
+        if to.wide(r) {
             let p = prepared.get(i);
             wide_coverage.fetch_add(coverage_count(&p.setup, r, samples), Ordering::Relaxed);
         }
