@@ -34,8 +34,8 @@ use crate::target::{Target, TargetBand};
 pub const TILE: u32 = 128;
 
 /// Triangles per batch: bounds the memory of set-up triangles and bins (two batches are in
-/// flight, [`pipelined`]: about 40 MB). Small enough that a batch's records (~300 bytes each)
-/// are still in the cache when its tiles read them, in bin order, scattered over the batch:
+/// flight, [`pipelined`]: about 40 MB of records). Small enough that a batch's records (~300
+/// bytes each) are still in the cache when its tiles read them, in bin order, scattered over the batch:
 /// a million small random triangles took 262 ms on one thread with batches of 512k, 208 ms
 /// with 64k, 221 ms with 16k (each batch visits every tile it touches once more). Meshes
 /// whose vertices are shaded batch by batch (the pipeline's `LARGE_MESH_BATCH`) and
@@ -57,7 +57,9 @@ pub fn batch_len(samples: SampleCount) -> usize {
 /// batches of `max` would make, of equal length (the last one shorter by less than one item
 /// per batch). A mesh just over one batch (the bunny's 69k triangles) is cut in halves, not
 /// into 64k and 5k, so the batch prepared before any is drawn, alone, is half the mesh rather
-/// than nearly all of it.
+/// than nearly all of it. A `max` of 0 counts as 1, and the result is never 0 (callers cut
+/// slices with it). Applied to its own result it gives it back (tested), so a caller may pass
+/// either to [`pipelined`].
 #[must_use]
 pub fn even_batch_len(items: usize, max: usize) -> usize {
     let max = max.max(1);
@@ -118,6 +120,9 @@ const PIECE_BITS: u32 = 12;
 /// Beside each chunk's records, the pieces' coverage rectangles ([`coverage_bounds`], with the
 /// clip and sample count the batch was prepared for): binning reads those 16 bytes per
 /// triangle instead of each ~300-byte record, which by then has left the cache.
+///
+/// A batch may also hold its bins ([`PreparedBatch::bin`]), which [`draw_binned`] uses when
+/// they were made for the target it draws into.
 #[derive(Debug)]
 pub struct PreparedBatch<T> {
     chunks: Vec<Vec<Prepared<T>>>,
@@ -221,7 +226,8 @@ impl<T> Sink<'_, T> {
 /// drawn.
 pub type PreparedPair<T> = [PreparedBatch<T>; 2];
 
-/// Cuts `items` into batches of `batch_len` and runs batch `b` (its items `batch`, the first
+/// Cuts `items` into batches of at most `batch_len` (of equal length: [`even_batch_len`]) and
+/// runs batch `b` (its items `batch`, the first
 /// of them `items[first]`) through `prepare(b, first, batch, prepared)` (the front end,
 /// filling `prepared`) and `draw(b, prepared)` (the back end), preparing batch `b + 1` while
 /// batch `b` is drawn, on
@@ -256,6 +262,9 @@ pub fn pipelined<I: Sync, T: Send + Sync>(
                 }
             },
         );
+        // The drawn batch's bins go now, not when its half is refilled: at most two batches'
+        // bins exist at once (the one drawn, the one binned as it is prepared).
+        full.binned = None;
         std::mem::swap(&mut filling, &mut full);
     }
 }
@@ -565,7 +574,8 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 
 /// Renders prepared triangles through tiles on the current rayon thread pool, within the clip
 /// rectangle they were prepared for ([`PreparedBatch::coverage`]); returns the number of
-/// covered samples.
+/// covered samples. Uses the bins [`PreparedBatch::bin`] made if they were made for this
+/// target and depth test, and bins the batch itself otherwise.
 /// `fragment(payload, x, y, e1, e2, z)` shades one pixel (`None` discards it, which only
 /// `may_discard` allows); where `kernel(payload)` gives a span kernel, it shades 1x spans
 /// instead.
@@ -842,6 +852,7 @@ mod tests {
         for n in 0..600 {
             for max in 1..70 {
                 let len = even_batch_len(n, max);
+                assert_eq!(even_batch_len(n, len), len, "{n} items, max {max}");
                 let batches = n.div_ceil(len);
                 assert!(len <= max && batches == n.div_ceil(max), "{n} items, max {max}");
                 if n > 0 {
@@ -925,6 +936,9 @@ mod binned_tests {
             });
             if let Some(other) = bin_for {
                 batch.bin(BinTarget::of(other, DepthTest::Less));
+                // Bins stored, for `other`: reused exactly when it is this target.
+                let stored = batch.binned.as_ref().map(|b| b.2);
+                assert_eq!(stored, Some(BinTarget::of(other, DepthTest::Less)));
             }
             let level = SimdLevel::detect();
             let fragments = draw_binned(
@@ -946,10 +960,14 @@ mod binned_tests {
                 same = same.with_overdraw();
             }
             assert!(later == draw(Some(&same), with_overdraw), "binned ahead, {with_overdraw}");
-            // Binned for a target that differs in its overdraw buffer: binned again.
+            // Binned for a target that differs in its overdraw buffer (so in hierarchical
+            // depth), or in its size: binned again.
             let other = Target::new(300, 200).unwrap();
             let other = if with_overdraw { other } else { other.with_overdraw() };
             assert!(later == draw(Some(&other), with_overdraw), "binned for another target");
+            let smaller = Target::new(200, 100).unwrap();
+            let smaller = if with_overdraw { smaller.with_overdraw() } else { smaller };
+            assert!(later == draw(Some(&smaller), with_overdraw), "binned for another size");
         }
     }
 }

@@ -72,8 +72,9 @@ impl Light {
         self.direction.normalize_or(Vec3::Z)
     }
 
-    /// [`Light::shade`] with the light's [`Light::unit_direction`] `l` computed once by the
-    /// caller, not once per vertex or fragment (the same result, bit for bit).
+    /// [`Light::shade`] towards the unit direction `l` instead of [`Light::direction`]: with
+    /// `l = self.unit_direction()`, computed once by the caller rather than once per vertex or
+    /// fragment, the same result as `shade`, bit for bit.
     #[inline]
     #[must_use]
     pub fn shade_towards(&self, l: Vec3, n: Vec3, view: Vec3) -> (f32, f32) {

@@ -340,9 +340,11 @@ impl Pipeline {
                             }
                         });
                     counts = counts.merged(&batch_counts);
-                    // Binned here but for the first batch (see `PreparedBatch::bin`), and for
-                    // a large mesh, whose front end (the corner tests) is the busier side.
-                    if b > 0 && whole {
+                    // Binned here, except the first batch (see `PreparedBatch::bin`), a large
+                    // mesh's batches (its front end, the corner tests, is the busier side)
+                    // and a multisampled target's (eight times larger: two batches' bins at
+                    // once would be too).
+                    if b > 0 && whole && !front.coverage.multisampled {
                         out.bin(bin_target);
                     }
                 };

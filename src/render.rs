@@ -194,8 +194,10 @@ pub fn draw(
                 sink.push(Prepared { setup, depth, id, payload });
             });
             stats = stats.merged(&counts);
-            // Binned here, but for the first batch (see `PreparedBatch::bin`).
-            if b > 0 && clip.is_some() {
+            // Binned here, except the first batch (see `PreparedBatch::bin`) and on
+            // multisampled targets, whose batches are eight times larger (two batches' bins
+            // at once would be too).
+            if b > 0 && clip.is_some() && !multisampled {
                 prepared.bin(bin_target);
             }
         };
