@@ -204,21 +204,45 @@ fn assert_pipeline_matches_reference<FS: trirast::pipeline::FragmentShader<f32>>
     triangles: &[[u32; 3]],
     fs: &FS,
 ) {
+    let fresh = || Target::new(300, 200).unwrap().with_ids();
+    assert_pipeline_matches_reference_on(fresh, &[1, 2, 7], vertices, triangles, fs);
+}
+
+/// [`assert_pipeline_matches_reference`] into targets made by `fresh`, on `threads`.
+fn assert_pipeline_matches_reference_on<FS: trirast::pipeline::FragmentShader<f32>>(
+    fresh: impl Fn() -> Target,
+    threads: &[usize],
+    vertices: &[Vec4],
+    triangles: &[[u32; 3]],
+    fs: &FS,
+) {
     let vs = |p: &Vec4| (*p, p.z);
     let pipeline = Pipeline::default().with_cull(FaceCull::None);
-    let mut reference = Target::new(300, 200).unwrap().with_ids();
+    let mut reference = fresh();
     let ref_stats = pipeline
         .with_backend(Backend::Reference)
         .draw(&mut reference, &vs, fs, vertices, triangles)
         .unwrap();
-    for threads in [1, 2, 7] {
-        let mut tiled = Target::new(300, 200).unwrap().with_ids();
+    for &threads in threads {
+        let mut tiled = fresh();
         let stats = pool(threads)
             .install(|| pipeline.draw(&mut tiled, &vs, fs, vertices, triangles))
             .unwrap();
         assert_eq!(stats, ref_stats);
         assert_same(&reference, &tiled, &format!("{threads} threads"));
     }
+}
+
+/// Window-space triangles on a `w x h` target as a mesh in clip space (z in [0, 1) at
+/// `w = 1`), three vertices of their own per triangle, so ids number the same triangles.
+fn clip_space_mesh(tris: &[[Vertex; 3]], w: f32, h: f32) -> (Vec<Vec4>, Vec<[u32; 3]>) {
+    let vertices = tris
+        .iter()
+        .flatten()
+        .map(|v| Vec4::new(v.x / w * 2.0 - 1.0, 1.0 - v.y / h * 2.0, v.z, 1.0))
+        .collect();
+    let triangles = (0..tris.len() as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+    (vertices, triangles)
 }
 
 /// Hierarchical depth in the 3D pipeline, whose fragment shaders may discard: a screen-filling
@@ -596,13 +620,8 @@ fn batches_are_drawn_in_submission_order() {
             assert_same(&reference, &tiled, &what);
         }
     }
-    // The same triangles as a mesh in clip space (z in [0, 1) at w = 1), ids by triangle.
-    let vertices: Vec<Vec4> = tris
-        .iter()
-        .flatten()
-        .map(|v| Vec4::new(v.x / w * 2.0 - 1.0, 1.0 - v.y / h * 2.0, v.z, 1.0))
-        .collect();
-    let triangles: Vec<[u32; 3]> = (0..n as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+    // The same triangles as a mesh in clip space, ids by triangle.
+    let (vertices, triangles) = clip_space_mesh(&tris, w, h);
     let fs = |f: &Fragment<f32>| Some(Vec4::new(f.varyings, f.varyings, 0.5, 1.0));
     assert_pipeline_matches_reference(&vertices, &triangles, &fs);
 }
@@ -647,28 +666,9 @@ fn multisampled_batches_are_drawn_in_submission_order() {
             assert_same(&reference, &tiled, &format!("{depth_test:?}, {threads} threads"));
         }
     }
-    let vertices: Vec<Vec4> = tris
-        .iter()
-        .flatten()
-        .map(|v| Vec4::new(v.x / w * 2.0 - 1.0, 1.0 - v.y / h * 2.0, v.z, 1.0))
-        .collect();
-    let triangles: Vec<[u32; 3]> = (0..n as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
-    let vs = |p: &Vec4| (*p, p.z);
+    let (vertices, triangles) = clip_space_mesh(&tris, w, h);
     let fs = |f: &Fragment<f32>| Some(Vec4::new(f.varyings, f.varyings, 0.5, 1.0));
-    let pipeline = Pipeline::default().with_cull(FaceCull::None);
-    let mut reference = fresh(false);
-    let ref_stats = pipeline
-        .with_backend(Backend::Reference)
-        .draw(&mut reference, &vs, &fs, &vertices, &triangles)
-        .unwrap();
-    for threads in [1, 2] {
-        let mut tiled = fresh(false);
-        let stats = pool(threads)
-            .install(|| pipeline.draw(&mut tiled, &vs, &fs, &vertices, &triangles))
-            .unwrap();
-        assert_eq!(stats, ref_stats);
-        assert_same(&reference, &tiled, &format!("3D, {threads} threads"));
-    }
+    assert_pipeline_matches_reference_on(|| fresh(false), &[1, 2], &vertices, &triangles, &fs);
 }
 
 /// Hierarchical depth bounds a triangle's depth over a block's samples, not only its pixel
