@@ -395,8 +395,9 @@ pub fn render_mesh(
 }
 
 /// The errors the shaders would otherwise meet as out-of-bounds reads: a per-vertex array
-/// shorter or longer than the positions, a material list not one per triangle, an index past
-/// the vertices. The loaders never build such a mesh; a program filling [`Mesh`] itself may.
+/// shorter or longer than the positions, a material list not one per triangle. The loaders
+/// never build such a mesh; a program filling [`Mesh`] itself may. An index past the
+/// vertices is the pipeline's error to report (`Pipeline::draw` checks every index).
 fn check_mesh(mesh: &Mesh) -> Result<(), Error> {
     let vertices = mesh.positions.len();
     let per_vertex = [
@@ -415,28 +416,21 @@ fn check_mesh(mesh: &Mesh) -> Result<(), Error> {
         let (attribute, of) = ("triangle materials", "triangles");
         return Err(Error::MeshAttributeLength { attribute, len, expected: triangles, of });
     }
-    // The largest index first (vectorized: a search triangle by triangle was a hundredth of
-    // the bunny's frame), the culprit only when there is one.
-    let level = crate::simd::SimdLevel::detect();
-    let (_, largest) = crate::simd::index_range(level, mesh.triangles.as_flattened());
-    if (largest as usize) < vertices {
-        return Ok(());
-    }
-    match mesh.triangles.iter().position(|t| t.iter().any(|&i| i as usize >= vertices)) {
-        Some(triangle) => {
-            Err(Error::IndexOutOfRange { triangle, indices: mesh.triangles[triangle], vertices })
-        }
-        None => Ok(()),
-    }
+    Ok(())
 }
 
+/// View-space unit normals of the triangles; zero for one with an index past the vertices
+/// (computed before `Pipeline::draw`, which reports that index as an error).
 fn face_normals(mesh: &Mesh, view: &Mat4, origin: Vec3) -> Vec<Vec3> {
+    let point = |i: u32| mesh.positions.get(i as usize).map(|&p| Vec3::from(p) - origin);
     mesh.triangles
         .iter()
-        .map(|t| {
-            let [a, b, c] =
-                t.map(|i| view.transform_point3(Vec3::from(mesh.positions[i as usize]) - origin));
-            (b - a).cross(c - a).normalize_or_zero()
+        .map(|t| match t.map(point) {
+            [Some(a), Some(b), Some(c)] => {
+                let [a, b, c] = [a, b, c].map(|p| view.transform_point3(p));
+                (b - a).cross(c - a).normalize_or_zero()
+            }
+            _ => Vec3::ZERO,
         })
         .collect()
 }
