@@ -25,7 +25,7 @@ use crate::raster::Algorithm;
 use crate::render::DrawStats;
 use crate::sample::SampleCount;
 use crate::setup::{self, PixelRect, Rejection, TriangleSetup};
-use crate::shade::{self, DepthTest, FragmentOutput, PlaneEquation};
+use crate::shade::{self, DepthTest, OfTriangle, PlaneEquation, TriangleFragments};
 use crate::simd::{SimdLevel, SpanColor};
 use crate::target::{Target, TargetBand};
 
@@ -594,13 +594,13 @@ pub fn draw_binned<T, K, F>(
     prepared: &PreparedBatch<T>,
     depth_test: DepthTest,
     kernel: K,
-    fragment: F,
+    fragments: F,
     may_discard: bool,
 ) -> u64
 where
     T: Sync,
     K: Fn(&T) -> Option<(SimdLevel, &SpanColor)> + Sync,
-    F: Fn(&T, i32, i32, f64, f64, f32) -> Option<FragmentOutput> + Sync,
+    F: TriangleFragments<T>,
 {
     let coverage = prepared.coverage();
     let clip = &coverage.clip;
@@ -634,7 +634,7 @@ where
                     depth_test,
                     p.id,
                     kernel,
-                    |x, y, e1, e2, z| fragment(&p.payload, x, y, e1, e2, z),
+                    OfTriangle(&fragments, &p.payload),
                 )
             };
             // The rectangle binning had (the same function of the same record).
@@ -897,7 +897,7 @@ mod tests {
 mod binned_tests {
     use super::*;
     use crate::setup::{CullMode, Vertex};
-    use crate::shade::{Shading, TriangleColor, TriangleShader};
+    use crate::shade::{FragmentOutput, Shading, TriangleColor, TriangleShader};
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
 
@@ -946,7 +946,7 @@ mod binned_tests {
                 &batch,
                 DepthTest::Less,
                 |c| c.span_color().map(|s| (level, s)),
-                |c, _, _, e1, e2, _| {
+                |c: &TriangleColor, _, _, e1, e2, _| {
                     Some(FragmentOutput { color: c.color_at(e1, e2), normal: None })
                 },
                 false,

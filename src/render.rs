@@ -208,7 +208,7 @@ pub fn draw(
                     prepared,
                     options.depth_test,
                     |shader| shader.span_color().map(|c| (level, c)),
-                    |shader, _, _, e1, e2, _| Some(color(shader, e1, e2)),
+                    |shader: &TriangleColor, _, _, e1, e2, _| Some(color(shader, e1, e2)),
                     false,
                 );
             }

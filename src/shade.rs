@@ -298,6 +298,105 @@ pub struct FragmentOutput {
     pub normal: Option<[f32; 3]>,
 }
 
+/// Fragments of one triangle shaded together at 1x (see [`FragmentStage::lanes`]): at most
+/// this many.
+pub const LANES: usize = 8;
+
+/// Up to [`LANES`] fragments of one triangle that passed the depth test, lane by lane: pixel,
+/// barycentric numerators at its centre, depth. Lanes `len..` hold leftovers.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PassedLanes {
+    /// Lanes in use: `0..len`.
+    pub len: usize,
+    /// Pixel column.
+    pub x: [i32; LANES],
+    /// Pixel row.
+    pub y: [i32; LANES],
+    /// Barycentric numerator `E_1` at the pixel centre.
+    pub e1: [f64; LANES],
+    /// Barycentric numerator `E_2` at the pixel centre.
+    pub e2: [f64; LANES],
+    /// Depth (as it will be stored).
+    pub z: [f32; LANES],
+    /// Index into the band's buffers.
+    index: [usize; LANES],
+}
+
+impl PassedLanes {
+    /// Lane `l` as a fragment stage takes it: `(x, y, e1, e2, z)`.
+    #[inline]
+    #[must_use]
+    pub fn lane(&self, l: usize) -> (i32, i32, f64, f64, f32) {
+        (self.x[l], self.y[l], self.e1[l], self.e2[l], self.z[l])
+    }
+}
+
+/// What a triangle's covered pixels that pass the depth test become: the output of each
+/// fragment, or nothing (discarded). Closures `FnMut(x, y, e1, e2, z) -> Option<FragmentOutput>`
+/// are fragment stages, taking `e1`, `e2` at the pixel centre and the depth `z`.
+pub trait FragmentStage {
+    /// The output of the fragment at pixel `(x, y)`.
+    fn fragment(&mut self, x: i32, y: i32, e1: f64, e2: f64, z: f32) -> Option<FragmentOutput>;
+
+    /// The outputs of `lanes`' fragments into `out[..lanes.len]`: lane by lane what
+    /// [`FragmentStage::fragment`] gives, bit for bit. By default one fragment after
+    /// another; a stage may override it to compute its lanes side by side.
+    fn lanes(&mut self, lanes: &PassedLanes, out: &mut [Option<FragmentOutput>; LANES]) {
+        for (l, out) in out.iter_mut().enumerate().take(lanes.len) {
+            let (x, y, e1, e2, z) = lanes.lane(l);
+            *out = self.fragment(x, y, e1, e2, z);
+        }
+    }
+}
+
+impl<F: FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>> FragmentStage for F {
+    #[inline]
+    fn fragment(&mut self, x: i32, y: i32, e1: f64, e2: f64, z: f32) -> Option<FragmentOutput> {
+        self(x, y, e1, e2, z)
+    }
+}
+
+/// The [`FragmentStage`] of every triangle of a draw call, given the shading data `T` each
+/// triangle keeps (the tile loop's form). Closures
+/// `Fn(&T, x, y, e1, e2, z) -> Option<FragmentOutput>` are such stages.
+pub trait TriangleFragments<T>: Sync {
+    /// [`FragmentStage::fragment`] for the triangle with data `t`.
+    fn fragment(&self, t: &T, x: i32, y: i32, e1: f64, e2: f64, z: f32) -> Option<FragmentOutput>;
+
+    /// [`FragmentStage::lanes`] for the triangle with data `t`, with the same contract.
+    fn lanes(&self, t: &T, lanes: &PassedLanes, out: &mut [Option<FragmentOutput>; LANES]) {
+        for (l, out) in out.iter_mut().enumerate().take(lanes.len) {
+            let (x, y, e1, e2, z) = lanes.lane(l);
+            *out = self.fragment(t, x, y, e1, e2, z);
+        }
+    }
+}
+
+impl<T, F> TriangleFragments<T> for F
+where
+    F: Fn(&T, i32, i32, f64, f64, f32) -> Option<FragmentOutput> + Sync,
+{
+    #[inline]
+    fn fragment(&self, t: &T, x: i32, y: i32, e1: f64, e2: f64, z: f32) -> Option<FragmentOutput> {
+        self(t, x, y, e1, e2, z)
+    }
+}
+
+/// One triangle's [`FragmentStage`]: its data and the draw call's [`TriangleFragments`].
+pub(crate) struct OfTriangle<'a, T, F>(pub &'a F, pub &'a T);
+
+impl<T, F: TriangleFragments<T>> FragmentStage for OfTriangle<'_, T, F> {
+    #[inline]
+    fn fragment(&mut self, x: i32, y: i32, e1: f64, e2: f64, z: f32) -> Option<FragmentOutput> {
+        self.0.fragment(self.1, x, y, e1, e2, z)
+    }
+
+    #[inline]
+    fn lanes(&mut self, lanes: &PassedLanes, out: &mut [Option<FragmentOutput>; LANES]) {
+        self.0.lanes(self.1, lanes, out);
+    }
+}
+
 /// Depth from a depth plane, as stored: evaluated in `f64`, rounded to `f32`, clamped to [0, 1].
 #[inline]
 #[must_use]
@@ -354,11 +453,12 @@ fn plane_bounds(
 
 /// The one fragment loop every pipeline shares. For each pixel with covered samples: count
 /// them (overdraw), interpolate depth at each covered sample and test it, and only if one
-/// passes ask `fragment(px, py, e1, e2, z)` for the output, once per pixel, with `e1`, `e2`
-/// and `z` at the pixel centre (`None` discards it). Then write depth to the passing
-/// samples, colour and id to the passing samples, and the normal to the pixel.
+/// passes ask the `fragment` stage for the output, once per pixel, with `e1`, `e2` and `z` at
+/// the pixel centre (`None` discards it). Then write depth to the passing samples, colour and
+/// id to the passing samples, and the normal to the pixel.
 ///
-/// `clip` must lie within the band's rows. At 1x the only sample is the pixel centre. Returns
+/// `clip` must lie within the band's rows. At 1x the only sample is the pixel centre, and the
+/// fragments that pass are handed to the stage [`LANES`] at a time. Returns
 /// the number of covered samples. A `kernel` (1x, flat or smooth colour without normals)
 /// replaces `fragment` by a SIMD span kernel computing the same values.
 #[allow(clippy::too_many_arguments)]
@@ -371,7 +471,7 @@ pub fn shade_triangle(
     depth_test: DepthTest,
     id: i32,
     kernel: Option<(SimdLevel, &SpanColor)>,
-    mut fragment: impl FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>,
+    mut fragment: impl FragmentStage,
 ) -> u64 {
     let samples = target.samples();
     let n = samples.count();
@@ -403,7 +503,9 @@ pub fn shade_triangle(
         }
         let (e1, e2) = setup.barycentric_numerators(cx, cy);
         let (e1, e2) = (e1 as f64, e2 as f64);
-        let Some(out) = fragment(px, py, e1, e2, depth_at(depth, e1, e2)) else { return };
+        let Some(out) = fragment.fragment(px, py, e1, e2, depth_at(depth, e1, e2)) else {
+            return;
+        };
         for s in (0..n).filter(|s| passed & (1 << s) != 0) {
             target.depth[p * n + s] = z[s];
             target.color[p * n + s] = out.color;
@@ -458,7 +560,8 @@ const KERNEL_MIN_SPAN: usize = 8;
 
 /// [`shade_triangle`] at 1x: the sample is the pixel centre, and the barycentric numerators
 /// step along the span in exact integers (so the result is the same as evaluating them at
-/// each pixel). Long spans go to the span kernel when there is one.
+/// each pixel). Long spans go to the span kernel when there is one; other covered pixels
+/// through a [`LaneQueue`].
 #[allow(clippy::too_many_arguments)]
 fn shade_single_sample(
     target: &mut TargetBand<'_>,
@@ -469,28 +572,11 @@ fn shade_single_sample(
     depth_test: DepthTest,
     id: i32,
     kernel: Option<(SimdLevel, &SpanColor)>,
-    mut fragment: impl FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>,
+    fragment: impl FragmentStage,
 ) -> u64 {
-    // One covered pixel with barycentric numerators `(f1, f2)`: overdraw, depth test, the
-    // fragment, the writes.
-    let mut shade_pixel = |target: &mut TargetBand<'_>, i: usize, px, py, f1, f2| {
-        if let Some(o) = &mut target.overdraw {
-            o[i] += 1;
-        }
-        let z = depth_at(depth, f1, f2);
-        if !depth_test.passes(z, target.depth[i]) {
-            return;
-        }
-        let Some(out) = fragment(px, py, f1, f2, z) else { return };
-        target.depth[i] = z;
-        target.color[i] = out.color;
-        if let Some(ids) = &mut target.ids {
-            ids[i] = id;
-        }
-        if let (Some(normals), Some(nrm)) = (&mut target.normals, out.normal) {
-            normals[i] = nrm;
-        }
-    };
+    // Covered pixels go through `queue`: overdraw and depth test at once, the fragments that
+    // pass shaded `LANES` at a time.
+    let mut queue = LaneQueue { passed: PassedLanes::default(), stage: fragment, id };
     if algorithm == Algorithm::EdgeMasks {
         let Some(r) = setup.bounds.intersect(clip) else { return 0 };
         let columns = (r.x1 - r.x0 + 1) as usize;
@@ -538,10 +624,12 @@ fn shade_single_sample(
                     mask &= mask - 1;
                     let f1 = (row[1] - bias[0] + i64::from(c) * step_x[1]) as f64;
                     let f2 = (row[2] - bias[1] + i64::from(c) * step_x[2]) as f64;
-                    shade_pixel(target, first + c as usize, r.x0 + c as i32, py, f1, f2);
+                    let at = (first + c as usize, r.x0 + c as i32, py);
+                    queue.pixel(target, depth, depth_test, at, f1, f2);
                 }
                 row = std::array::from_fn(|k| row[k] + step_y[k]);
             }
+            queue.flush(target);
             return covered;
         }
     }
@@ -577,7 +665,7 @@ fn shade_single_sample(
             let (f1, f2) = (e1 as f64, e2 as f64);
             e1 += step[0];
             e2 += step[1];
-            shade_pixel(target, row + px as usize, px, span.y, f1, f2);
+            queue.pixel(target, depth, depth_test, (row + px as usize, px, span.y), f1, f2);
         }
     };
     if algorithm == Algorithm::Scanline && raster::covers_rect(setup, clip) {
@@ -588,7 +676,74 @@ fn shade_single_sample(
     } else {
         raster::rasterize(algorithm, setup, clip, shade_span);
     }
+    queue.flush(target);
     covered
+}
+
+/// Covered pixels of one triangle: each counted (overdraw) and depth-tested as it comes, and
+/// those that pass queued until [`LANES`] wait, then shaded together by the stage
+/// ([`FragmentStage::lanes`]) and written. Writes may wait because a triangle covers each
+/// pixel once: nothing it writes is read again before it is done (its depth test reads
+/// what earlier triangles wrote). Shading a queue rather than each fragment as it passes
+/// lets the 3D pipeline take the perspective divisions of several fragments together (the
+/// Stanford bunny, one thread: 13.5 -> 12.1 ms).
+struct LaneQueue<S> {
+    passed: PassedLanes,
+    stage: S,
+    id: i32,
+}
+
+impl<S: FragmentStage> LaneQueue<S> {
+    /// The covered pixel `(x, y)` at buffer index `i`, with barycentric numerators `f1`, `f2`
+    /// at its centre.
+    #[inline(always)]
+    fn pixel(
+        &mut self,
+        target: &mut TargetBand<'_>,
+        depth: &PlaneEquation,
+        depth_test: DepthTest,
+        (i, x, y): (usize, i32, i32),
+        f1: f64,
+        f2: f64,
+    ) {
+        if let Some(o) = &mut target.overdraw {
+            o[i] += 1;
+        }
+        let z = depth_at(depth, f1, f2);
+        if !depth_test.passes(z, target.depth[i]) {
+            return;
+        }
+        let p = &mut self.passed;
+        let l = p.len;
+        (p.x[l], p.y[l], p.e1[l], p.e2[l], p.z[l], p.index[l]) = (x, y, f1, f2, z, i);
+        p.len += 1;
+        if p.len == LANES {
+            self.flush(target);
+        }
+    }
+
+    /// Shades and writes the queued fragments.
+    fn flush(&mut self, target: &mut TargetBand<'_>) {
+        let passed = &self.passed;
+        if passed.len == 0 {
+            return;
+        }
+        let mut out = [None; LANES];
+        self.stage.lanes(passed, &mut out);
+        for (l, out) in out.iter().enumerate().take(passed.len) {
+            let Some(out) = out else { continue };
+            let i = passed.index[l];
+            target.depth[i] = passed.z[l];
+            target.color[i] = out.color;
+            if let Some(ids) = &mut target.ids {
+                ids[i] = self.id;
+            }
+            if let (Some(normals), Some(nrm)) = (&mut target.normals, out.normal) {
+                normals[i] = nrm;
+            }
+        }
+        self.passed.len = 0;
+    }
 }
 
 #[cfg(test)]
