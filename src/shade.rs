@@ -518,6 +518,50 @@ pub fn shade_triangle(
         }
     };
 
+    if algorithm == Algorithm::EdgeMasks {
+        // The pixels any sample of which may be covered: the union of the sample boxes.
+        let boxes = (0..n).filter_map(|s| setup.sample_bounds(samples.offset(s)).intersect(clip));
+        let union = |a: PixelRect, b: PixelRect| PixelRect {
+            x0: a.x0.min(b.x0),
+            y0: a.y0.min(b.y0),
+            x1: a.x1.max(b.x1),
+            y1: a.y1.max(b.y1),
+        };
+        let Some(r) = boxes.reduce(union) else { return 0 };
+        let columns = r.x1 - r.x0 + 1;
+        if columns <= raster::edge::NARROW {
+            // Each sample's row coverage as a bit mask without branches (as at 1x), then the
+            // pixels with any covered sample, left to right, with their sample masks: no
+            // spans, no lists of them.
+            let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
+            let [a, b, c] = &setup.edges;
+            let mut rows = [[0i64; 3]; 8];
+            for (s, row) in rows.iter_mut().enumerate().take(n) {
+                let [ox, oy] = samples.offset(s);
+                *row = [a.eval(x + ox, y + oy), b.eval(x + ox, y + oy), c.eval(x + ox, y + oy)];
+            }
+            let step_x = [a.a * PIXEL_STEP, b.a * PIXEL_STEP, c.a * PIXEL_STEP];
+            let step_y = [a.b * PIXEL_STEP, b.b * PIXEL_STEP, c.b * PIXEL_STEP];
+            let in_box = (1u32 << columns) - 1;
+            for py in r.y0..=r.y1 {
+                let mut masks = [0u32; 8];
+                let mut any = 0;
+                for (mask, row) in masks.iter_mut().zip(rows.iter_mut()).take(n) {
+                    *mask = raster::edge::row_coverage(*row, step_x) & in_box;
+                    any |= *mask;
+                    *row = [row[0] + step_y[0], row[1] + step_y[1], row[2] + step_y[2]];
+                }
+                while any != 0 {
+                    let c = any.trailing_zeros();
+                    any &= any - 1;
+                    let mask = (0..n).fold(0, |m, s| m | ((masks[s] >> c) & 1) << s);
+                    pixel(target, r.x0 + c as i32, py, mask);
+                }
+            }
+            return covered;
+        }
+    }
+
     // Multisampling: coverage per sample, then pixel by pixel over each row's union.
     let spans: Vec<Vec<Span>> = (0..n)
         .map(|s| {
