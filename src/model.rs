@@ -80,12 +80,19 @@ impl Light {
     pub fn shade_towards(&self, l: Vec3, n: Vec3, view: Vec3) -> (f32, f32) {
         let diffuse = self.ambient + self.diffuse * n.dot(l).max(0.0);
         let h = (l + view).normalize_or(Vec3::Z);
-        let spec = if n.dot(l) > 0.0 {
-            self.specular * n.dot(h).max(0.0).powf(self.shininess)
-        } else {
-            0.0
-        };
+        let spec =
+            if n.dot(l) > 0.0 { self.specular * self.highlight(n.dot(h).max(0.0)) } else { 0.0 };
         (diffuse, spec)
+    }
+
+    /// `c` to the power [`Light::shininess`]: by repeated multiplication for whole exponents
+    /// up to 1024 (the usual ones, the default 32 among them), cheaper than `powf` and within
+    /// 1e-4 of it relative, far below a step of an 8-bit colour (Phong bunny at 1080p, two
+    /// threads: 15.5 -> 14.8 ms; two bytes of its PNG change).
+    #[inline]
+    fn highlight(&self, c: f32) -> f32 {
+        let k = self.shininess;
+        if k.fract() == 0.0 && (0.0..=1024.0).contains(&k) { c.powi(k as i32) } else { c.powf(k) }
     }
 }
 
@@ -440,6 +447,26 @@ mod tests {
     use super::*;
     use crate::camera::{self, Projection};
     use crate::mesh::Material;
+
+    /// The specular power: for whole exponents within 1e-4 of `powf` relative (rounding
+    /// grows with the number of squarings), other exponents exactly `powf`.
+    #[test]
+    fn highlights_follow_powf() {
+        for shininess in [0.0, 1.0, 2.0, 7.0, 32.0, 100.0, 1024.0, 0.5, 2.5, 1e4, -2.0, f32::NAN] {
+            let light = Light { shininess, ..Light::default() };
+            for k in 0..=1000 {
+                let c = k as f32 / 1000.0;
+                let (got, want) = (light.highlight(c), c.powf(shininess));
+                let whole = shininess.fract() == 0.0 && (0.0..=1024.0).contains(&shininess);
+                if whole {
+                    let tolerance = 1e-4 * want.abs() + f32::MIN_POSITIVE;
+                    assert!((got - want).abs() <= tolerance, "{c}^{shininess}: {got} {want}");
+                } else {
+                    assert_eq!(got.to_bits(), want.to_bits(), "{c}^{shininess}");
+                }
+            }
+        }
+    }
 
     /// A mesh whose arrays do not match (built by a program, not a loader) is an error
     /// naming the array, and an index past the vertices is one naming the triangle, for every
