@@ -1,5 +1,7 @@
 //! The draw call: runs `setup -> raster -> shade` over a triangle list, in submission order.
 
+use rayon::prelude::*;
+
 use crate::bin::{self, Prepared, Skipped};
 use crate::error::Error;
 use crate::fixed;
@@ -249,8 +251,12 @@ fn check_range(triangles: &[[Vertex; 3]]) -> Result<(), Error> {
     // First, without a branch per vertex (vectorized; a search one vertex at a time with a
     // snap each was a fifteenth of a frame of small triangles); the loop below then names the
     // first culprit.
+    // In parallel: a million triangles took 4 ms of one thread, a twentieth of a two-thread
+    // frame, before any drawing started.
     let out = |x: f32| x.is_finite() & !fixed::snaps(x);
-    if !triangles.iter().flatten().fold(false, |any, v| any | out(v.x) | out(v.y)) {
+    let any_out =
+        |c: &[[Vertex; 3]]| c.iter().flatten().fold(false, |any, v| any | out(v.x) | out(v.y));
+    if !triangles.par_chunks(1 << 14).any(any_out) {
         return Ok(());
     }
     for (triangle, tri) in triangles.iter().enumerate() {
