@@ -6,6 +6,8 @@
 
 use std::any::Any;
 
+use rayon::prelude::*;
+
 use crate::color::{linear_to_srgb8, srgb_to_linear};
 use crate::error::Error;
 use crate::fixed::MAX_TARGET_SIZE;
@@ -55,6 +57,12 @@ impl std::fmt::Debug for Scratch {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(if self.0.is_some() { "Scratch(kept)" } else { "Scratch(empty)" })
     }
+}
+
+/// Sets every element of `buffer` to `value`, blocks of 256 KB in parallel.
+fn fill<T: Copy + Send + Sync>(buffer: &mut [T], value: T) {
+    let block = (256 << 10) / size_of::<T>();
+    buffer.par_chunks_mut(block).for_each(|b| b.fill(value));
 }
 
 /// The colour a new target is cleared to: opaque black.
@@ -135,18 +143,20 @@ impl Target {
         self
     }
 
-    /// Clears colour to `color`, depth to 1.0, ids to -1, overdraw and normals to 0.
+    /// Clears colour to `color`, depth to 1.0, ids to -1, overdraw and normals to 0, in
+    /// parallel on the current rayon pool (a 1080p target at 4x holds 66 MB of colour and
+    /// depth: 7 ms of one thread).
     pub fn clear(&mut self, color: [u8; 4]) {
-        self.color.fill(color);
-        self.depth.fill(1.0);
+        fill(&mut self.color, color);
+        fill(&mut self.depth, 1.0);
         if let Some(ids) = &mut self.ids {
-            ids.fill(-1);
+            fill(ids, -1);
         }
         if let Some(o) = &mut self.overdraw {
-            o.fill(0);
+            fill(o, 0);
         }
         if let Some(n) = &mut self.normals {
-            n.fill([0.0; 3]);
+            fill(n, [0.0; 3]);
         }
     }
 
