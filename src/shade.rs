@@ -17,6 +17,7 @@
 
 use crate::fixed;
 use crate::raster::{self, Algorithm, Span};
+use crate::sample::SampleCount;
 use crate::setup::{PIXEL_STEP, PixelRect, TriangleSetup, Vertex};
 use crate::simd::{self, KernelTarget, NarrowJob, SimdLevel, SpanColor, SpanJob};
 use crate::target::TargetBand;
@@ -350,7 +351,7 @@ pub trait FragmentStage {
 }
 
 impl<F: FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>> FragmentStage for F {
-    #[inline]
+    #[inline(always)]
     fn fragment(&mut self, x: i32, y: i32, e1: f64, e2: f64, z: f32) -> Option<FragmentOutput> {
         self(x, y, e1, e2, z)
     }
@@ -376,7 +377,7 @@ impl<T, F> TriangleFragments<T> for F
 where
     F: Fn(&T, i32, i32, f64, f64, f32) -> Option<FragmentOutput> + Sync,
 {
-    #[inline]
+    #[inline(always)]
     fn fragment(&self, t: &T, x: i32, y: i32, e1: f64, e2: f64, z: f32) -> Option<FragmentOutput> {
         self(t, x, y, e1, e2, z)
     }
@@ -386,12 +387,12 @@ where
 pub(crate) struct OfTriangle<'a, T, F>(pub &'a F, pub &'a T);
 
 impl<T, F: TriangleFragments<T>> FragmentStage for OfTriangle<'_, T, F> {
-    #[inline]
+    #[inline(always)]
     fn fragment(&mut self, x: i32, y: i32, e1: f64, e2: f64, z: f32) -> Option<FragmentOutput> {
         self.0.fragment(self.1, x, y, e1, e2, z)
     }
 
-    #[inline]
+    #[inline(always)]
     fn lanes(&mut self, lanes: &PassedLanes, out: &mut [Option<FragmentOutput>; LANES]) {
         self.0.lanes(self.1, lanes, out);
     }
@@ -471,7 +472,7 @@ pub fn shade_triangle(
     depth_test: DepthTest,
     id: i32,
     kernel: Option<(SimdLevel, &SpanColor)>,
-    mut fragment: impl FragmentStage,
+    fragment: impl FragmentStage,
 ) -> u64 {
     let samples = target.samples();
     let n = samples.count();
@@ -480,43 +481,7 @@ pub fn shade_triangle(
             target, setup, algorithm, clip, depth, depth_test, id, kernel, fragment,
         );
     }
-    let mut covered = 0u64;
-    let mut pixel = |target: &mut TargetBand<'_>, px: i32, py: i32, mask: u32| {
-        covered += u64::from(mask.count_ones());
-        let p = target.index(px, py);
-        if let Some(o) = &mut target.overdraw {
-            o[p] += mask.count_ones();
-        }
-        let (cx, cy) = (fixed::pixel_centre(px), fixed::pixel_centre(py));
-        let mut z = [0.0f32; 8];
-        let mut passed = 0u32;
-        for s in (0..n).filter(|s| mask & (1 << s) != 0) {
-            let [ox, oy] = samples.offset(s);
-            let (e1, e2) = setup.barycentric_numerators(cx + ox, cy + oy);
-            z[s] = depth_at(depth, e1 as f64, e2 as f64);
-            if depth_test.passes(z[s], target.depth[p * n + s]) {
-                passed |= 1 << s;
-            }
-        }
-        if passed == 0 {
-            return;
-        }
-        let (e1, e2) = setup.barycentric_numerators(cx, cy);
-        let (e1, e2) = (e1 as f64, e2 as f64);
-        let Some(out) = fragment.fragment(px, py, e1, e2, depth_at(depth, e1, e2)) else {
-            return;
-        };
-        for s in (0..n).filter(|s| passed & (1 << s) != 0) {
-            target.depth[p * n + s] = z[s];
-            target.color[p * n + s] = out.color;
-            if let Some(ids) = &mut target.ids {
-                ids[p * n + s] = id;
-            }
-        }
-        if let (Some(normals), Some(nrm)) = (&mut target.normals, out.normal) {
-            normals[p] = nrm;
-        }
-    };
+    let mut pixels = SamplePixels { setup, samples, depth, depth_test, id, fragment, covered: 0 };
 
     if algorithm == Algorithm::EdgeMasks {
         // The pixels any sample of which may be covered: the union of the sample boxes.
@@ -555,10 +520,10 @@ pub fn shade_triangle(
                     let c = any.trailing_zeros();
                     any &= any - 1;
                     let mask = (0..n).fold(0, |m, s| m | ((masks[s] >> c) & 1) << s);
-                    pixel(target, r.x0 + c as i32, py, mask);
+                    pixels.pixel(target, r.x0 + c as i32, py, mask);
                 }
             }
-            return covered;
+            return pixels.covered;
         }
     }
 
@@ -571,7 +536,7 @@ pub fn shade_triangle(
         })
         .collect();
     let Some(y0) = spans.iter().filter_map(|v| v.first()).map(|sp| sp.y).min() else {
-        return covered;
+        return pixels.covered;
     };
     let y1 = spans.iter().filter_map(|v| v.last()).map(|sp| sp.y).max().unwrap_or(y0);
     let mut cursor = vec![0usize; n];
@@ -592,11 +557,68 @@ pub fn shade_triangle(
                 _ => m,
             });
             if mask != 0 {
-                pixel(target, px, y, mask);
+                pixels.pixel(target, px, y, mask);
             }
         }
     }
-    covered
+    pixels.covered
+}
+
+/// The pixels of one triangle on a multisampled target, each with its mask of covered
+/// samples: count them (overdraw), test depth per covered sample, and if any passes, shade
+/// the pixel once and write the passing samples. A method always inlined, not a closure:
+/// called from two loops (narrow triangles and spans), a closure was left out of line and
+/// the spans' loop (large triangles, fill at 4x) took a fifth longer.
+struct SamplePixels<'a, S> {
+    setup: &'a TriangleSetup,
+    samples: SampleCount,
+    depth: &'a PlaneEquation,
+    depth_test: DepthTest,
+    id: i32,
+    fragment: S,
+    /// Covered samples so far.
+    covered: u64,
+}
+
+impl<S: FragmentStage> SamplePixels<'_, S> {
+    /// Pixel `(px, py)` with covered samples `mask`.
+    #[inline(always)]
+    fn pixel(&mut self, target: &mut TargetBand<'_>, px: i32, py: i32, mask: u32) {
+        let n = self.samples.count();
+        self.covered += u64::from(mask.count_ones());
+        let p = target.index(px, py);
+        if let Some(o) = &mut target.overdraw {
+            o[p] += mask.count_ones();
+        }
+        let (cx, cy) = (fixed::pixel_centre(px), fixed::pixel_centre(py));
+        let mut z = [0.0f32; 8];
+        let mut passed = 0u32;
+        for s in (0..n).filter(|s| mask & (1 << s) != 0) {
+            let [ox, oy] = self.samples.offset(s);
+            let (e1, e2) = self.setup.barycentric_numerators(cx + ox, cy + oy);
+            z[s] = depth_at(self.depth, e1 as f64, e2 as f64);
+            if self.depth_test.passes(z[s], target.depth[p * n + s]) {
+                passed |= 1 << s;
+            }
+        }
+        if passed == 0 {
+            return;
+        }
+        let (e1, e2) = self.setup.barycentric_numerators(cx, cy);
+        let (e1, e2) = (e1 as f64, e2 as f64);
+        let z_centre = depth_at(self.depth, e1, e2);
+        let Some(out) = self.fragment.fragment(px, py, e1, e2, z_centre) else { return };
+        for s in (0..n).filter(|s| passed & (1 << s) != 0) {
+            target.depth[p * n + s] = z[s];
+            target.color[p * n + s] = out.color;
+            if let Some(ids) = &mut target.ids {
+                ids[p * n + s] = self.id;
+            }
+        }
+        if let (Some(normals), Some(nrm)) = (&mut target.normals, out.normal) {
+            normals[p] = nrm;
+        }
+    }
 }
 
 /// Spans at least this long go to the SIMD kernel; shorter ones cost less pixel by pixel.
