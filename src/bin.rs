@@ -576,9 +576,10 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 /// rectangle they were prepared for ([`PreparedBatch::coverage`]); returns the number of
 /// covered samples. Uses the bins [`PreparedBatch::bin`] made if they were made for this
 /// target and depth test, and bins the batch itself otherwise.
-/// `fragment(payload, x, y, e1, e2, z)` shades one pixel (`None` discards it, which only
-/// `may_discard` allows); where `kernel(payload)` gives a span kernel, it shades 1x spans
-/// instead.
+/// `fragments` shades the pixels of the triangle with record `payload`: one at a time
+/// ([`TriangleFragments::fragment`]), or at 1x up to eight at a time
+/// ([`TriangleFragments::lanes`]); `None` discards a fragment, which only `may_discard`
+/// allows. Where `kernel(payload)` gives a span kernel, it shades 1x spans instead.
 ///
 /// Hierarchical depth (`Less` or `LessEqual`, no overdraw buffer, which counts hidden
 /// fragments too; at any sample count, with depths bounded over each pixel's samples): each

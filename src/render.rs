@@ -246,17 +246,25 @@ pub fn draw(
     Ok(stats)
 }
 
+/// Triangles per parallel task of the range check.
+const RANGE_CHUNK: usize = 1 << 14;
+
 /// Rejects any finite vertex outside [-32768, 32768) pixels, naming the first one.
 fn check_range(triangles: &[[Vertex; 3]]) -> Result<(), Error> {
     // First, without a branch per vertex (vectorized; a search one vertex at a time with a
     // snap each was a fifteenth of a frame of small triangles); the loop below then names the
     // first culprit.
-    // In parallel: a million triangles took 4 ms of one thread, a twentieth of a two-thread
-    // frame, before any drawing started.
+    // In parallel beyond one chunk: a million triangles took 4 ms of one thread, a twentieth
+    // of a two-thread frame, before any drawing started.
     let out = |x: f32| x.is_finite() & !fixed::snaps(x);
     let any_out =
         |c: &[[Vertex; 3]]| c.iter().flatten().fold(false, |any, v| any | out(v.x) | out(v.y));
-    if !triangles.par_chunks(1 << 14).any(any_out) {
+    let found = if triangles.len() <= RANGE_CHUNK {
+        any_out(triangles)
+    } else {
+        triangles.par_chunks(RANGE_CHUNK).any(any_out)
+    };
+    if !found {
         return Ok(());
     }
     for (triangle, tri) in triangles.iter().enumerate() {

@@ -17,6 +17,9 @@ pub enum SampleCount {
     X8,
 }
 
+/// The most samples a pixel has (8x): the size of per-sample arrays.
+pub const MAX_SAMPLES: usize = PATTERN_8X.len();
+
 /// Sample offsets in 1/16 pixel: 1x.
 pub const PATTERN_1X: [[i32; 2]; 1] = [[0, 0]];
 /// Sample offsets in 1/16 pixel: D3D standard 4x.

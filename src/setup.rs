@@ -149,6 +149,17 @@ impl PixelRect {
         };
         (r.x0 <= r.x1 && r.y0 <= r.y1).then_some(r)
     }
+
+    /// The smallest rectangle holding both.
+    #[must_use]
+    pub fn union(&self, other: &Self) -> Self {
+        Self {
+            x0: self.x0.min(other.x0),
+            y0: self.y0.min(other.y0),
+            x1: self.x1.max(other.x1),
+            y1: self.y1.max(other.y1),
+        }
+    }
 }
 
 /// Everything the rasterizers and the shader need to know about one triangle.
@@ -258,6 +269,26 @@ impl TriangleSetup {
     #[must_use]
     pub fn covers_point(&self, x: i64, y: i64) -> bool {
         (self.edges[0].eval(x, y) | self.edges[1].eval(x, y) | self.edges[2].eval(x, y)) >= 0
+    }
+
+    /// The three biased edge values at fixed-point `(x, y)` (covered iff all are `>= 0`).
+    /// Written out element by element, like [`widen`], for the per-triangle paths.
+    #[inline(always)]
+    #[must_use]
+    pub fn edge_values(&self, x: i64, y: i64) -> [i64; 3] {
+        let [a, b, c] = &self.edges;
+        [a.eval(x, y), b.eval(x, y), c.eval(x, y)]
+    }
+
+    /// What the three edge values change by from one pixel to the next: `(right, down)`.
+    #[inline(always)]
+    #[must_use]
+    pub fn pixel_steps(&self) -> ([i64; 3], [i64; 3]) {
+        let [a, b, c] = &self.edges;
+        (
+            [a.a * PIXEL_STEP, b.a * PIXEL_STEP, c.a * PIXEL_STEP],
+            [a.b * PIXEL_STEP, b.b * PIXEL_STEP, c.b * PIXEL_STEP],
+        )
     }
 
     /// Unbiased edge values `(E_1, E_2)` at fixed-point `(x, y)`, computed relative to vertex 0

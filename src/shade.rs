@@ -17,7 +17,7 @@
 
 use crate::fixed;
 use crate::raster::{self, Algorithm, Span};
-use crate::sample::SampleCount;
+use crate::sample::{MAX_SAMPLES, SampleCount};
 use crate::setup::{PIXEL_STEP, PixelRect, TriangleSetup, Vertex};
 use crate::simd::{self, KernelTarget, NarrowJob, SimdLevel, SpanColor, SpanJob};
 use crate::target::TargetBand;
@@ -330,6 +330,20 @@ impl PassedLanes {
     pub fn lane(&self, l: usize) -> (i32, i32, f64, f64, f32) {
         (self.x[l], self.y[l], self.e1[l], self.e2[l], self.z[l])
     }
+
+    /// `out[l] = fragment(lane l)` for the lanes in use, in order: the default
+    /// [`FragmentStage::lanes`].
+    #[inline(always)]
+    pub fn each_into(
+        &self,
+        out: &mut [Option<FragmentOutput>; LANES],
+        mut fragment: impl FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>,
+    ) {
+        for (l, out) in out.iter_mut().enumerate().take(self.len) {
+            let (x, y, e1, e2, z) = self.lane(l);
+            *out = fragment(x, y, e1, e2, z);
+        }
+    }
 }
 
 /// What a triangle's covered pixels that pass the depth test become: the output of each
@@ -343,10 +357,7 @@ pub trait FragmentStage {
     /// [`FragmentStage::fragment`] gives, bit for bit. By default one fragment after
     /// another; a stage may override it to compute its lanes side by side.
     fn lanes(&mut self, lanes: &PassedLanes, out: &mut [Option<FragmentOutput>; LANES]) {
-        for (l, out) in out.iter_mut().enumerate().take(lanes.len) {
-            let (x, y, e1, e2, z) = lanes.lane(l);
-            *out = self.fragment(x, y, e1, e2, z);
-        }
+        lanes.each_into(out, |x, y, e1, e2, z| self.fragment(x, y, e1, e2, z));
     }
 }
 
@@ -358,18 +369,17 @@ impl<F: FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>> FragmentStage 
 }
 
 /// The [`FragmentStage`] of every triangle of a draw call, given the shading data `T` each
-/// triangle keeps (the tile loop's form). Closures
-/// `Fn(&T, x, y, e1, e2, z) -> Option<FragmentOutput>` are such stages.
+/// triangle keeps (the tile loop's form). `Sync` closures
+/// `Fn(&T, x, y, e1, e2, z) -> Option<FragmentOutput>` are such stages; the compiler needs
+/// their first parameter's type written out (`|c: &TriangleColor, _, _, e1, e2, _| ..`), as it
+/// infers closure signatures only from `Fn` bounds.
 pub trait TriangleFragments<T>: Sync {
     /// [`FragmentStage::fragment`] for the triangle with data `t`.
     fn fragment(&self, t: &T, x: i32, y: i32, e1: f64, e2: f64, z: f32) -> Option<FragmentOutput>;
 
     /// [`FragmentStage::lanes`] for the triangle with data `t`, with the same contract.
     fn lanes(&self, t: &T, lanes: &PassedLanes, out: &mut [Option<FragmentOutput>; LANES]) {
-        for (l, out) in out.iter_mut().enumerate().take(lanes.len) {
-            let (x, y, e1, e2, z) = lanes.lane(l);
-            *out = self.fragment(t, x, y, e1, e2, z);
-        }
+        lanes.each_into(out, |x, y, e1, e2, z| self.fragment(t, x, y, e1, e2, z));
     }
 }
 
@@ -459,7 +469,8 @@ fn plane_bounds(
 /// id to the passing samples, and the normal to the pixel.
 ///
 /// `clip` must lie within the band's rows. At 1x the only sample is the pixel centre, and the
-/// fragments that pass are handed to the stage [`LANES`] at a time. Returns
+/// fragments that pass are handed to the stage [`LANES`] at a time, so their writes may wait
+/// until then (at the latest, until the call returns). Returns
 /// the number of covered samples. A `kernel` (1x, flat or smooth colour without normals)
 /// replaces `fragment` by a SIMD span kernel computing the same values.
 #[allow(clippy::too_many_arguments)]
@@ -486,30 +497,22 @@ pub fn shade_triangle(
     if algorithm == Algorithm::EdgeMasks {
         // The pixels any sample of which may be covered: the union of the sample boxes.
         let boxes = (0..n).filter_map(|s| setup.sample_bounds(samples.offset(s)).intersect(clip));
-        let union = |a: PixelRect, b: PixelRect| PixelRect {
-            x0: a.x0.min(b.x0),
-            y0: a.y0.min(b.y0),
-            x1: a.x1.max(b.x1),
-            y1: a.y1.max(b.y1),
-        };
-        let Some(r) = boxes.reduce(union) else { return 0 };
+        let Some(r) = boxes.reduce(|a, b| a.union(&b)) else { return 0 };
         let columns = r.x1 - r.x0 + 1;
         if columns <= raster::edge::NARROW {
             // Each sample's row coverage as a bit mask without branches (as at 1x), then the
             // pixels with any covered sample, left to right, with their sample masks: no
             // spans, no lists of them.
             let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
-            let [a, b, c] = &setup.edges;
-            let mut rows = [[0i64; 3]; 8];
+            let mut rows = [[0i64; 3]; MAX_SAMPLES];
             for (s, row) in rows.iter_mut().enumerate().take(n) {
                 let [ox, oy] = samples.offset(s);
-                *row = [a.eval(x + ox, y + oy), b.eval(x + ox, y + oy), c.eval(x + ox, y + oy)];
+                *row = setup.edge_values(x + ox, y + oy);
             }
-            let step_x = [a.a * PIXEL_STEP, b.a * PIXEL_STEP, c.a * PIXEL_STEP];
-            let step_y = [a.b * PIXEL_STEP, b.b * PIXEL_STEP, c.b * PIXEL_STEP];
+            let (step_x, step_y) = setup.pixel_steps();
             let in_box = (1u32 << columns) - 1;
             for py in r.y0..=r.y1 {
-                let mut masks = [0u32; 8];
+                let mut masks = [0u32; MAX_SAMPLES];
                 let mut any = 0;
                 for (mask, row) in masks.iter_mut().zip(rows.iter_mut()).take(n) {
                     *mask = raster::edge::row_coverage(*row, step_x) & in_box;
@@ -540,7 +543,7 @@ pub fn shade_triangle(
     };
     let y1 = spans.iter().filter_map(|v| v.last()).map(|sp| sp.y).max().unwrap_or(y0);
     let mut cursor = vec![0usize; n];
-    let mut row = [None::<Span>; 8];
+    let mut row = [None::<Span>; MAX_SAMPLES];
     for y in y0..=y1 {
         let (mut lo, mut hi) = (i32::MAX, i32::MIN);
         for s in 0..n {
@@ -591,7 +594,7 @@ impl<S: FragmentStage> SamplePixels<'_, S> {
             o[p] += mask.count_ones();
         }
         let (cx, cy) = (fixed::pixel_centre(px), fixed::pixel_centre(py));
-        let mut z = [0.0f32; 8];
+        let mut z = [0.0f32; MAX_SAMPLES];
         let mut passed = 0u32;
         for s in (0..n).filter(|s| mask & (1 << s) != 0) {
             let [ox, oy] = self.samples.offset(s);
@@ -648,11 +651,9 @@ fn shade_single_sample(
         let columns = (r.x1 - r.x0 + 1) as usize;
         if columns <= simd::NARROW_COLUMNS {
             let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
-            let [a, b, c] = &setup.edges;
-            let edges = [a.eval(x, y), b.eval(x, y), c.eval(x, y)];
+            let edges = setup.edge_values(x, y);
             let (e1, e2) = setup.barycentric_numerators(x, y);
-            let step_x = [a.a * PIXEL_STEP, b.a * PIXEL_STEP, c.a * PIXEL_STEP];
-            let step_y = [a.b * PIXEL_STEP, b.b * PIXEL_STEP, c.b * PIXEL_STEP];
+            let (step_x, step_y) = setup.pixel_steps();
             let bias = [edges[1] - e1, edges[2] - e2];
             if let Some((level, color)) = kernel {
                 let job = NarrowJob {
@@ -748,11 +749,15 @@ fn shade_single_sample(
 
 /// Covered pixels of one triangle: each counted (overdraw) and depth-tested as it comes, and
 /// those that pass queued until [`LANES`] wait, then shaded together by the stage
-/// ([`FragmentStage::lanes`]) and written. Writes may wait because a triangle covers each
-/// pixel once: nothing it writes is read again before it is done (its depth test reads
-/// what earlier triangles wrote). Shading a queue rather than each fragment as it passes
-/// lets the 3D pipeline take the perspective divisions of several fragments together (the
-/// Stanford bunny, one thread: 13.5 -> 12.1 ms).
+/// ([`FragmentStage::lanes`]) and written. Their writes may wait: one call of
+/// [`shade_triangle`] reaches each pixel at most once, so nothing it queues is tested again
+/// before the queue is flushed, which happens before the call returns (hierarchical depth
+/// calls it once per run of visible blocks and reads the depth buffer in between); and the
+/// stage sees fragments, not the target. Shading a queue rather than each fragment as it
+/// passes lets the 3D pipeline take the perspective divisions of several fragments together.
+/// Every 1x path but the SIMD kernels goes through it, the references included; the
+/// tiled-vs-reference tests hold the lanes to single fragments, and the coverage and
+/// interpolation tests (independent of it) the queue.
 struct LaneQueue<S> {
     passed: PassedLanes,
     stage: S,

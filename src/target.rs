@@ -59,10 +59,15 @@ impl std::fmt::Debug for Scratch {
     }
 }
 
-/// Sets every element of `buffer` to `value`, blocks of 256 KB in parallel.
-fn fill<T: Copy + Send + Sync>(buffer: &mut [T], value: T) {
+/// Sets every element of `buffer` to `value`, blocks of 256 KB in parallel (a buffer of one
+/// block on the calling thread, without a trip to the pool).
+fn par_fill<T: Copy + Send + Sync>(buffer: &mut [T], value: T) {
     let block = (256 << 10) / size_of::<T>();
-    buffer.par_chunks_mut(block).for_each(|b| b.fill(value));
+    if buffer.len() <= block {
+        buffer.fill(value);
+    } else {
+        buffer.par_chunks_mut(block).for_each(|b| b.fill(value));
+    }
 }
 
 /// The colour a new target is cleared to: opaque black.
@@ -147,16 +152,16 @@ impl Target {
     /// parallel on the current rayon pool (a 1080p target at 4x holds 66 MB of colour and
     /// depth: 7 ms of one thread).
     pub fn clear(&mut self, color: [u8; 4]) {
-        fill(&mut self.color, color);
-        fill(&mut self.depth, 1.0);
+        par_fill(&mut self.color, color);
+        par_fill(&mut self.depth, 1.0);
         if let Some(ids) = &mut self.ids {
-            fill(ids, -1);
+            par_fill(ids, -1);
         }
         if let Some(o) = &mut self.overdraw {
-            fill(o, 0);
+            par_fill(o, 0);
         }
         if let Some(n) = &mut self.normals {
-            fill(n, [0.0; 3]);
+            par_fill(n, [0.0; 3]);
         }
     }
 

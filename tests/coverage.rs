@@ -370,6 +370,18 @@ fn beyond_the_range_is_a_clear_error() {
         let msg = err.to_string();
         assert!(msg.contains("outside the supported window range"), "{msg}");
         assert!(msg.contains("triangle 17") && msg.contains("vertex 1"), "{msg}");
+        // Many triangles (checked in parallel chunks): still the first culprit, whichever
+        // chunk finds one first.
+        let mut tris = vec![good; 100_000];
+        tris[70_000][0].x = bad;
+        tris[40_000][2].y = bad;
+        let err = trirast::draw(&mut target, &tris, &RenderOptions::default()).unwrap_err();
+        let msg = err.to_string();
+        assert!(msg.contains("triangle 40000") && msg.contains("vertex 2"), "{msg}");
+        // None out of range: drawn.
+        tris[70_000] = good;
+        tris[40_000] = good;
+        assert!(trirast::draw(&mut target, &tris, &RenderOptions::default()).is_ok());
     }
     assert!(Target::new(16385, 1).is_err());
     assert!(Target::new(0, 1).is_err());

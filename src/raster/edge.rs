@@ -7,7 +7,7 @@
 
 use super::Span;
 use crate::fixed;
-use crate::setup::{PIXEL_STEP, PixelRect, TriangleSetup};
+use crate::setup::{PixelRect, TriangleSetup};
 
 /// The edge values at the first sample of the clipped box and their steps per pixel and row.
 struct Stepper {
@@ -23,12 +23,8 @@ impl Stepper {
         let r = tri.sample_bounds(offset).intersect(clip)?;
         let x0 = fixed::pixel_centre(r.x0) + offset[0];
         let y0 = fixed::pixel_centre(r.y0) + offset[1];
-        Some(Self {
-            r,
-            row: tri.edges.map(|e| e.eval(x0, y0)),
-            step_x: tri.edges.map(|e| e.a * PIXEL_STEP),
-            step_y: tri.edges.map(|e| e.b * PIXEL_STEP),
-        })
+        let (step_x, step_y) = tri.pixel_steps();
+        Some(Self { r, row: tri.edge_values(x0, y0), step_x, step_y })
     }
 }
 
