@@ -7,8 +7,10 @@ use crate::error::Error;
 use crate::fixed;
 use crate::raster::Algorithm;
 use crate::setup::{CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
-use crate::shade::{self, DepthTest, FragmentOutput, Shading, TriangleColor, TriangleShader};
-use crate::simd::SimdLevel;
+use crate::shade::{
+    self, DepthTest, FragmentOutput, PlaneEquation, Shading, TriangleColor, TriangleShader,
+};
+use crate::simd::{SimdLevel, SpanColor};
 use crate::target::Target;
 
 /// How to draw. `RenderOptions::default()` is: edge functions, smooth shading, no culling,
@@ -166,60 +168,17 @@ pub fn draw(
         None => Some(target.rect()),
     };
     let mut stats = DrawStats { submitted: triangles.len(), ..DrawStats::default() };
+    if options.backend == Backend::Tiled {
+        let tiled = match options.shading {
+            Shading::Perspective => draw_tiled::<TriangleColor>,
+            Shading::Flat | Shading::Smooth => draw_tiled::<SpanColor>,
+        };
+        return Ok(tiled(target, triangles, options, clip, stats));
+    }
     let color = |color: &TriangleColor, e1, e2| FragmentOutput {
         color: color.color_at(e1, e2),
         normal: None,
     };
-    if options.backend == Backend::Tiled {
-        let level = options.simd.unwrap_or_else(SimdLevel::detect);
-        let multisampled = target.samples().count() > 1;
-        // With the scissor off the target nothing is visible, but setup still counts.
-        let visible = clip.unwrap_or(PixelRect::EMPTY);
-        let mut pair: bin::PreparedPair<TriangleColor> = target.take_scratch();
-        let batch_len = bin::batch_len(target.samples());
-        let mut fragments = 0;
-        let bin_target = bin::BinTarget::of(target, options.depth_test);
-        let prepare = |b, first: usize, batch: &[_], prepared: &mut bin::PreparedBatch<_>| {
-            let coverage = bin::Coverage { clip: visible, multisampled };
-            let counts = prepared.prepare(batch.len(), coverage, |k, sink| {
-                let tri = &batch[k];
-                let setup = match TriangleSetup::new(tri, options.cull) {
-                    Ok(setup) => setup,
-                    Err(why) => return sink.skip_many(why.into(), 1),
-                };
-                if sink.coverage().of(&setup).is_none() {
-                    return sink.skip_many(Skipped::Empty, 1);
-                }
-                let (depth, payload) =
-                    TriangleShader::new(tri, &setup, options.shading).into_parts();
-                let id = (first + k) as i32;
-                sink.push(Prepared { setup, depth, id, payload });
-            });
-            stats = stats.merged(&counts);
-            // Binned here, except the first batch (see `PreparedBatch::bin`) and on
-            // multisampled targets, whose batches are eight times larger (two batches' bins
-            // at once would be too).
-            if b > 0 && clip.is_some() && !multisampled {
-                prepared.bin(bin_target);
-            }
-        };
-        let draw = |_, prepared: &bin::PreparedBatch<TriangleColor>| {
-            if clip.is_some() {
-                fragments += bin::draw_binned(
-                    target,
-                    prepared,
-                    options.depth_test,
-                    |shader| shader.span_color().map(|c| (level, c)),
-                    |shader: &TriangleColor, _, _, e1, e2, _| Some(color(shader, e1, e2)),
-                    false,
-                );
-            }
-        };
-        bin::pipelined(triangles, batch_len, &mut pair, prepare, draw);
-        stats.fragments += fragments;
-        target.keep_scratch(pair);
-        return Ok(stats);
-    }
     for (id, tri) in triangles.iter().enumerate() {
         let setup = match TriangleSetup::new(tri, options.cull) {
             Ok(s) => s,
@@ -244,6 +203,115 @@ pub fn draw(
         );
     }
     Ok(stats)
+}
+
+/// The tiled backend of [`draw`], keeping colour `C` per triangle.
+fn draw_tiled<C: WindowColor>(
+    target: &mut Target,
+    triangles: &[[Vertex; 3]],
+    options: &RenderOptions,
+    clip: Option<PixelRect>,
+    mut stats: DrawStats,
+) -> DrawStats {
+    let level = options.simd.unwrap_or_else(SimdLevel::detect);
+    let multisampled = target.samples().count() > 1;
+    // With the scissor off the target nothing is visible, but setup still counts.
+    let visible = clip.unwrap_or(PixelRect::EMPTY);
+    let mut pair: bin::PreparedPair<C> = target.take_scratch();
+    let batch_len = bin::batch_len(target.samples());
+    let mut fragments = 0;
+    let bin_target = bin::BinTarget::of(target, options.depth_test);
+    let prepare = |b, first: usize, batch: &[_], prepared: &mut bin::PreparedBatch<_>| {
+        let coverage = bin::Coverage { clip: visible, multisampled };
+        let counts = prepared.prepare(batch.len(), coverage, |k, sink| {
+            let tri = &batch[k];
+            let setup = match TriangleSetup::new(tri, options.cull) {
+                Ok(setup) => setup,
+                Err(why) => return sink.skip_many(why.into(), 1),
+            };
+            if sink.coverage().of(&setup).is_none() {
+                return sink.skip_many(Skipped::Empty, 1);
+            }
+            let (depth, payload) = C::shade(tri, &setup, options.shading);
+            let id = (first + k) as i32;
+            sink.push(Prepared { setup, depth, id, payload });
+        });
+        stats = stats.merged(&counts);
+        // Binned here, except the first batch (see `PreparedBatch::bin`) and on
+        // multisampled targets, whose batches are eight times larger (two batches' bins
+        // at once would be too).
+        if b > 0 && clip.is_some() && !multisampled {
+            prepared.bin(bin_target);
+        }
+    };
+    let draw = |_, prepared: &bin::PreparedBatch<C>| {
+        if clip.is_some() {
+            fragments += bin::draw_binned(
+                target,
+                prepared,
+                options.depth_test,
+                |c| c.kernel().map(|k| (level, k)),
+                |c: &C, _, _, e1, e2, _| Some(FragmentOutput { color: c.at(e1, e2), normal: None }),
+                false,
+            );
+        }
+    };
+    bin::pipelined(triangles, batch_len, &mut pair, prepare, draw);
+    stats.fragments += fragments;
+    target.keep_scratch(pair);
+    stats
+}
+
+/// What the tiled backend keeps per triangle besides its setup and depth plane: for flat and
+/// smooth shading the colour as the span kernels take it ([`SpanColor`]), for perspective
+/// shading a [`TriangleColor`]. Records are read back from memory for each tile they touch,
+/// and the first is 24 bytes smaller (see ARCHITECTURE.md, `render`).
+trait WindowColor: Copy + Send + Sync + 'static {
+    /// The depth plane and colour of a set-up triangle with vertices `v`.
+    fn shade(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> (PlaneEquation, Self);
+
+    /// The colour as a span kernel takes it, if it has one.
+    fn kernel(&self) -> Option<&SpanColor>;
+
+    /// The colour at barycentric numerators `(e1, e2)`.
+    fn at(&self, e1: f64, e2: f64) -> [u8; 4];
+}
+
+impl WindowColor for TriangleColor {
+    #[inline(always)]
+    fn shade(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> (PlaneEquation, Self) {
+        TriangleShader::new(v, setup, shading).into_parts()
+    }
+
+    #[inline(always)]
+    fn kernel(&self) -> Option<&SpanColor> {
+        self.span_color()
+    }
+
+    #[inline(always)]
+    fn at(&self, e1: f64, e2: f64) -> [u8; 4] {
+        self.color_at(e1, e2)
+    }
+}
+
+impl WindowColor for SpanColor {
+    /// For flat and smooth shading (perspective colours have no span colour: `draw` keeps
+    /// [`TriangleColor`] for them); anything but flat counts as smooth.
+    #[inline(always)]
+    fn shade(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> (PlaneEquation, Self) {
+        debug_assert_ne!(shading, Shading::Perspective, "no span colour for perspective shading");
+        TriangleShader::span_parts(v, setup, shading != Shading::Flat)
+    }
+
+    #[inline(always)]
+    fn kernel(&self) -> Option<&SpanColor> {
+        Some(self)
+    }
+
+    #[inline(always)]
+    fn at(&self, e1: f64, e2: f64) -> [u8; 4] {
+        SpanColor::at(self, e1, e2)
+    }
 }
 
 /// Triangles per parallel task of the range check.
