@@ -264,8 +264,8 @@ fn draw_tiled<C: WindowColor>(
 
 /// What the tiled backend keeps per triangle besides its setup and depth plane: for flat and
 /// smooth shading the colour as the span kernels take it ([`SpanColor`]), for perspective
-/// shading a [`TriangleColor`]. Records are read back from memory for each tile they touch,
-/// and the first is 24 bytes smaller (see ARCHITECTURE.md, `render`).
+/// shading a [`TriangleColor`]: records 24 bytes smaller, and no match on the colour's kind
+/// per triangle and tile (see ARCHITECTURE.md, `render`).
 trait WindowColor: Copy + Send + Sync + 'static {
     /// The depth plane and colour of a set-up triangle with vertices `v`.
     fn shade(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> (PlaneEquation, Self);
