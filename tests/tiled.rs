@@ -574,6 +574,24 @@ fn reused_targets_draw_what_fresh_ones_draw() {
     assert_same(&expected, &reused, "after release_scratch");
 }
 
+/// `n` opaque triangles piled on a `w x h` target (seeded by `seed`): each within `size` of a
+/// random centre, one in 500 within 150 pixels, at one of four depths, so `Less` meets ties.
+fn piled_triangles(seed: u64, n: usize, w: f32, h: f32, size: f32) -> Vec<[Vertex; 3]> {
+    let mut rng = SmallRng::seed_from_u64(seed);
+    (0..n)
+        .map(|k| {
+            let (cx, cy) = (rng.random_range(0.0..w), rng.random_range(0.0..h));
+            let z = f32::from(rng.random_range(0u8..4)) / 4.0;
+            let size = if k % 500 == 0 { 150.0 } else { size };
+            std::array::from_fn(|_| {
+                let (x, y) =
+                    (cx + rng.random_range(-size..size), cy + rng.random_range(-size..size));
+                Vertex::new(x, y, z, [rng.random(), rng.random(), rng.random(), 255])
+            })
+        })
+        .collect()
+}
+
 /// Draw calls longer than a batch: batches are set up while the one before is drawn, and
 /// must still be drawn in submission order. Three and a half batches of small triangles piled
 /// on a small target (every pixel is written by triangles of every batch), one in 500 large
@@ -584,22 +602,8 @@ fn reused_targets_draw_what_fresh_ones_draw() {
 #[test]
 fn batches_are_drawn_in_submission_order() {
     use trirast::bin::BATCH;
-    let mut rng = SmallRng::seed_from_u64(77);
-    let n = 3 * BATCH + BATCH / 2;
     let (w, h) = (160.0, 100.0);
-    let tris: Vec<[Vertex; 3]> = (0..n)
-        .map(|k| {
-            let (cx, cy) = (rng.random_range(0.0..w), rng.random_range(0.0..h));
-            // A few depths only, so `Less` meets ties.
-            let z = f32::from(rng.random_range(0u8..4)) / 4.0;
-            let size = if k % 500 == 0 { 150.0 } else { 6.0 };
-            std::array::from_fn(|_| {
-                let (x, y) =
-                    (cx + rng.random_range(-size..size), cy + rng.random_range(-size..size));
-                Vertex::new(x, y, z, [rng.random(), rng.random(), rng.random(), 255])
-            })
-        })
-        .collect();
+    let tris = piled_triangles(77, 3 * BATCH + BATCH / 2, w, h, 6.0);
     for (depth_test, overdraw) in
         [(DepthTest::Always, true), (DepthTest::Less, true), (DepthTest::Less, false)]
     {
@@ -634,21 +638,8 @@ fn batches_are_drawn_in_submission_order() {
 #[test]
 fn multisampled_batches_are_drawn_in_submission_order() {
     use trirast::bin::MULTISAMPLED_BATCH;
-    let mut rng = SmallRng::seed_from_u64(78);
-    let n = MULTISAMPLED_BATCH + MULTISAMPLED_BATCH / 2;
     let (w, h) = (160.0, 100.0);
-    let tris: Vec<[Vertex; 3]> = (0..n)
-        .map(|k| {
-            let (cx, cy) = (rng.random_range(0.0..w), rng.random_range(0.0..h));
-            let z = f32::from(rng.random_range(0u8..4)) / 4.0;
-            let size = if k % 500 == 0 { 150.0 } else { 3.0 };
-            std::array::from_fn(|_| {
-                let (x, y) =
-                    (cx + rng.random_range(-size..size), cy + rng.random_range(-size..size));
-                Vertex::new(x, y, z, [rng.random(), rng.random(), rng.random(), 255])
-            })
-        })
-        .collect();
+    let tris = piled_triangles(78, MULTISAMPLED_BATCH + MULTISAMPLED_BATCH / 2, w, h, 3.0);
     let fresh = |overdraw: bool| {
         let target = Target::multisampled(w as u32, h as u32, SampleCount::X4).unwrap().with_ids();
         if overdraw { target.with_overdraw() } else { target }
