@@ -19,7 +19,7 @@ use crate::fixed;
 use crate::raster::{self, Algorithm, Span};
 use crate::sample::{MAX_SAMPLES, SampleCount};
 use crate::setup::{PIXEL_STEP, PixelRect, TriangleSetup, Vertex};
-use crate::simd::{self, KernelTarget, NarrowJob, SimdLevel, SpanColor, SpanJob};
+use crate::simd::{self, KernelTarget, NarrowJob, SampleSpanJob, SimdLevel, SpanColor, SpanJob};
 use crate::target::TargetBand;
 
 /// How a triangle's colour varies across it.
@@ -572,30 +572,86 @@ pub fn shade_triangle(
         return pixels.covered;
     };
     let y1 = spans.iter().filter_map(|v| v.last()).map(|sp| sp.y).max().unwrap_or(y0);
+    // With a span kernel's colour (and no overdraw buffer, which counts per pixel), the
+    // pixels whose samples are all covered go to the sample span kernel.
+    let sample_kernel = kernel.filter(|_| target.overdraw.is_none());
+    // Each sample's numerators less its pixel centre's.
+    let [_, e1, e2] = &setup.edges;
+    let offsets: [[i64; 2]; MAX_SAMPLES] = std::array::from_fn(|s| {
+        let [ox, oy] = if s < n { samples.offset(s) } else { [0, 0] };
+        [e1.a * ox + e1.b * oy, e2.a * ox + e2.b * oy]
+    });
+    let mut kernel_covered = 0u64;
     let mut cursor = vec![0usize; n];
     let mut row = [None::<Span>; MAX_SAMPLES];
     for y in y0..=y1 {
         let (mut lo, mut hi) = (i32::MAX, i32::MIN);
+        // The pixels every sample of which is covered: the spans' intersection.
+        let (mut inner_lo, mut inner_hi) = (i32::MIN, i32::MAX);
         for s in 0..n {
             row[s] = spans[s].get(cursor[s]).copied().filter(|sp| sp.y == y);
-            if let Some(sp) = row[s] {
-                cursor[s] += 1;
-                lo = lo.min(sp.x_start);
-                hi = hi.max(sp.x_end);
+            match row[s] {
+                Some(sp) => {
+                    cursor[s] += 1;
+                    lo = lo.min(sp.x_start);
+                    hi = hi.max(sp.x_end);
+                    inner_lo = inner_lo.max(sp.x_start);
+                    inner_hi = inner_hi.min(sp.x_end);
+                }
+                None => inner_hi = i32::MIN,
             }
         }
-        for px in lo..hi {
-            let mask = (0..n).fold(0u32, |m, s| match row[s] {
-                Some(sp) if (sp.x_start..sp.x_end).contains(&px) => m | (1 << s),
-                _ => m,
-            });
-            if mask != 0 {
-                pixels.pixel(target, px, y, mask);
+        let mut each_pixel = |target: &mut TargetBand<'_>, from: i32, to: i32| {
+            for px in from..to {
+                let mask = (0..n).fold(0u32, |m, s| match row[s] {
+                    Some(sp) if (sp.x_start..sp.x_end).contains(&px) => m | (1 << s),
+                    _ => m,
+                });
+                if mask != 0 {
+                    pixels.pixel(target, px, y, mask);
+                }
             }
+        };
+        match sample_kernel {
+            Some((level, color)) if inner_hi.saturating_sub(inner_lo) >= SAMPLE_KERNEL_MIN_SPAN => {
+                each_pixel(target, lo, inner_lo);
+                let (e1, e2) = setup
+                    .barycentric_numerators(fixed::pixel_centre(inner_lo), fixed::pixel_centre(y));
+                let row = target.index(0, y);
+                let range = n * (row + inner_lo as usize)..n * (row + inner_hi as usize);
+                let job = SampleSpanJob {
+                    span: SpanJob {
+                        e1,
+                        e2,
+                        step1: setup.edges[1].a * PIXEL_STEP,
+                        step2: setup.edges[2].a * PIXEL_STEP,
+                        target: KernelTarget {
+                            depth_plane: depth.coefficients(),
+                            color,
+                            depth_test,
+                            id,
+                            depth: &mut target.depth[range.clone()],
+                            color_out: &mut target.color[range.clone()],
+                            ids: target.ids.as_deref_mut().map(|s| &mut s[range.clone()]),
+                            overdraw: None,
+                        },
+                    },
+                    samples: n,
+                    offsets,
+                };
+                simd::shade_samples(level, job);
+                kernel_covered += (n * (inner_hi - inner_lo) as usize) as u64;
+                each_pixel(target, inner_hi, hi);
+            }
+            _ => each_pixel(target, lo, hi),
         }
     }
-    pixels.covered
+    pixels.covered + kernel_covered
 }
+
+/// Runs of fully covered multisampled pixels at least this long go to the sample span
+/// kernel.
+const SAMPLE_KERNEL_MIN_SPAN: i32 = 2;
 
 /// The pixels of one triangle on a multisampled target, each with its mask of covered
 /// samples: count them (overdraw), test depth per covered sample, and if any passes, shade

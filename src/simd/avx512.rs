@@ -12,7 +12,7 @@
 
 use std::arch::x86_64::*;
 
-use super::{KernelTarget, NarrowJob, SpanColor, SpanJob};
+use super::{KernelTarget, NarrowJob, SampleSpanJob, SpanColor, SpanJob};
 use crate::shade::DepthTest;
 
 /// Eight lanes of `(a0 + f1 * g1) + f2 * g2`.
@@ -100,6 +100,8 @@ unsafe fn store<const PAIR: bool>(p: *mut i32, at: [usize; 2], m: __mmask8, v: _
 /// The eight pixels at `at` (see [`load`]) whose bits in `cover` are set, with barycentric
 /// numerators `f1`, `f2`: overdraw, depth test and writes, as `KernelTarget::pixel` does lane
 /// by lane. With `SKIP_HIDDEN`, no colour is computed when no lane passes the depth test.
+/// With `at_sample`, depth is taken at those numerators instead (samples whose colour is
+/// their pixel centre's).
 ///
 /// # Safety
 /// The CPU must support AVX-512 F and VL; the offsets must be at most `t.checked_len()`, and
@@ -112,6 +114,7 @@ unsafe fn group<const SKIP_HIDDEN: bool, const PAIR: bool>(
     f1: __m512d,
     f2: __m512d,
     cover: __mmask8,
+    at_sample: Option<[__m512d; 2]>,
     rgba: impl Fn(__m512d, __m512d) -> __m256i,
 ) {
     // SAFETY (every access in this block): the buffers all hold `checked_len()` elements, so
@@ -123,7 +126,8 @@ unsafe fn group<const SKIP_HIDDEN: bool, const PAIR: bool>(
             let counts = load::<PAIR>(p, at, cover);
             store::<PAIR>(p, at, cover, _mm256_add_epi32(counts, _mm256_set1_epi32(1)));
         }
-        let z = _mm512_cvtpd_ps(plane(t.depth_plane, f1, f2));
+        let [z1, z2] = at_sample.unwrap_or([f1, f2]);
+        let z = _mm512_cvtpd_ps(plane(t.depth_plane, z1, z2));
         let z = _mm256_min_ps(_mm256_set1_ps(1.0), _mm256_max_ps(_mm256_setzero_ps(), z));
         let dp = t.depth.as_mut_ptr().cast::<i32>();
         let stored = _mm256_castsi256_ps(load::<PAIR>(dp, at, cover));
@@ -215,12 +219,14 @@ unsafe fn narrow_rows(job: &mut NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) -
             covered += u64::from(cover.count_ones());
             // SAFETY: both rows' first pixels are in the buffers and so are their `columns`
             // lanes, a superset of `cover` (asserted above).
-            unsafe { group::<false, true>(&mut job.target, [at, second], f1, f2, cover, &rgba) };
+            unsafe {
+                group::<false, true>(&mut job.target, [at, second], f1, f2, cover, None, &rgba)
+            };
         } else {
             let cover = !_mm512_movepi64_mask(any) & columns;
             covered += u64::from(cover.count_ones());
             // SAFETY: as above, for one row.
-            unsafe { group::<false, false>(&mut job.target, [at, at], f1, f2, cover, &rgba) };
+            unsafe { group::<false, false>(&mut job.target, [at, at], f1, f2, cover, None, &rgba) };
         }
         row = std::array::from_fn(|k| row[k] + step_y[k]);
     }
@@ -259,7 +265,7 @@ unsafe fn span_groups(job: &mut SpanJob<'_>, rgba: impl Fn(__m512d, __m512d) -> 
     let mut k = 0;
     while k + 8 <= n {
         // SAFETY: `k + 8 <= n`.
-        unsafe { group::<true, false>(&mut job.target, [k, k], f1, f2, 0xFF, &rgba) };
+        unsafe { group::<true, false>(&mut job.target, [k, k], f1, f2, 0xFF, None, &rgba) };
         f1 = _mm512_add_pd(f1, step1);
         f2 = _mm512_add_pd(f2, step2);
         k += 8;
@@ -267,6 +273,58 @@ unsafe fn span_groups(job: &mut SpanJob<'_>, rgba: impl Fn(__m512d, __m512d) -> 
     if k < n {
         let tail = ((1u32 << (n - k)) - 1) as __mmask8;
         // SAFETY: `k < n` and the lanes of `tail` are `k..n`.
-        unsafe { group::<true, false>(&mut job.target, [k, k], f1, f2, tail, &rgba) };
+        unsafe { group::<true, false>(&mut job.target, [k, k], f1, f2, tail, None, &rgba) };
+    }
+}
+
+/// [`super::shade_samples`] in AVX-512: eight samples per step (lane `l`: sample `l % n` of
+/// pixel `l / n`, whose buffer elements are contiguous), the colour at each lane's pixel
+/// centre, depth at its sample; the last pixel at 4x as one masked group.
+///
+/// # Safety
+/// The CPU must support AVX-512 F and VL.
+#[target_feature(enable = "avx512f,avx512vl")]
+pub(super) unsafe fn shade_samples(job: &mut SampleSpanJob<'_>) {
+    // SAFETY: the CPU supports AVX-512 F and VL (this function's contract).
+    with_rgba!(*job.span.target.color, __m512d, _mm256_set1_epi32, smooth, rgba => unsafe {
+        sample_groups(job, rgba)
+    })
+}
+
+/// [`shade_samples`] for one colour kind.
+///
+/// # Safety
+/// The CPU must support AVX-512 F and VL.
+#[inline]
+#[target_feature(enable = "avx512f,avx512vl")]
+unsafe fn sample_groups(job: &mut SampleSpanJob<'_>, rgba: impl Fn(__m512d, __m512d) -> __m256i) {
+    let n = job.check();
+    let samples = job.samples;
+    let pixels_per_group = 8 / samples;
+    let lane =
+        |f: &dyn Fn(usize) -> f64| _mm512_setr_pd(f(0), f(1), f(2), f(3), f(4), f(5), f(6), f(7));
+    // Each lane's pixel within the group, and its sample's offset.
+    let pixel = lane(&|l| (l / samples) as f64);
+    let offset = |k: usize| lane(&|l| job.offsets[l % samples][k] as f64);
+    let at_sample = [offset(0), offset(1)];
+    let span = &mut job.span;
+    let start = |e: i64, step: i64| {
+        _mm512_add_pd(_mm512_set1_pd(e as f64), _mm512_mul_pd(pixel, _mm512_set1_pd(step as f64)))
+    };
+    let (mut f1, mut f2) = (start(span.e1, span.step1), start(span.e2, span.step2));
+    let group_steps = pixels_per_group as f64;
+    let (step1, step2) = (
+        _mm512_set1_pd(group_steps * span.step1 as f64),
+        _mm512_set1_pd(group_steps * span.step2 as f64),
+    );
+    let mut k = 0;
+    while k < n {
+        let lanes = if k + 8 <= n { 0xFF } else { ((1u32 << (n - k)) - 1) as __mmask8 };
+        let z = [_mm512_add_pd(f1, at_sample[0]), _mm512_add_pd(f2, at_sample[1])];
+        // SAFETY: `k < n`, and the lanes of `lanes` are `k..min(k + 8, n)`.
+        unsafe { group::<true, false>(&mut span.target, [k, k], f1, f2, lanes, Some(z), &rgba) };
+        f1 = _mm512_add_pd(f1, step1);
+        f2 = _mm512_add_pd(f2, step2);
+        k += 8;
     }
 }
