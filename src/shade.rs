@@ -17,7 +17,7 @@
 
 use crate::fixed;
 use crate::raster::{self, Algorithm, Span};
-use crate::sample::{MAX_SAMPLES, SampleCount};
+use crate::sample::MAX_SAMPLES;
 use crate::setup::{PIXEL_STEP, PixelRect, TriangleSetup, Vertex};
 use crate::simd::{self, KernelTarget, NarrowJob, SampleSpanJob, SimdLevel, SpanColor, SpanJob};
 use crate::target::TargetBand;
@@ -522,7 +522,14 @@ pub fn shade_triangle(
             target, setup, algorithm, clip, depth, depth_test, id, kernel, fragment,
         );
     }
-    let mut pixels = SamplePixels { setup, samples, depth, depth_test, id, fragment, covered: 0 };
+    // Each sample's numerators less its pixel centre's (exact: the edge functions are linear).
+    let [_, e1, e2] = &setup.edges;
+    let offsets: [[i64; 2]; MAX_SAMPLES] = std::array::from_fn(|s| {
+        let [ox, oy] = if s < n { samples.offset(s) } else { [0, 0] };
+        [e1.a * ox + e1.b * oy, e2.a * ox + e2.b * oy]
+    });
+    let mut pixels =
+        SamplePixels { setup, n, offsets, depth, depth_test, id, fragment, covered: 0 };
 
     if algorithm == Algorithm::EdgeMasks {
         // The pixels any sample of which may be covered: the union of the sample boxes.
@@ -575,12 +582,6 @@ pub fn shade_triangle(
     // With a span kernel's colour (and no overdraw buffer, which counts per pixel), the
     // pixels whose samples are all covered go to the sample span kernel.
     let sample_kernel = kernel.filter(|_| target.overdraw.is_none());
-    // Each sample's numerators less its pixel centre's.
-    let [_, e1, e2] = &setup.edges;
-    let offsets: [[i64; 2]; MAX_SAMPLES] = std::array::from_fn(|s| {
-        let [ox, oy] = if s < n { samples.offset(s) } else { [0, 0] };
-        [e1.a * ox + e1.b * oy, e2.a * ox + e2.b * oy]
-    });
     let mut kernel_covered = 0u64;
     let mut cursor = vec![0usize; n];
     let mut row = [None::<Span>; MAX_SAMPLES];
@@ -660,7 +661,10 @@ const SAMPLE_KERNEL_MIN_SPAN: i32 = 2;
 /// the spans' loop (large triangles, fill at 4x) took a fifth longer.
 struct SamplePixels<'a, S> {
     setup: &'a TriangleSetup,
-    samples: SampleCount,
+    /// Samples per pixel.
+    n: usize,
+    /// Each sample's numerators less its pixel centre's.
+    offsets: [[i64; 2]; MAX_SAMPLES],
     depth: &'a PlaneEquation,
     depth_test: DepthTest,
     id: i32,
@@ -673,19 +677,19 @@ impl<S: FragmentStage> SamplePixels<'_, S> {
     /// Pixel `(px, py)` with covered samples `mask`.
     #[inline(always)]
     fn pixel(&mut self, target: &mut TargetBand<'_>, px: i32, py: i32, mask: u32) {
-        let n = self.samples.count();
+        let n = self.n;
         self.covered += u64::from(mask.count_ones());
         let p = target.index(px, py);
         if let Some(o) = &mut target.overdraw {
             o[p] += mask.count_ones();
         }
         let (cx, cy) = (fixed::pixel_centre(px), fixed::pixel_centre(py));
+        let (c1, c2) = self.setup.barycentric_numerators(cx, cy);
         let mut z = [0.0f32; MAX_SAMPLES];
         let mut passed = 0u32;
         for s in (0..n).filter(|s| mask & (1 << s) != 0) {
-            let [ox, oy] = self.samples.offset(s);
-            let (e1, e2) = self.setup.barycentric_numerators(cx + ox, cy + oy);
-            z[s] = depth_at(self.depth, e1 as f64, e2 as f64);
+            let [o1, o2] = self.offsets[s];
+            z[s] = depth_at(self.depth, (c1 + o1) as f64, (c2 + o2) as f64);
             if self.depth_test.passes(z[s], target.depth[p * n + s]) {
                 passed |= 1 << s;
             }
@@ -693,8 +697,7 @@ impl<S: FragmentStage> SamplePixels<'_, S> {
         if passed == 0 {
             return;
         }
-        let (e1, e2) = self.setup.barycentric_numerators(cx, cy);
-        let (e1, e2) = (e1 as f64, e2 as f64);
+        let (e1, e2) = (c1 as f64, c2 as f64);
         let z_centre = depth_at(self.depth, e1, e2);
         let Some(out) = self.fragment.fragment(px, py, e1, e2, z_centre) else { return };
         for s in (0..n).filter(|s| passed & (1 << s) != 0) {
