@@ -12,7 +12,9 @@ use trirast::clip::ClipVolume;
 use trirast::fixed;
 use trirast::pipeline::Viewport;
 use trirast::shade::DepthTest;
-use trirast::simd::{self, Corner, KernelTarget, NarrowJob, SimdLevel, SpanColor, SpanJob};
+use trirast::simd::{
+    self, Corner, KernelTarget, NarrowJob, SampleSpanJob, SimdLevel, SpanColor, SpanJob,
+};
 use trirast::{CullMode, PixelRect, TriangleSetup, Vertex};
 
 fn triangles(n: usize) -> Vec<[Vertex; 3]> {
@@ -94,6 +96,34 @@ fn kernels(c: &mut Criterion) {
                 );
             })
         });
+    }
+    g.finish();
+}
+
+fn sample_kernels(c: &mut Criterion) {
+    let mut g = c.benchmark_group("sample span kernel");
+    let pixels = 64;
+    g.throughput(Throughput::Elements(pixels as u64));
+    for samples in [4, 8] {
+        for level in SimdLevel::available() {
+            let n = pixels * samples;
+            let mut depth = vec![1.0f32; n];
+            let mut color = vec![[0u8; 4]; n];
+            let offsets = std::array::from_fn(|s| [(s as i64 - 3) << 16, (5 - s as i64) << 15]);
+            g.bench_function(format!("{level:?}, 64 px at {samples}x smooth"), |b| {
+                b.iter(|| {
+                    depth.fill(1.0);
+                    let span = SpanJob {
+                        e1: 1 << 30,
+                        e2: 1 << 29,
+                        step1: 1 << 20,
+                        step2: -(1 << 19),
+                        target: smooth_target(&mut depth, &mut color),
+                    };
+                    simd::shade_samples(level, SampleSpanJob { span, samples, offsets });
+                })
+            });
+        }
     }
     g.finish();
 }
@@ -190,5 +220,5 @@ fn front_end(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, setup, binning, kernels, narrow, front_end);
+criterion_group!(benches, setup, binning, kernels, sample_kernels, narrow, front_end);
 criterion_main!(benches);
