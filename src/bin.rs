@@ -215,6 +215,15 @@ impl<T> Sink<'_, T> {
         self.coverage
     }
 
+    /// Asks the CPU to start loading the memory the pieces after the next `skip` will be
+    /// written to (up to `n` of them, within the buffer's capacity).
+    #[inline]
+    pub fn prefetch(&mut self, skip: usize, n: usize) {
+        let spare = self.out.spare_capacity_mut();
+        let from = skip.min(spare.len());
+        crate::simd::prefetch_slice(&spare[from..(skip + n).min(spare.len())]);
+    }
+
     /// Counts `n` pieces skipped for the same reason at once.
     #[inline]
     pub fn skip_many(&mut self, why: Skipped, n: usize) {

@@ -60,7 +60,7 @@ pub fn snap(x: f32) -> Option<i32> {
 /// The largest `f32` below [`MAX_COORD`] is `MAX_COORD - 2^-9`, which scales to
 /// `2^23 - 0.5` and rounds (half to even) up to `2^23`, past the range; every value below it
 /// snaps inside. So [`snap`] succeeds exactly on `[MIN_COORD, SNAP_LIMIT)`.
-const SNAP_LIMIT: f32 = MAX_COORD - 1.0 / 512.0;
+pub(crate) const SNAP_LIMIT: f32 = MAX_COORD - 1.0 / 512.0;
 
 /// Whether [`snap`] succeeds on `x`, as two comparisons (no rounding): a whole array of
 /// coordinates can be checked at vector speed before any is snapped.

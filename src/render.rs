@@ -10,7 +10,7 @@ use crate::setup::{CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
 use crate::shade::{
     self, DepthTest, FragmentOutput, PlaneEquation, Shading, TriangleColor, TriangleShader,
 };
-use crate::simd::{SimdLevel, SpanColor};
+use crate::simd::{self, SimdLevel, SpanColor};
 use crate::target::Target;
 
 /// How to draw. `RenderOptions::default()` is: edge functions, smooth shading, no culling,
@@ -223,7 +223,7 @@ fn draw_tiled<C: WindowColor>(
     let bin_target = bin::BinTarget::of(target, options.depth_test);
     let prepare = |b, first: usize, batch: &[_], prepared: &mut bin::PreparedBatch<_>| {
         let coverage = bin::Coverage { clip: visible, multisampled };
-        let counts = prepared.prepare(batch.len(), coverage, |k, sink| {
+        let one = |k: usize, sink: &mut bin::Sink<'_, C>| {
             let tri = &batch[k];
             let setup = match TriangleSetup::new(tri, options.cull) {
                 Ok(setup) => setup,
@@ -235,6 +235,42 @@ fn draw_tiled<C: WindowColor>(
             let (depth, payload) = C::shade(tri, &setup, options.shading);
             let id = (first + k) as i32;
             sink.push(Prepared { setup, depth, id, payload });
+        };
+        let counts = prepared.prepare_ranges(batch.len(), coverage, |range, sink| {
+            let mut k = range.start;
+            // Flat and smooth colours eight triangles at a time where there is a kernel for it
+            // (the same records; the rest, and perspective colours, one at a time).
+            let mut group = simd::WindowGroup::default();
+            while k + 8 <= range.end && options.shading != Shading::Perspective {
+                let Ok(tris) = <&[[Vertex; 3]; 8]>::try_from(&batch[k..k + 8]) else { break };
+                sink.prefetch(8, 8);
+                if !simd::window_group(level, tris, options.cull, &mut group) {
+                    break;
+                }
+                for (l, tri) in tris.iter().enumerate() {
+                    let (setup, depth, planes) = match group.lane(l) {
+                        Ok(lane) => lane,
+                        Err(why) => {
+                            sink.skip_many(why.into(), 1);
+                            continue;
+                        }
+                    };
+                    match C::from_planes(tri, planes, options.shading) {
+                        Some(payload) => {
+                            let id = (first + k + l) as i32;
+                            sink.push(Prepared { setup, depth, id, payload });
+                        }
+                        None => one(k + l, sink),
+                    }
+                }
+                k += 8;
+            }
+            for k in k..range.end {
+                if (k - range.start) % 8 == 0 {
+                    sink.prefetch(8, 8);
+                }
+                one(k, sink);
+            }
         });
         stats = stats.merged(&counts);
         // Binned here, except the first batch (see `PreparedBatch::bin`) and on
@@ -270,6 +306,11 @@ trait WindowColor: Copy + Send + Sync + 'static {
     /// The depth plane and colour of a set-up triangle with vertices `v`.
     fn shade(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> (PlaneEquation, Self);
 
+    /// The colour of a triangle with vertices `v` whose Gouraud planes (RGBA) are `planes`,
+    /// as [`WindowColor::shade`] gives it, where it can be told from them (flat and smooth
+    /// shading).
+    fn from_planes(v: &[Vertex; 3], planes: [[f64; 3]; 4], shading: Shading) -> Option<Self>;
+
     /// The colour as a span kernel takes it, if it has one.
     fn kernel(&self) -> Option<&SpanColor>;
 
@@ -281,6 +322,10 @@ impl WindowColor for TriangleColor {
     #[inline(always)]
     fn shade(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> (PlaneEquation, Self) {
         TriangleShader::new(v, setup, shading).into_parts()
+    }
+
+    fn from_planes(_: &[Vertex; 3], _: [[f64; 3]; 4], _: Shading) -> Option<Self> {
+        None
     }
 
     #[inline(always)]
@@ -301,6 +346,14 @@ impl WindowColor for SpanColor {
     fn shade(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> (PlaneEquation, Self) {
         debug_assert_ne!(shading, Shading::Perspective, "no span colour for perspective shading");
         TriangleShader::span_parts(v, setup, shading != Shading::Flat)
+    }
+
+    #[inline(always)]
+    fn from_planes(v: &[Vertex; 3], planes: [[f64; 3]; 4], shading: Shading) -> Option<Self> {
+        Some(match shading {
+            Shading::Flat => SpanColor::Flat(crate::shade::flat_color(v)),
+            _ => SpanColor::smooth(planes),
+        })
     }
 
     #[inline(always)]

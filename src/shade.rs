@@ -92,6 +92,13 @@ impl PlaneEquation {
         self.a0 + e1 * self.g1 + e2 * self.g2
     }
 
+    /// The plane `[a0, g1, g2]` (as [`PlaneEquation::coefficients`] gives it back).
+    #[inline(always)]
+    #[must_use]
+    pub fn from_coefficients([a0, g1, g2]: [f64; 3]) -> Self {
+        Self { a0, g1, g2 }
+    }
+
     /// `[a0, g1, g2]`, for kernels that evaluate the same expression.
     #[must_use]
     pub fn coefficients(&self) -> [f64; 3] {
@@ -162,12 +169,7 @@ fn span_color(v: &[Vertex; 3], inv_area2: f64, smooth: bool) -> SpanColor {
     }
     let channel = |c: usize| each_vertex(v, |p| f64::from(p.color[c]));
     let plane = |c| PlaneEquation::with_inv_area2(channel(c), inv_area2).coefficients();
-    let [r, g, b, a] = [plane(0), plane(1), plane(2), plane(3)];
-    match a {
-        // One alpha at every vertex: the same colours with one plane fewer.
-        [a0, 0.0, 0.0] => SpanColor::SmoothRgb([r, g, b], quantize_channel(a0)),
-        _ => SpanColor::Smooth([r, g, b, a]),
-    }
+    SpanColor::smooth([plane(0), plane(1), plane(2), plane(3)])
 }
 
 /// The flat colour of a triangle: per channel, the average of the vertex colours rounded to

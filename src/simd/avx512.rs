@@ -12,7 +12,9 @@
 
 use std::arch::x86_64::*;
 
-use super::{KernelTarget, NarrowJob, SampleSpanJob, SpanColor, SpanJob};
+use super::{KernelTarget, NarrowJob, SampleSpanJob, SpanColor, SpanJob, WindowGroup};
+use crate::fixed;
+use crate::setup::{CullMode, Rejection, Vertex};
 use crate::shade::DepthTest;
 
 /// Eight lanes of `(a0 + f1 * g1) + f2 * g2`.
@@ -326,5 +328,147 @@ unsafe fn sample_groups(job: &mut SampleSpanJob<'_>, rgba: impl Fn(__m512d, __m5
         f1 = _mm512_add_pd(f1, step1);
         f2 = _mm512_add_pd(f2, step2);
         k += 8;
+    }
+}
+
+/// Eight lanes of one `f32` field of each triangle.
+#[inline]
+#[target_feature(enable = "avx512f,avx512vl")]
+fn each_f32(tris: &[[Vertex; 3]; 8], f: impl Fn(&[Vertex; 3]) -> f32) -> __m256 {
+    let [t0, t1, t2, t3, t4, t5, t6, t7] = tris;
+    _mm256_setr_ps(f(t0), f(t1), f(t2), f(t3), f(t4), f(t5), f(t6), f(t7))
+}
+
+/// [`super::window_group`] in AVX-512: the per-triangle front end's arithmetic lane by lane.
+/// Snapping rounds `x * 256` (exact in `f64`) half to even, as `fixed::snap` does; edge
+/// functions and areas are `i64` lanes (exact, below 2^49); the planes are `f64` lanes with
+/// separate multiplies and adds; pixel bounds are arithmetic shifts (floor divisions by 256).
+/// Lanes whose triangle is rejected compute garbage that is never read.
+///
+/// # Safety
+/// The CPU must support AVX-512 F, VL and DQ.
+#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: &mut WindowGroup) {
+    let zero = _mm512_setzero_si512();
+    let mut finite: __mmask8 = 0xFF;
+    let mut in_range: __mmask8 = 0xFF;
+    let mut xs = [zero; 3];
+    let mut ys = [zero; 3];
+    let mut z = [_mm512_setzero_pd(); 3];
+    let mut color = [_mm256_setzero_si256(); 3];
+    for v in 0..3 {
+        let x = each_f32(tris, |t| t[v].x);
+        let y = each_f32(tris, |t| t[v].y);
+        let zv = each_f32(tris, |t| t[v].z);
+        let w = each_f32(tris, |t| t[v].inv_w);
+        // Finite iff `v - v` is 0 (NaN for NaN and infinities).
+        for f in [x, y, zv, w] {
+            finite &= _mm256_cmp_ps_mask::<_CMP_EQ_OQ>(_mm256_sub_ps(f, f), _mm256_setzero_ps());
+        }
+        // Exactly where `fixed::snap` succeeds.
+        for f in [x, y] {
+            in_range &= _mm256_cmp_ps_mask::<_CMP_GE_OQ>(f, _mm256_set1_ps(fixed::MIN_COORD))
+                & _mm256_cmp_ps_mask::<_CMP_LT_OQ>(f, _mm256_set1_ps(fixed::SNAP_LIMIT));
+        }
+        let snap = |f: __m256| {
+            let scaled = _mm512_mul_pd(_mm512_cvtps_pd(f), _mm512_set1_pd(f64::from(fixed::ONE)));
+            _mm512_cvt_roundpd_epi64::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(scaled)
+        };
+        (xs[v], ys[v]) = (snap(x), snap(y));
+        z[v] = _mm512_cvtps_pd(zv);
+        let [c0, c1, c2, c3, c4, c5, c6, c7] =
+            std::array::from_fn(|k| i32::from_le_bytes(tris[k][v].color));
+        color[v] = _mm256_setr_epi32(c0, c1, c2, c3, c4, c5, c6, c7);
+    }
+    let mul = |a: __m512i, b: __m512i| _mm512_mullo_epi64(a, b);
+    let sub = |a: __m512i, b: __m512i| _mm512_sub_epi64(a, b);
+    let signed =
+        sub(mul(sub(xs[1], xs[0]), sub(ys[2], ys[0])), mul(sub(xs[2], xs[0]), sub(ys[1], ys[0])));
+    let degenerate = _mm512_cmpeq_epi64_mask(signed, zero);
+    let clockwise = _mm512_cmpgt_epi64_mask(signed, zero);
+    let culled = match cull {
+        CullMode::None => 0,
+        CullMode::Clockwise => clockwise,
+        CullMode::CounterClockwise => _mm512_cmplt_epi64_mask(signed, zero),
+    };
+    // Counter-clockwise lanes negate their edges, so that the inside is positive.
+    let flip = !clockwise;
+    let one = _mm512_set1_epi64(1);
+    let edge = |a: usize, b: usize| {
+        let ea = sub(ys[a], ys[b]);
+        let eb = sub(xs[b], xs[a]);
+        let (ea, eb) =
+            (_mm512_mask_sub_epi64(ea, flip, zero, ea), _mm512_mask_sub_epi64(eb, flip, zero, eb));
+        let c = sub(zero, _mm512_add_epi64(mul(ea, xs[a]), mul(eb, ys[a])));
+        // The fill rule: an edge owns its samples iff `a > 0 || (a == 0 && b > 0)`.
+        let owned = _mm512_cmpgt_epi64_mask(ea, zero)
+            | (_mm512_cmpeq_epi64_mask(ea, zero) & _mm512_cmpgt_epi64_mask(eb, zero));
+        [ea, eb, _mm512_mask_sub_epi64(c, !owned, c, one)]
+    };
+    let edges = [edge(1, 2), edge(2, 0), edge(0, 1)];
+    let area2 = _mm512_abs_epi64(signed);
+    let min = |v: [__m512i; 3]| _mm512_min_epi64(_mm512_min_epi64(v[0], v[1]), v[2]);
+    let max = |v: [__m512i; 3]| _mm512_max_epi64(_mm512_max_epi64(v[0], v[1]), v[2]);
+    let half = i64::from(fixed::HALF);
+    // `first_centre_at_or_after(v) = ceil((v - 128) / 256)` and
+    // `last_centre_at_or_before(v) = floor((v - 128) / 256)`.
+    let first =
+        |v: __m512i| _mm512_srai_epi64::<8>(_mm512_add_epi64(v, _mm512_set1_epi64(255 - half)));
+    let last = |v: __m512i| _mm512_srai_epi64::<8>(_mm512_sub_epi64(v, _mm512_set1_epi64(half)));
+    let bounds = [first(min(xs)), first(min(ys)), last(max(xs)), last(max(ys))];
+    let inv_area2 = _mm512_div_pd(_mm512_set1_pd(1.0), _mm512_cvtepi64_pd(area2));
+    let plane = |v: [__m512d; 3]| {
+        [
+            v[0],
+            _mm512_mul_pd(_mm512_sub_pd(v[1], v[0]), inv_area2),
+            _mm512_mul_pd(_mm512_sub_pd(v[2], v[0]), inv_area2),
+        ]
+    };
+    let channel = |c: i32| {
+        let bits = |v: __m256i| {
+            let byte = _mm256_and_si256(
+                _mm256_srlv_epi32(v, _mm256_set1_epi32(8 * c)),
+                _mm256_set1_epi32(0xFF),
+            );
+            _mm512_cvtepi32_pd(byte)
+        };
+        plane([bits(color[0]), bits(color[1]), bits(color[2])])
+    };
+    let planes = [plane(z), channel(0), channel(1), channel(2), channel(3)];
+    // SAFETY (the stores below): each destination is an array of eight 64-bit or 32-bit
+    // elements, 64 or 32 bytes, written whole by one unaligned store.
+    unsafe {
+        for v in 0..3 {
+            _mm256_storeu_si256(out.x[v].as_mut_ptr().cast(), _mm512_cvtepi64_epi32(xs[v]));
+            _mm256_storeu_si256(out.y[v].as_mut_ptr().cast(), _mm512_cvtepi64_epi32(ys[v]));
+            for (dst, e) in out.edges[v].iter_mut().zip(edges[v]) {
+                _mm512_storeu_si512(dst.as_mut_ptr().cast(), e);
+            }
+        }
+        _mm512_storeu_si512(out.area2.as_mut_ptr().cast(), area2);
+        for (dst, b) in out.bounds.iter_mut().zip(bounds) {
+            _mm256_storeu_si256(dst.as_mut_ptr().cast(), _mm512_cvtepi64_epi32(b));
+        }
+        for (dst, p) in out.planes.iter_mut().zip(planes) {
+            for (d, c) in dst.iter_mut().zip(p) {
+                _mm512_storeu_pd(d.as_mut_ptr(), c);
+            }
+        }
+    }
+    out.clockwise = clockwise;
+    // The per-triangle front end's order of rejections.
+    for k in 0..8 {
+        let bit = |m: __mmask8| m >> k & 1 != 0;
+        out.rejected[k] = if !bit(finite) {
+            Some(Rejection::NonFinite)
+        } else if !bit(in_range) {
+            Some(Rejection::OutOfRange)
+        } else if bit(degenerate) {
+            Some(Rejection::Degenerate)
+        } else if bit(culled) {
+            Some(Rejection::Culled)
+        } else {
+            None
+        };
     }
 }

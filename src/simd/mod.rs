@@ -1,5 +1,6 @@
-//! SIMD kernels: spans and narrow triangles (shading), window corners and corner tests (the
-//! 3D front end, eight vertices or triangles at once), index ranges (the 3D pipeline's pass
+//! SIMD kernels: spans, multisampled spans and narrow triangles (shading), window groups
+//! (the window front end's setup, eight triangles at once), window corners and corner tests
+//! (the 3D front end, eight vertices or triangles at once), index ranges (the 3D pipeline's pass
 //! over a mesh's indices), and small SSE2 helpers (four floors, a unit clamp, cache prefetch
 //! hints): the only module with `unsafe` and `core::arch`. Each has a scalar path it is
 //! tested against.
@@ -25,8 +26,8 @@ use crate::bin::extent_coverage_bounds;
 use crate::clip::ClipVolume;
 use crate::pipeline::Viewport;
 use crate::sample::MAX_SAMPLES;
-use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup};
-use crate::shade::{DepthTest, quantize_channel};
+use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
+use crate::shade::{DepthTest, PlaneEquation, quantize_channel};
 
 /// Instruction set used by the kernels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -213,6 +214,18 @@ pub enum SpanColor {
 }
 
 impl SpanColor {
+    /// Gouraud colour from its RGBA planes: [`SpanColor::SmoothRgb`] when the alpha plane is
+    /// flat (`[a0, 0, 0]`: the vertices share one alpha), else [`SpanColor::Smooth`].
+    #[inline(always)]
+    #[must_use]
+    pub fn smooth(planes: [[f64; 3]; 4]) -> Self {
+        let [r, g, b, a] = planes;
+        match a {
+            [a0, 0.0, 0.0] => Self::SmoothRgb([r, g, b], quantize_channel(a0)),
+            _ => Self::Smooth([r, g, b, a]),
+        }
+    }
+
     /// The colour at barycentric numerators `(f1, f2)`, as the reference computes it
     /// (`quantize_channel` of each plane).
     #[inline(always)]
@@ -521,6 +534,89 @@ fn span_scalar(job: &mut SpanJob<'_>) {
         job.target.pixel(k, e1 as f64, e2 as f64);
         e1 += job.step1;
         e2 += job.step2;
+    }
+}
+
+/// Eight window triangles set up side by side, as a structure of arrays: lane `k` holds what
+/// [`TriangleSetup::new`] gives triangle `k` and, when that is set up, its depth plane and
+/// its Gouraud colour planes, each as the per-triangle front end computes them
+/// ([`crate::shade::TriangleShader::span_parts`]). Read a lane with [`WindowGroup::lane`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct WindowGroup {
+    /// Why each lane's triangle was not set up (`None`: it was).
+    pub rejected: [Option<Rejection>; 8],
+    /// Snapped vertex x, `[vertex][lane]`.
+    pub x: [[i32; 8]; 3],
+    /// Snapped vertex y, `[vertex][lane]`.
+    pub y: [[i32; 8]; 3],
+    /// Edge functions, `[edge][a, b, c][lane]`.
+    pub edges: [[[i64; 8]; 3]; 3],
+    /// Twice the area.
+    pub area2: [i64; 8],
+    /// Bit `k`: lane `k` is clockwise.
+    pub clockwise: u8,
+    /// Pixel bounds, `[x0, y0, x1, y1][lane]`.
+    pub bounds: [[i32; 8]; 4],
+    /// Planes, `[depth, red, green, blue, alpha][a0, g1, g2][lane]`.
+    pub planes: [[[f64; 8]; 3]; 5],
+}
+
+impl WindowGroup {
+    /// Lane `k`: the triangle's setup, depth plane and colour planes (RGBA), or why it was
+    /// not set up.
+    #[inline(always)]
+    pub fn lane(
+        &self,
+        k: usize,
+    ) -> Result<(TriangleSetup, PlaneEquation, [[f64; 3]; 4]), Rejection> {
+        if let Some(why) = self.rejected[k] {
+            return Err(why);
+        }
+        let e = |i: usize| setup::EdgeFunction {
+            a: self.edges[i][0][k],
+            b: self.edges[i][1][k],
+            c: self.edges[i][2][k],
+        };
+        let setup = TriangleSetup {
+            xy: [
+                [self.x[0][k], self.y[0][k]],
+                [self.x[1][k], self.y[1][k]],
+                [self.x[2][k], self.y[2][k]],
+            ],
+            edges: [e(0), e(1), e(2)],
+            area2: self.area2[k],
+            clockwise: self.clockwise >> k & 1 != 0,
+            bounds: PixelRect {
+                x0: self.bounds[0][k],
+                y0: self.bounds[1][k],
+                x1: self.bounds[2][k],
+                y1: self.bounds[3][k],
+            },
+        };
+        let plane = |p: usize| [self.planes[p][0][k], self.planes[p][1][k], self.planes[p][2][k]];
+        let depth = PlaneEquation::from_coefficients(plane(0));
+        Ok((setup, depth, [plane(1), plane(2), plane(3), plane(4)]))
+    }
+}
+
+/// Sets up eight window triangles side by side into `out` at `level`; returns `false`, with
+/// `out` untouched, at levels without a kernel for it (AVX-512 has one), where the caller
+/// sets them up one by one: that per-triangle front end is the scalar path the kernel is
+/// tested against.
+pub fn window_group(
+    level: SimdLevel,
+    tris: &[[Vertex; 3]; 8],
+    cull: CullMode,
+    out: &mut WindowGroup,
+) -> bool {
+    match level {
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx512 if SimdLevel::Avx512.is_available() => {
+            // SAFETY: AVX-512 (and with it AVX2) support was just checked at run time.
+            unsafe { avx512::window_group(tris, cull, out) };
+            true
+        }
+        _ => false,
     }
 }
 
@@ -1198,6 +1294,84 @@ mod tests {
                 };
                 let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(shade));
                 assert!(outcome.is_err(), "{level:?}: {samples} samples, {len}, {overdraw}");
+            }
+        }
+    }
+
+    /// A random window vertex for the group setup test: ordinary, at or past the ends of the
+    /// snapping range, non-finite in one coordinate, or on a coarse grid (axis-aligned edges,
+    /// ties, repeated vertices, collinear triangles).
+    fn group_vertex(rng: &mut SmallRng) -> Vertex {
+        let coordinate = |rng: &mut SmallRng| match rng.random_range(0..40) {
+            0 => crate::fixed::MIN_COORD,
+            1 => crate::fixed::SNAP_LIMIT,
+            2 => crate::fixed::MAX_COORD,
+            3 => -32768.01,
+            4 => rng.random_range(-32768.0..32767.0),
+            5..=14 => rng.random_range(0..4) as f32 * 2.0 + 0.5,
+            _ => rng.random_range(-30.0..330.0),
+        };
+        let mut v = Vertex {
+            x: coordinate(rng),
+            y: coordinate(rng),
+            z: rng.random_range(-0.5..1.5),
+            inv_w: rng.random_range(0.1..4.0),
+            color: [rng.random(), rng.random(), rng.random(), 200],
+        };
+        if rng.random_range(0..4) == 0 {
+            v.color[3] = rng.random();
+        }
+        if rng.random_range(0..60) == 0 {
+            let bad = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY][rng.random_range(0..3)];
+            match rng.random_range(0..4) {
+                0 => v.x = bad,
+                1 => v.y = bad,
+                2 => v.z = bad,
+                _ => v.inv_w = bad,
+            }
+        }
+        v
+    }
+
+    /// The eight-triangle window setup gives, lane by lane, what the per-triangle front end
+    /// gives (`TriangleSetup::new`, `TriangleShader::span_parts`): the same rejection, or the
+    /// same setup, depth plane and colour to the bit, for every cull mode, on triangles of
+    /// every kind (see `group_vertex`).
+    #[test]
+    fn window_groups_match_the_front_end() {
+        let mut rng = SmallRng::seed_from_u64(2024);
+        let mut kinds = std::collections::HashMap::new();
+        for round in 0..20_000 {
+            let cull = [CullMode::None, CullMode::Clockwise, CullMode::CounterClockwise][round % 3];
+            let tris: [[Vertex; 3]; 8] =
+                std::array::from_fn(|_| std::array::from_fn(|_| group_vertex(&mut rng)));
+            for level in SimdLevel::available() {
+                let mut group = WindowGroup::default();
+                if !window_group(level, &tris, cull, &mut group) {
+                    continue;
+                }
+                for (k, v) in tris.iter().enumerate() {
+                    let want = TriangleSetup::new(v, cull).map(|setup| {
+                        let (depth, color) =
+                            crate::shade::TriangleShader::span_parts(v, &setup, true);
+                        format!("{setup:?} {depth:?} {color:?}")
+                    });
+                    let got = group.lane(k).map(|(setup, depth, planes)| {
+                        format!("{setup:?} {depth:?} {:?}", SpanColor::smooth(planes))
+                    });
+                    assert_eq!(got, want, "{level:?}, round {round}, lane {k}: {v:?}");
+                    *kinds
+                        .entry(format!("{want:?}").chars().take(12).collect::<String>())
+                        .or_insert(0) += 1;
+                }
+            }
+        }
+        // Every outcome occurred (when a kernel ran).
+        if SimdLevel::Avx512.is_available() {
+            for why in
+                ["Err(NonFinit", "Err(OutOfRan", "Err(Degenera", "Err(Culled)", "Ok(\"Triangle"]
+            {
+                assert!(kinds.get(why).is_some_and(|&n| n > 20), "{why}: {kinds:?}");
             }
         }
     }
