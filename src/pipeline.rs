@@ -591,8 +591,11 @@ impl FrontEnd {
             // Those that passed the tests, and those with a corner outside (to be clipped).
             let live = ((1u32 << len) - 1) as u8;
             let mut rest = (!(t.degenerate | t.culled | t.empty)) & live;
-            // The records after these ones' start loading (see `Sink::prefetch`).
-            sink.prefetch(count(rest), 8);
+            // The records after these ones' start loading (see `Sink::prefetch`); nothing to
+            // do when none passes (most of a dense mesh's groups).
+            if rest != 0 {
+                sink.prefetch(count(rest), 8);
+            }
             while rest != 0 {
                 let j = rest.trailing_zeros() as usize;
                 rest &= rest - 1;
