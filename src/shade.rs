@@ -646,16 +646,8 @@ fn sample_spans<S: FragmentStage>(
                         e2,
                         step1: setup.edges[1].a * PIXEL_STEP,
                         step2: setup.edges[2].a * PIXEL_STEP,
-                        target: KernelTarget {
-                            depth_plane: depth.coefficients(),
-                            color,
-                            depth_test,
-                            id,
-                            depth: &mut target.depth[range.clone()],
-                            color_out: &mut target.color[range.clone()],
-                            ids: target.ids.as_deref_mut().map(|s| &mut s[range.clone()]),
-                            overdraw: None,
-                        },
+                        // No overdraw buffer here (it counts per pixel).
+                        target: kernel_target(target, range, (depth, color, depth_test, id), false),
                     },
                     samples: n,
                     offsets,
@@ -823,16 +815,7 @@ fn shade_single_sample(
                 e2,
                 step1: step[0],
                 step2: step[1],
-                target: KernelTarget {
-                    depth_plane: depth.coefficients(),
-                    color,
-                    depth_test,
-                    id,
-                    depth: &mut target.depth[range.clone()],
-                    color_out: &mut target.color[range.clone()],
-                    ids: target.ids.as_deref_mut().map(|s| &mut s[range.clone()]),
-                    overdraw: target.overdraw.as_deref_mut().map(|s| &mut s[range.clone()]),
-                },
+                target: kernel_target(target, range, (depth, color, depth_test, id), true),
             };
             simd::shade_span(level, job);
             return;
@@ -854,6 +837,29 @@ fn shade_single_sample(
     }
     queue.flush(target);
     covered
+}
+
+/// What a span kernel writes: the band's buffer elements `range`, the overdraw counts there
+/// too with `overdraw` (1x, where they are indexed alike), and the triangle's depth plane,
+/// colour, depth test and id. Always inlined: a job's parts returned through the stack were
+/// read back with loads that store forwarding fails (see ARCHITECTURE.md).
+#[inline(always)]
+fn kernel_target<'a>(
+    target: &'a mut TargetBand<'_>,
+    range: std::ops::Range<usize>,
+    (depth, color, depth_test, id): (&PlaneEquation, &'a SpanColor, DepthTest, i32),
+    overdraw: bool,
+) -> KernelTarget<'a> {
+    KernelTarget {
+        depth_plane: depth.coefficients(),
+        color,
+        depth_test,
+        id,
+        depth: &mut target.depth[range.clone()],
+        color_out: &mut target.color[range.clone()],
+        ids: target.ids.as_deref_mut().map(|s| &mut s[range.clone()]),
+        overdraw: target.overdraw.as_deref_mut().filter(|_| overdraw).map(|s| &mut s[range]),
+    }
 }
 
 /// Covered pixels of one triangle: each counted (overdraw) and depth-tested as it comes, and
