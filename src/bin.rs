@@ -588,7 +588,8 @@ fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 /// `fragments` shades the pixels of the triangle with record `payload`: one at a time
 /// ([`TriangleFragments::fragment`]), or at 1x up to eight at a time
 /// ([`TriangleFragments::lanes`]); `None` discards a fragment, which only `may_discard`
-/// allows. Where `kernel(payload)` gives a span kernel, it shades 1x spans instead.
+/// allows. Where `kernel(payload)` gives a span kernel, it shades instead 1x spans and
+/// narrow triangles, and multisampled pixels whose samples are all covered.
 ///
 /// Hierarchical depth (`Less` or `LessEqual`, no overdraw buffer, which counts hidden
 /// fragments too; at any sample count, with depths bounded over each pixel's samples): each

@@ -30,7 +30,8 @@ pub struct RenderOptions {
     pub scissor: Option<PixelRect>,
     /// Reference (one triangle after another) or tiled (binned, multithreaded).
     pub backend: Backend,
-    /// SIMD level for the tiled backend's span kernels; `None` picks the best available.
+    /// SIMD level for the tiled backend's kernels (set-up of eight triangles at once, spans,
+    /// narrow triangles, multisampled spans); `None` picks the best available.
     pub simd: Option<SimdLevel>,
 }
 
@@ -223,7 +224,7 @@ fn draw_tiled<C: WindowColor>(
     let bin_target = bin::BinTarget::of(target, options.depth_test);
     let prepare = |b, first: usize, batch: &[_], prepared: &mut bin::PreparedBatch<_>| {
         let coverage = bin::Coverage { clip: visible, multisampled };
-        let one = |k: usize, sink: &mut bin::Sink<'_, C>| {
+        let set_up_one = |k: usize, sink: &mut bin::Sink<'_, C>| {
             let tri = &batch[k];
             let setup = match TriangleSetup::new(tri, options.cull) {
                 Ok(setup) => setup,
@@ -238,6 +239,8 @@ fn draw_tiled<C: WindowColor>(
         };
         let counts = prepared.prepare_ranges(batch.len(), coverage, |range, sink| {
             let mut k = range.start;
+            // The first records' memory; each group then asks for the next ones'.
+            sink.prefetch(0, 8);
             // Flat and smooth colours eight triangles at a time where there is a kernel for it
             // (the same records; the rest, and perspective colours, one at a time).
             let mut group = simd::WindowGroup::default();
@@ -255,13 +258,9 @@ fn draw_tiled<C: WindowColor>(
                             continue;
                         }
                     };
-                    match C::from_planes(tri, planes, options.shading) {
-                        Some(payload) => {
-                            let id = (first + k + l) as i32;
-                            sink.push(Prepared { setup, depth, id, payload });
-                        }
-                        None => one(k + l, sink),
-                    }
+                    let payload = C::from_planes(tri, planes, options.shading);
+                    let id = (first + k + l) as i32;
+                    sink.push(Prepared { setup, depth, id, payload });
                 }
                 k += 8;
             }
@@ -269,7 +268,7 @@ fn draw_tiled<C: WindowColor>(
                 if (k - range.start) % 8 == 0 {
                     sink.prefetch(8, 8);
                 }
-                one(k, sink);
+                set_up_one(k, sink);
             }
         });
         stats = stats.merged(&counts);
@@ -306,10 +305,9 @@ trait WindowColor: Copy + Send + Sync + 'static {
     /// The depth plane and colour of a set-up triangle with vertices `v`.
     fn shade(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> (PlaneEquation, Self);
 
-    /// The colour of a triangle with vertices `v` whose Gouraud planes (RGBA) are `planes`,
-    /// as [`WindowColor::shade`] gives it, where it can be told from them (flat and smooth
-    /// shading).
-    fn from_planes(v: &[Vertex; 3], planes: [[f64; 3]; 4], shading: Shading) -> Option<Self>;
+    /// For flat and smooth shading: the colour [`WindowColor::shade`] gives a triangle with
+    /// vertices `v` whose Gouraud planes (RGBA) are `planes`.
+    fn from_planes(v: &[Vertex; 3], planes: [[f64; 3]; 4], shading: Shading) -> Self;
 
     /// The colour as a span kernel takes it, if it has one.
     fn kernel(&self) -> Option<&SpanColor>;
@@ -324,8 +322,9 @@ impl WindowColor for TriangleColor {
         TriangleShader::new(v, setup, shading).into_parts()
     }
 
-    fn from_planes(_: &[Vertex; 3], _: [[f64; 3]; 4], _: Shading) -> Option<Self> {
-        None
+    #[inline(always)]
+    fn from_planes(v: &[Vertex; 3], planes: [[f64; 3]; 4], shading: Shading) -> Self {
+        SpanColor::from_planes(v, planes, shading).into()
     }
 
     #[inline(always)]
@@ -349,11 +348,11 @@ impl WindowColor for SpanColor {
     }
 
     #[inline(always)]
-    fn from_planes(v: &[Vertex; 3], planes: [[f64; 3]; 4], shading: Shading) -> Option<Self> {
-        Some(match shading {
+    fn from_planes(v: &[Vertex; 3], planes: [[f64; 3]; 4], shading: Shading) -> Self {
+        match shading {
             Shading::Flat => SpanColor::Flat(crate::shade::flat_color(v)),
             _ => SpanColor::smooth(planes),
-        })
+        }
     }
 
     #[inline(always)]

@@ -86,4 +86,17 @@ mod tests {
             }
         }
     }
+
+    /// The patterns are centred: their offsets sum to zero, so a pixel centre is the mean of
+    /// its samples, inside a triangle that covers them all (the sample span kernel evaluates
+    /// colour there without clamping).
+    #[test]
+    fn patterns_are_centred() {
+        for samples in [SampleCount::X1, SampleCount::X4, SampleCount::X8] {
+            let sum = (0..samples.count())
+                .map(|s| samples.offset(s))
+                .fold([0, 0], |a, o| [a[0] + o[0], a[1] + o[1]]);
+            assert_eq!(sum, [0, 0], "{samples:?}");
+        }
+    }
 }

@@ -303,6 +303,16 @@ impl TriangleSetup {
         let e2 = self.edges[2].a * dx + self.edges[2].b * dy;
         (e1, e2)
     }
+
+    /// What the barycentric numerators change by from a point to the point `offset`
+    /// (fixed point) away: exact, the edge functions being linear (a sample's numerators are
+    /// its pixel centre's plus its offset's).
+    #[inline]
+    #[must_use]
+    pub fn numerator_offset(&self, [ox, oy]: [i64; 2]) -> [i64; 2] {
+        let [_, e1, e2] = &self.edges;
+        [e1.a * ox + e1.b * oy, e2.a * ox + e2.b * oy]
+    }
 }
 
 /// Three points' coordinates as `i64`. Written out rather than with `array::map`, which the

@@ -273,6 +273,13 @@ impl TriangleShader {
     }
 }
 
+/// A flat or Gouraud colour as [`TriangleShader::new`] keeps it.
+impl From<SpanColor> for TriangleColor {
+    fn from(color: SpanColor) -> Self {
+        Self(ColorSource::Planes(color))
+    }
+}
+
 impl TriangleColor {
     /// The colour as a SIMD span kernel takes it; `None` for perspective shading, which has
     /// no kernel. For the triangle's covered pixels only: an opaque triangle's colour is a
@@ -525,12 +532,10 @@ pub fn shade_triangle(
             target, setup, algorithm, clip, depth, depth_test, id, kernel, fragment,
         );
     }
-    // Each sample's numerators less its pixel centre's (exact: the edge functions are linear).
-    let [_, e1, e2] = &setup.edges;
+    // Each sample's numerators less its pixel centre's.
     let mut offsets = [[0i64; 2]; MAX_SAMPLES];
     for (s, o) in offsets.iter_mut().enumerate().take(n) {
-        let [ox, oy] = samples.offset(s);
-        *o = [e1.a * ox + e1.b * oy, e2.a * ox + e2.b * oy];
+        *o = setup.numerator_offset(samples.offset(s));
     }
     let mut pixels =
         SamplePixels { setup, n, offsets, depth, depth_test, id, fragment, covered: 0 };
@@ -638,8 +643,9 @@ fn sample_spans<S: FragmentStage>(
                 each_pixel(target, lo, inner_lo);
                 let (e1, e2) = setup
                     .barycentric_numerators(fixed::pixel_centre(inner_lo), fixed::pixel_centre(y));
-                let row = target.index(0, y);
-                let range = n * (row + inner_lo as usize)..n * (row + inner_hi as usize);
+                let row_start = target.index(0, y);
+                let range =
+                    n * (row_start + inner_lo as usize)..n * (row_start + inner_hi as usize);
                 let job = SampleSpanJob {
                     span: SpanJob {
                         e1,

@@ -120,9 +120,13 @@ pub fn prefetch_slice<T>(values: &[T]) {
     {
         use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
         let start = values.as_ptr().cast::<i8>();
-        for line in (0..size_of_val(values)).step_by(64) {
-            // SAFETY: as in `prefetch`: a hint that never faults, inside the slice.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.add(line)) }
+        // Every line the slice touches, the last one included when it does not start on a
+        // line (as in `prefetch`).
+        let lines = (start as usize % 64 + size_of_val(values)).div_ceil(64);
+        for line in 0..lines {
+            // SAFETY: as in `prefetch`: a hint that never faults; the address may lie past
+            // the slice (within its last line), which is fine for a hint.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(line * 64)) }
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
@@ -273,8 +277,7 @@ impl KernelTarget<'_> {
         if let Some(o) = self.overdraw.as_deref_mut() {
             o[i] += 1;
         }
-        let [d0, d1, d2] = self.depth_plane;
-        let z = ((d0 + f1 * d1 + f2 * d2) as f32).clamp(0.0, 1.0);
+        let z = self.depth_at(f1, f2);
         if !self.depth_test.passes(z, self.depth[i]) {
             return;
         }
@@ -283,6 +286,13 @@ impl KernelTarget<'_> {
         if let Some(ids) = self.ids.as_deref_mut() {
             ids[i] = self.id;
         }
+    }
+
+    /// The depth at barycentric numerators `(f1, f2)`, as stored ([`crate::shade::depth_at`]).
+    #[inline(always)]
+    fn depth_at(&self, f1: f64, f2: f64) -> f32 {
+        let [d0, d1, d2] = self.depth_plane;
+        ((d0 + f1 * d1 + f2 * d2) as f32).clamp(0.0, 1.0)
     }
 
     /// Panics unless every buffer holds as many elements as `depth`; returns that number.
@@ -331,7 +341,10 @@ pub fn shade_span(level: SimdLevel, mut job: SpanJob<'_>) {
 /// A span of a multisampled target's pixels in which the triangle covers every sample: per
 /// pixel, each sample's depth tested, and if any passes, the colour at the pixel centre
 /// written to the passing samples (what [`crate::shade::shade_triangle`] does pixel by
-/// pixel). Large triangles at 4x and 8x are mostly such spans.
+/// pixel). Large triangles at 4x and 8x are mostly such spans. The colour is evaluated at
+/// the centres, so they must lie in the triangle (a [`SpanColor::SmoothRgb`] does not clamp):
+/// they do, since the standard patterns are centred (their offsets sum to zero, tested), so
+/// a centre is the mean of its samples, all covered.
 #[derive(Debug)]
 pub struct SampleSpanJob<'a> {
     /// The numerators at the pixel centres, and the buffers, `samples` elements per pixel;
@@ -345,7 +358,8 @@ pub struct SampleSpanJob<'a> {
 }
 
 impl SampleSpanJob<'_> {
-    /// Panics unless the job is one the kernels take; returns the number of samples.
+    /// Panics unless the job is one the kernels take; returns the span's buffer elements
+    /// (samples).
     fn check(&self) -> usize {
         let n = self.samples;
         assert!(n == 4 || n == 8, "4 or 8 samples per pixel");
@@ -394,14 +408,12 @@ fn samples_scalar(job: &mut SampleSpanJob<'_>) {
     let len = job.check();
     let span = &mut job.span;
     let t = &mut span.target;
-    let [d0, d1, d2] = t.depth_plane;
     let (mut e1, mut e2) = (span.e1, span.e2);
     for p in (0..len).step_by(job.samples) {
         let mut z = [0.0f32; MAX_SAMPLES];
         let mut passed = 0u32;
         for (s, [o1, o2]) in job.offsets.iter().enumerate().take(job.samples) {
-            let (f1, f2) = ((e1 + o1) as f64, (e2 + o2) as f64);
-            z[s] = ((d0 + f1 * d1 + f2 * d2) as f32).clamp(0.0, 1.0);
+            z[s] = t.depth_at((e1 + o1) as f64, (e2 + o2) as f64);
             if t.depth_test.passes(z[s], t.depth[p + s]) {
                 passed |= 1 << s;
             }
@@ -564,6 +576,9 @@ pub struct WindowGroup {
 impl WindowGroup {
     /// Lane `k`: the triangle's setup, depth plane and colour planes (RGBA), or why it was
     /// not set up.
+    ///
+    /// # Panics
+    /// If `k` is 8 or more.
     #[inline(always)]
     pub fn lane(
         &self,
@@ -612,7 +627,7 @@ pub fn window_group(
     match level {
         #[cfg(target_arch = "x86_64")]
         SimdLevel::Avx512 if SimdLevel::Avx512.is_available() => {
-            // SAFETY: AVX-512 (and with it AVX2) support was just checked at run time.
+            // SAFETY: AVX-512 F, VL and DQ support was just checked at run time.
             unsafe { avx512::window_group(tris, cull, out) };
             true
         }
@@ -1203,11 +1218,8 @@ mod tests {
         }
     }
 
-    /// Every level finds the smallest and largest index the scalar fold finds: lengths
-    /// around the vector blocks (tails of every size), the extremes (0 and `u32::MAX`) placed
-    /// anywhere, and the empty slice.
     /// The sample span kernels give the scalar one's buffers bit for bit: 4x and 8x, spans
-    /// of 0 to 20 pixels, random sample offsets, every depth test and colour kind, with and
+    /// of 0 to 19 pixels, random sample offsets, every depth test and colour kind, with and
     /// without ids.
     #[test]
     fn sample_kernels_match_scalar_bit_for_bit() {
@@ -1223,7 +1235,7 @@ mod tests {
                 (numerator(40), numerator(40), numerator(30), numerator(30));
             let offsets: [[i64; 2]; MAX_SAMPLES] =
                 std::array::from_fn(|_| [numerator(29), numerator(29)]);
-            let with_ids = round % 3 != 0;
+            let with_ids = (round / 3) % 3 != 0;
             let buffers = random_buffers(&mut rng, len);
             let run = |level: SimdLevel| {
                 let (mut d, mut c, mut i, _) = buffers.clone();
@@ -1376,6 +1388,9 @@ mod tests {
         }
     }
 
+    /// Every level finds the smallest and largest index the scalar fold finds: lengths
+    /// around the vector blocks (tails of every size), the extremes (0 and `u32::MAX`) placed
+    /// anywhere, and the empty slice.
     #[test]
     fn index_ranges_agree_at_every_level() {
         let mut rng = SmallRng::seed_from_u64(21);
