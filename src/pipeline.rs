@@ -870,8 +870,8 @@ mod tests {
                 front_facing: round % 2 == 0,
                 primitive: round,
             };
-            let mut passed = PassedLanes::default();
-            passed.len = rng.random_range(1..=LANES);
+            let mut passed =
+                PassedLanes { len: rng.random_range(1..=LANES), ..PassedLanes::default() };
             for l in 0..LANES {
                 passed.x[l] = rng.random_range(0..4000);
                 passed.y[l] = rng.random_range(0..4000);

@@ -343,7 +343,9 @@ pub struct FragmentOutput {
 pub const LANES: usize = 8;
 
 /// Up to [`LANES`] fragments of one triangle that passed the depth test, lane by lane: pixel,
-/// barycentric numerators at its centre, depth. Lanes `len..` hold leftovers.
+/// barycentric numerators at its centre, depth. Lanes `len..` hold leftovers. Kept under 256
+/// bytes (the buffer index is recomputed from the pixel): each triangle's queue starts zeroed,
+/// and larger, the zeroing became a `memset` call, a tenth of a frame of small triangles.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct PassedLanes {
     /// Lanes in use: `0..len`.
@@ -358,8 +360,6 @@ pub struct PassedLanes {
     pub e2: [f64; LANES],
     /// Depth (as it will be stored).
     pub z: [f32; LANES],
-    /// Index into the band's buffers.
-    index: [usize; LANES],
 }
 
 impl PassedLanes {
@@ -907,7 +907,7 @@ impl<S: FragmentStage> LaneQueue<S> {
         }
         let p = &mut self.passed;
         let l = p.len;
-        (p.x[l], p.y[l], p.e1[l], p.e2[l], p.z[l], p.index[l]) = (x, y, f1, f2, z, i);
+        (p.x[l], p.y[l], p.e1[l], p.e2[l], p.z[l]) = (x, y, f1, f2, z);
         p.len += 1;
         if p.len == LANES {
             self.flush(target);
@@ -924,7 +924,7 @@ impl<S: FragmentStage> LaneQueue<S> {
         self.stage.lanes(passed, &mut out);
         for (l, out) in out.iter().enumerate().take(passed.len) {
             let Some(out) = out else { continue };
-            let i = passed.index[l];
+            let i = target.index(passed.x[l], passed.y[l]);
             target.depth[i] = passed.z[l];
             target.color[i] = out.color;
             if let Some(ids) = &mut target.ids {
