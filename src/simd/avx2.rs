@@ -6,10 +6,11 @@ use glam::Vec4;
 
 use super::{
     Corner, CornerGroup, CornerTests, KernelTarget, NarrowJob, SampleSpanJob, SpanColor, SpanJob,
+    WindowGroup,
 };
 use crate::clip::MIN_W;
 use crate::fixed;
-use crate::setup::{CullMode, PixelRect};
+use crate::setup::{CullMode, PixelRect, Rejection, Vertex};
 use crate::shade::DepthTest;
 
 /// [`super::corner_tests`] for eight triangles at once: areas in two halves of four
@@ -522,4 +523,166 @@ pub(super) unsafe fn index_range(values: &[u32]) -> (u32, u32) {
         _mm256_storeu_si256(h.as_mut_ptr().cast(), hi);
     }
     (l.into_iter().fold(tail_lo, u32::min), h.into_iter().fold(tail_hi, u32::max))
+}
+
+/// `i64` lanes of `v`, whose lanes hold integers below 2^51 in magnitude: adding 1.5 * 2^52
+/// puts the integer in the low bits of the sum (one unit in the last place is 1), and
+/// subtracting the bits of 1.5 * 2^52 leaves it, sign included.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn exact_i64(v: __m256d) -> __m256i {
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    let bits = _mm256_castpd_si256(_mm256_add_pd(v, _mm256_set1_pd(MAGIC)));
+    _mm256_sub_epi64(bits, _mm256_castpd_si256(_mm256_set1_pd(MAGIC)))
+}
+
+/// [`super::window_group`] in AVX2: two halves of four triangles, in `f64` lanes. The
+/// integer arithmetic of setup is exact there: snapped coordinates are within 2^23, their
+/// differences within 2^24, every product within 2^48 and every sum within 2^49, all below
+/// 2^53; pixel bounds are floors of exact quotients by 256. The snap rounds the exact
+/// `x * 256` half to even, as `fixed::snap` does.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: &mut WindowGroup) {
+    let mut clockwise = 0u8;
+    let mut flags = [[false; 4]; 8];
+    for half in 0..2 {
+        let four = &tris[4 * half..4 * half + 4];
+        let lanes = |f: &dyn Fn(&[Vertex; 3]) -> f32| {
+            _mm256_cvtps_pd(_mm_setr_ps(f(&four[0]), f(&four[1]), f(&four[2]), f(&four[3])))
+        };
+        let zero = _mm256_setzero_pd();
+        let mut finite = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
+        let mut in_range = finite;
+        let (mut xs, mut ys, mut zs) = ([zero; 3], [zero; 3], [zero; 3]);
+        let mut colors = [_mm_setzero_si128(); 3];
+        for v in 0..3 {
+            let [x, y, z, w] = [
+                lanes(&|t| t[v].x),
+                lanes(&|t| t[v].y),
+                lanes(&|t| t[v].z),
+                lanes(&|t| t[v].inv_w),
+            ];
+            // Finite iff `v - v` is 0 (NaN for NaN and infinities; exact in `f64`).
+            for f in [x, y, z, w] {
+                finite =
+                    _mm256_and_pd(finite, _mm256_cmp_pd::<_CMP_EQ_OQ>(_mm256_sub_pd(f, f), zero));
+            }
+            for f in [x, y] {
+                let lo =
+                    _mm256_cmp_pd::<_CMP_GE_OQ>(f, _mm256_set1_pd(f64::from(fixed::MIN_COORD)));
+                let hi =
+                    _mm256_cmp_pd::<_CMP_LT_OQ>(f, _mm256_set1_pd(f64::from(fixed::SNAP_LIMIT)));
+                in_range = _mm256_and_pd(in_range, _mm256_and_pd(lo, hi));
+            }
+            let snap = |f: __m256d| {
+                let scaled = _mm256_mul_pd(f, _mm256_set1_pd(f64::from(fixed::ONE)));
+                _mm256_round_pd::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(scaled)
+            };
+            (xs[v], ys[v], zs[v]) = (snap(x), snap(y), z);
+            let c = |k: usize| i32::from_le_bytes(four[k][v].color);
+            colors[v] = _mm_setr_epi32(c(0), c(1), c(2), c(3));
+        }
+        let (sub, mul) = (|a, b| _mm256_sub_pd(a, b), |a, b| _mm256_mul_pd(a, b));
+        let signed = sub(
+            mul(sub(xs[1], xs[0]), sub(ys[2], ys[0])),
+            mul(sub(xs[2], xs[0]), sub(ys[1], ys[0])),
+        );
+        let degenerate = _mm256_cmp_pd::<_CMP_EQ_OQ>(signed, zero);
+        let cw = _mm256_cmp_pd::<_CMP_GT_OQ>(signed, zero);
+        let culled = match cull {
+            CullMode::None => zero,
+            CullMode::Clockwise => cw,
+            CullMode::CounterClockwise => _mm256_cmp_pd::<_CMP_LT_OQ>(signed, zero),
+        };
+        // Counter-clockwise lanes negate their edges (`0 - v`, never `-0.0`).
+        let signed_edge = |v: __m256d| _mm256_blendv_pd(sub(zero, v), v, cw);
+        let one = _mm256_set1_pd(1.0);
+        let edge = |a: usize, b: usize| {
+            let ea = signed_edge(sub(ys[a], ys[b]));
+            let eb = signed_edge(sub(xs[b], xs[a]));
+            let c = sub(zero, _mm256_add_pd(mul(ea, xs[a]), mul(eb, ys[a])));
+            // The fill rule: an edge owns its samples iff `a > 0 || (a == 0 && b > 0)`.
+            let owned = _mm256_or_pd(
+                _mm256_cmp_pd::<_CMP_GT_OQ>(ea, zero),
+                _mm256_and_pd(
+                    _mm256_cmp_pd::<_CMP_EQ_OQ>(ea, zero),
+                    _mm256_cmp_pd::<_CMP_GT_OQ>(eb, zero),
+                ),
+            );
+            [ea, eb, _mm256_blendv_pd(sub(c, one), c, owned)]
+        };
+        let edges = [edge(1, 2), edge(2, 0), edge(0, 1)];
+        let area2 = _mm256_andnot_pd(_mm256_set1_pd(-0.0), signed);
+        let min = |v: [__m256d; 3]| _mm256_min_pd(_mm256_min_pd(v[0], v[1]), v[2]);
+        let max = |v: [__m256d; 3]| _mm256_max_pd(_mm256_max_pd(v[0], v[1]), v[2]);
+        let half_px = f64::from(fixed::HALF);
+        let scale = _mm256_set1_pd(1.0 / f64::from(fixed::ONE));
+        // `first_centre_at_or_after(v) = floor((v + 127) / 256)`,
+        // `last_centre_at_or_before(v) = floor((v - 128) / 256)`: exact quotients.
+        let first =
+            |v| _mm256_floor_pd(mul(_mm256_add_pd(v, _mm256_set1_pd(255.0 - half_px)), scale));
+        let last = |v| _mm256_floor_pd(mul(sub(v, _mm256_set1_pd(half_px)), scale));
+        let bounds = [first(min(xs)), first(min(ys)), last(max(xs)), last(max(ys))];
+        let inv_area2 = _mm256_div_pd(one, area2);
+        let plane = |v: [__m256d; 3]| {
+            [v[0], mul(sub(v[1], v[0]), inv_area2), mul(sub(v[2], v[0]), inv_area2)]
+        };
+        let channel = |c: i32| {
+            let byte = |v: __m128i| {
+                let b =
+                    _mm_and_si128(_mm_srl_epi32(v, _mm_cvtsi32_si128(8 * c)), _mm_set1_epi32(0xFF));
+                _mm256_cvtepi32_pd(b)
+            };
+            plane([byte(colors[0]), byte(colors[1]), byte(colors[2])])
+        };
+        let planes = [plane(zs), channel(0), channel(1), channel(2), channel(3)];
+        let at = 4 * half;
+        // SAFETY (the stores below): each writes four elements, from `at` (0 or 4), of an
+        // array of eight: `i32` lanes as 16 bytes, `i64` and `f64` lanes as 32.
+        unsafe {
+            let store_i32 = |dst: &mut [i32; 8], v: __m256d| {
+                _mm_storeu_si128(dst.as_mut_ptr().add(at).cast(), _mm256_cvtpd_epi32(v));
+            };
+            for v in 0..3 {
+                store_i32(&mut out.x[v], xs[v]);
+                store_i32(&mut out.y[v], ys[v]);
+                for (dst, e) in out.edges[v].iter_mut().zip(edges[v]) {
+                    _mm256_storeu_si256(dst.as_mut_ptr().add(at).cast(), exact_i64(e));
+                }
+            }
+            _mm256_storeu_si256(out.area2.as_mut_ptr().add(at).cast(), exact_i64(area2));
+            for (dst, b) in out.bounds.iter_mut().zip(bounds) {
+                store_i32(dst, b);
+            }
+            for (dst, p) in out.planes.iter_mut().zip(planes) {
+                for (d, c) in dst.iter_mut().zip(p) {
+                    _mm256_storeu_pd(d.as_mut_ptr().add(at), c);
+                }
+            }
+        }
+        let bits = |m: __m256d| _mm256_movemask_pd(m) as u8;
+        clockwise |= bits(cw) << at;
+        for k in 0..4 {
+            let bit = |m: __m256d| bits(m) >> k & 1 != 0;
+            flags[at + k] = [bit(finite), bit(in_range), bit(degenerate), bit(culled)];
+        }
+    }
+    out.clockwise = clockwise;
+    // The per-triangle front end's order of rejections.
+    for (rejected, [finite, in_range, degenerate, culled]) in out.rejected.iter_mut().zip(flags) {
+        *rejected = if !finite {
+            Some(Rejection::NonFinite)
+        } else if !in_range {
+            Some(Rejection::OutOfRange)
+        } else if degenerate {
+            Some(Rejection::Degenerate)
+        } else if culled {
+            Some(Rejection::Culled)
+        } else {
+            None
+        };
+    }
 }

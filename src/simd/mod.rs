@@ -614,10 +614,10 @@ impl WindowGroup {
     }
 }
 
-/// Sets up eight window triangles side by side into `out` at `level`; returns `false`, with
-/// `out` untouched, at levels without a kernel for it (AVX-512 has one), where the caller
-/// sets them up one by one: that per-triangle front end is the scalar path the kernel is
-/// tested against.
+/// Sets up eight window triangles side by side into `out` at `level` (AVX-512: eight lanes
+/// of `i64` and `f64`; AVX2: two halves of four `f64` lanes, where setup's integers are
+/// exact); returns `false`, with `out` untouched, at the scalar level, where the caller sets
+/// them up one by one: that per-triangle front end is what the kernels are tested against.
 pub fn window_group(
     level: SimdLevel,
     tris: &[[Vertex; 3]; 8],
@@ -629,6 +629,12 @@ pub fn window_group(
         SimdLevel::Avx512 if SimdLevel::Avx512.is_available() => {
             // SAFETY: AVX-512 F, VL and DQ support was just checked at run time.
             unsafe { avx512::window_group(tris, cull, out) };
+            true
+        }
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx2 if SimdLevel::Avx2.is_available() => {
+            // SAFETY: AVX2 support was just checked at run time.
+            unsafe { avx2::window_group(tris, cull, out) };
             true
         }
         _ => false,
