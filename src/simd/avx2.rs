@@ -10,7 +10,7 @@ use super::{
 };
 use crate::clip::MIN_W;
 use crate::fixed;
-use crate::setup::{CullMode, PixelRect, Rejection, Vertex};
+use crate::setup::{CullMode, PixelRect, Vertex};
 use crate::shade::DepthTest;
 
 /// [`super::corner_tests`] for eight triangles at once: areas in two halves of four
@@ -671,18 +671,7 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
         }
     }
     out.clockwise = clockwise;
-    // The per-triangle front end's order of rejections.
     for (rejected, [finite, in_range, degenerate, culled]) in out.rejected.iter_mut().zip(flags) {
-        *rejected = if !finite {
-            Some(Rejection::NonFinite)
-        } else if !in_range {
-            Some(Rejection::OutOfRange)
-        } else if degenerate {
-            Some(Rejection::Degenerate)
-        } else if culled {
-            Some(Rejection::Culled)
-        } else {
-            None
-        };
+        *rejected = super::rejection(finite, in_range, degenerate, culled);
     }
 }

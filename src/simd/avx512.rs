@@ -14,7 +14,7 @@ use std::arch::x86_64::*;
 
 use super::{KernelTarget, NarrowJob, SampleSpanJob, SpanColor, SpanJob, WindowGroup};
 use crate::fixed;
-use crate::setup::{CullMode, Rejection, Vertex};
+use crate::setup::{CullMode, Vertex};
 use crate::shade::DepthTest;
 
 /// Eight lanes of `(a0 + f1 * g1) + f2 * g2`.
@@ -456,19 +456,8 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
         }
     }
     out.clockwise = clockwise;
-    // The per-triangle front end's order of rejections.
-    for k in 0..8 {
+    for (k, rejected) in out.rejected.iter_mut().enumerate() {
         let bit = |m: __mmask8| m >> k & 1 != 0;
-        out.rejected[k] = if !bit(finite) {
-            Some(Rejection::NonFinite)
-        } else if !bit(in_range) {
-            Some(Rejection::OutOfRange)
-        } else if bit(degenerate) {
-            Some(Rejection::Degenerate)
-        } else if bit(culled) {
-            Some(Rejection::Culled)
-        } else {
-            None
-        };
+        *rejected = super::rejection(bit(finite), bit(in_range), bit(degenerate), bit(culled));
     }
 }

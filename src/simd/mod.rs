@@ -614,6 +614,22 @@ impl WindowGroup {
     }
 }
 
+/// Why a triangle was not set up, from the window groups' tests, in the per-triangle front
+/// end's order (`None`: it was).
+fn rejection(finite: bool, in_range: bool, degenerate: bool, culled: bool) -> Option<Rejection> {
+    if !finite {
+        Some(Rejection::NonFinite)
+    } else if !in_range {
+        Some(Rejection::OutOfRange)
+    } else if degenerate {
+        Some(Rejection::Degenerate)
+    } else if culled {
+        Some(Rejection::Culled)
+    } else {
+        None
+    }
+}
+
 /// Sets up eight window triangles side by side into `out` at `level` (AVX-512: eight lanes
 /// of `i64` and `f64`; AVX2: two halves of four `f64` lanes, where setup's integers are
 /// exact); returns `false`, with `out` untouched, at the scalar level, where the caller sets
