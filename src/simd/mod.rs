@@ -291,8 +291,7 @@ impl KernelTarget<'_> {
     /// The depth at barycentric numerators `(f1, f2)`, as stored ([`crate::shade::depth_at`]).
     #[inline(always)]
     fn depth_at(&self, f1: f64, f2: f64) -> f32 {
-        let [d0, d1, d2] = self.depth_plane;
-        ((d0 + f1 * d1 + f2 * d2) as f32).clamp(0.0, 1.0)
+        crate::shade::depth_at(&PlaneEquation::from_coefficients(self.depth_plane), f1, f2)
     }
 
     /// Panics unless every buffer holds as many elements as `depth`; returns that number.
@@ -378,7 +377,7 @@ impl SampleSpanJob<'_> {
 /// Unless `samples` is 4 or 8, the buffers hold whole pixels alike, and there is no overdraw
 /// buffer.
 pub fn shade_samples(level: SimdLevel, mut job: SampleSpanJob<'_>) {
-    job.check();
+    // Each kernel checks the job (`SampleSpanJob::check`) before touching the buffers.
     match level {
         #[cfg(target_arch = "x86_64")]
         SimdLevel::Avx512 if SimdLevel::Avx512.is_available() => {
@@ -399,7 +398,6 @@ pub fn shade_samples(level: SimdLevel, mut job: SampleSpanJob<'_>) {
 /// # Panics
 /// As [`shade_samples`].
 pub fn shade_samples_scalar(mut job: SampleSpanJob<'_>) {
-    job.check();
     samples_scalar(&mut job);
 }
 
