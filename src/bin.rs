@@ -105,7 +105,7 @@ impl From<Rejection> for Skipped {
 }
 
 /// Input triangles per front-end chunk: a chunk is set up by one task into its own buffer.
-const CHUNK: usize = 256;
+pub(crate) const CHUNK: usize = 256;
 
 /// Bits of a prepared triangle's index that number it within its chunk: room for every
 /// piece a chunk's triangles can be clipped into (a clipped triangle is a fan of at most
@@ -184,7 +184,18 @@ pub struct Sink<'a, T> {
     stats: &'a mut DrawStats,
 }
 
-impl<T> Sink<'_, T> {
+impl<'a, T> Sink<'a, T> {
+    /// A sink putting pieces into `out` and their coverage rectangles (for `coverage`) into
+    /// `covers`, and counting what it skips in `stats`.
+    pub(crate) fn new(
+        out: &'a mut Vec<Prepared<T>>,
+        covers: &'a mut Vec<PixelRect>,
+        coverage: Coverage,
+        stats: &'a mut DrawStats,
+    ) -> Self {
+        Self { out, covers, coverage, stats }
+    }
+
     /// Takes one piece.
     #[inline]
     pub fn take(&mut self, piece: Result<Prepared<T>, Skipped>) {
@@ -312,7 +323,7 @@ impl<T: Send> PreparedBatch<T> {
                 out.clear();
                 covers.clear();
                 let mut stats = DrawStats::default();
-                let mut sink = Sink { out, covers, coverage, stats: &mut stats };
+                let mut sink = Sink::new(out, covers, coverage, &mut stats);
                 prepare(c * CHUNK..((c + 1) * CHUNK).min(len), &mut sink);
                 debug_assert!(sink.out.len() <= 1 << PIECE_BITS, "more pieces than index slots");
                 stats
@@ -573,7 +584,7 @@ pub fn extent_coverage_bounds(
 /// The fastest of the (identical) rasterizers for a triangle: scanline spans cost a few
 /// divisions per row however wide the row, edge stepping a few additions per pixel of the
 /// bounding box; narrow triangles are cheaper to step, as branch-free row masks.
-fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
+pub(crate) fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
     if setup.bounds.x1 - setup.bounds.x0 < crate::raster::edge::NARROW {
         Algorithm::EdgeMasks
     } else {

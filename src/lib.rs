@@ -22,6 +22,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod band;
 pub mod bench;
 pub mod bin;
 pub mod camera;

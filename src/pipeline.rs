@@ -36,14 +36,15 @@ use std::borrow::Borrow;
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
+use crate::band;
 use crate::bin::{self, Prepared, Sink, Skipped};
 use crate::clip::{ClipVertex, ClipVolume};
 use crate::color::{linear_to_srgb8_rgb, unorm8};
 use crate::error::Error;
 use crate::fixed;
 use crate::raster::Algorithm;
-use crate::render::{Backend, DrawStats};
-use crate::setup::{self, CullMode, Rejection, TriangleSetup, Vertex};
+use crate::render::{Backend, DrawStats, Schedule};
+use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
 use crate::shade::{
     self, DepthTest, FragmentOutput, LANES, PassedLanes, PlaneEquation, TriangleFragments,
 };
@@ -134,6 +135,8 @@ pub struct Pipeline {
     pub algorithm: Algorithm,
     /// Reference or tiled execution (bit-identical results).
     pub backend: Backend,
+    /// How the tiled backend spreads the work over threads.
+    pub schedule: Schedule,
 }
 
 impl Pipeline {
@@ -148,6 +151,13 @@ impl Pipeline {
     #[must_use]
     pub fn with_backend(mut self, backend: Backend) -> Self {
         self.backend = backend;
+        self
+    }
+
+    /// Sets the tiled backend's schedule.
+    #[must_use]
+    pub fn with_schedule(mut self, schedule: Schedule) -> Self {
+        self.schedule = schedule;
         self
     }
 
@@ -270,6 +280,42 @@ impl Pipeline {
                 // its vertices'; for a large one, each batch's index range.
                 if whole {
                     shaded.par_iter().map(ShadedVertex::corner).collect_into_vec(window);
+                }
+                // Small meshes may take bands instead (vertices shaded up front: each band
+                // reads them; a large mesh's are shaded batch by batch).
+                let threads = rayon::current_num_threads();
+                let plan = if whole {
+                    let corners = |k: usize| triangles[k].map(|i| window[i as usize]);
+                    let clip = &front.coverage.clip;
+                    band::plan(
+                        self.schedule,
+                        triangles.len(),
+                        target.height(),
+                        clip,
+                        threads,
+                        |k| corner_bounds(corners(k)),
+                    )
+                } else {
+                    band::Plan::Binned
+                };
+                if let band::Plan::Banded(bands) = plan {
+                    let (counts, covered) = bands.draw(
+                        target,
+                        front.coverage,
+                        self.depth_test,
+                        |_| None,
+                        shade,
+                        |range, sink| {
+                            // The band's rows are the clip rectangle.
+                            let front = FrontEnd { coverage: sink.coverage(), ..front };
+                            let source = (window.as_slice(), 0, |i: u32| &shaded[i as usize]);
+                            front.prepare_range(triangles, range, 0, source, level, sink);
+                        },
+                    );
+                    stats = stats.merged(&counts);
+                    stats.fragments += covered;
+                    target.keep_scratch(scratch);
+                    return Ok(stats);
                 }
                 let mut counts = DrawStats::default();
                 let mut fragments = 0;
@@ -498,6 +544,7 @@ where
 }
 
 /// The fixed-function stages between the vertex shader and the rasterizer.
+#[derive(Clone, Copy)]
 struct FrontEnd {
     /// The pixels that may be drawn, and the sample count.
     coverage: bin::Coverage,
@@ -734,6 +781,16 @@ fn index_range(level: SimdLevel, batch: &[[u32; 3]]) -> (u32, u32) {
         .par_chunks(1 << 15)
         .map(|c| simd::index_range(level, c))
         .reduce(|| (u32::MAX, 0), |a, b| (a.0.min(b.0), a.1.max(b.1)))
+}
+
+/// The pixels a triangle's snapped corners reach (`None` when one is outside the clip
+/// volume), for [`band::plan`]'s sample.
+fn corner_bounds(corners: [Corner; 3]) -> Option<PixelRect> {
+    if corners.contains(&OUTSIDE) {
+        return None;
+    }
+    let extent = setup::extent(corners.map(|c| c.map(i64::from)));
+    Some(setup::sample_bounds(extent, [0, 0]))
 }
 
 /// The snapped window positions of three vertices, as `i64` for setup.

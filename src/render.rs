@@ -2,6 +2,7 @@
 
 use rayon::prelude::*;
 
+use crate::band::{self, Plan};
 use crate::bin::{self, Prepared, Skipped};
 use crate::error::Error;
 use crate::fixed;
@@ -33,6 +34,8 @@ pub struct RenderOptions {
     /// SIMD level for the tiled backend's kernels (set-up of eight triangles at once, spans,
     /// narrow triangles, multisampled spans); `None` picks the best available.
     pub simd: Option<SimdLevel>,
+    /// How the tiled backend spreads the work over threads.
+    pub schedule: Schedule,
 }
 
 /// How a draw call is executed. Both give bit-identical buffers.
@@ -44,6 +47,35 @@ pub enum Backend {
     /// Binned into 128 x 128 tiles, set up and rendered in parallel on the current rayon pool.
     #[default]
     Tiled,
+}
+
+/// How the tiled backend spreads a draw call over threads. Every schedule gives the same
+/// buffers and counts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Schedule {
+    /// Bands for small triangles in spatial order, bins otherwise ([`band::plan`] decides from
+    /// a sample of the triangles).
+    #[default]
+    Auto,
+    /// Bins per 128 x 128 tile, drawn tile by tile (sort-middle, [`bin`]).
+    Binned,
+    /// Horizontal bands, one per thread, each setting up every triangle and drawing what
+    /// falls in it (sort-first, [`band`]).
+    Banded,
+}
+
+impl Schedule {
+    /// This schedule, or for [`Schedule::Auto`] the one named by the environment variable
+    /// `TRIRAST_SCHEDULE` (`binned`, `banded`) when that is set (comparisons, as
+    /// `TRIRAST_SIMD` for kernels).
+    #[must_use]
+    pub fn or_forced(self) -> Self {
+        match (self, std::env::var("TRIRAST_SCHEDULE").as_deref()) {
+            (Self::Auto, Ok("binned")) => Self::Binned,
+            (Self::Auto, Ok("banded")) => Self::Banded,
+            (schedule, _) => schedule,
+        }
+    }
 }
 
 impl RenderOptions {
@@ -79,6 +111,13 @@ impl RenderOptions {
     #[must_use]
     pub fn with_backend(mut self, backend: Backend) -> Self {
         self.backend = backend;
+        self
+    }
+
+    /// Sets the tiled backend's schedule.
+    #[must_use]
+    pub fn with_schedule(mut self, schedule: Schedule) -> Self {
+        self.schedule = schedule;
         self
     }
 
@@ -220,56 +259,31 @@ fn draw_tiled<C: WindowColor>(
     let visible = clip.unwrap_or(PixelRect::EMPTY);
     let mut pair: bin::PreparedPair<C> = target.take_scratch();
     let batch_len = bin::batch_len(target.samples());
-    let mut fragments = 0;
+    let mut covered = 0;
     let bin_target = bin::BinTarget::of(target, options.depth_test);
+    let threads = rayon::current_num_threads();
+    let plan =
+        band::plan(options.schedule, triangles.len(), target.height(), &visible, threads, |k| {
+            window_bounds(&triangles[k])
+        });
+    if let Plan::Banded(bands) = plan {
+        let (counts, in_bands) = bands.draw(
+            target,
+            bin::Coverage { clip: visible, multisampled },
+            options.depth_test,
+            |c: &C| c.kernel().map(|k| (level, k)),
+            |c: &C, _, _, e1, e2, _| Some(FragmentOutput { color: c.at(e1, e2), normal: None }),
+            |range, sink| set_up_window(triangles, 0, range, options, level, sink),
+        );
+        stats = stats.merged(&counts);
+        stats.fragments += in_bands;
+        target.keep_scratch(pair);
+        return stats;
+    }
     let prepare = |b, first: usize, batch: &[_], prepared: &mut bin::PreparedBatch<_>| {
         let coverage = bin::Coverage { clip: visible, multisampled };
-        let set_up_one = |k: usize, sink: &mut bin::Sink<'_, C>| {
-            let tri = &batch[k];
-            let setup = match TriangleSetup::new(tri, options.cull) {
-                Ok(setup) => setup,
-                Err(why) => return sink.skip_many(why.into(), 1),
-            };
-            if sink.coverage().of(&setup).is_none() {
-                return sink.skip_many(Skipped::Empty, 1);
-            }
-            let (depth, payload) = C::shade(tri, &setup, options.shading);
-            let id = (first + k) as i32;
-            sink.push(Prepared { setup, depth, id, payload });
-        };
         let counts = prepared.prepare_ranges(batch.len(), coverage, |range, sink| {
-            let mut k = range.start;
-            // The first records' memory; each group then asks for the next ones'.
-            sink.prefetch(0, 8);
-            // Flat and smooth colours eight triangles at a time where there is a kernel for it
-            // (the same records; the rest, and perspective colours, one at a time).
-            let mut group = simd::WindowGroup::default();
-            while k + 8 <= range.end && options.shading != Shading::Perspective {
-                let Ok(tris) = <&[[Vertex; 3]; 8]>::try_from(&batch[k..k + 8]) else { break };
-                sink.prefetch(8, 8);
-                if !simd::window_group(level, tris, options.cull, &mut group) {
-                    break;
-                }
-                for (l, tri) in tris.iter().enumerate() {
-                    let (setup, depth, planes) = match group.lane(l) {
-                        Ok(lane) => lane,
-                        Err(why) => {
-                            sink.skip_many(why.into(), 1);
-                            continue;
-                        }
-                    };
-                    let payload = C::from_planes(tri, planes, options.shading);
-                    let id = (first + k + l) as i32;
-                    sink.push(Prepared { setup, depth, id, payload });
-                }
-                k += 8;
-            }
-            for k in k..range.end {
-                if (k - range.start) % 8 == 0 {
-                    sink.prefetch(8, 8);
-                }
-                set_up_one(k, sink);
-            }
+            set_up_window(batch, first, range, options, level, sink);
         });
         stats = stats.merged(&counts);
         // Binned here, except the first batch (see `PreparedBatch::bin`) and on
@@ -281,7 +295,7 @@ fn draw_tiled<C: WindowColor>(
     };
     let draw = |_, prepared: &bin::PreparedBatch<C>| {
         if clip.is_some() {
-            fragments += bin::draw_binned(
+            covered += bin::draw_binned(
                 target,
                 prepared,
                 options.depth_test,
@@ -292,9 +306,83 @@ fn draw_tiled<C: WindowColor>(
         }
     };
     bin::pipelined(triangles, batch_len, &mut pair, prepare, draw);
-    stats.fragments += fragments;
+    stats.fragments += covered;
     target.keep_scratch(pair);
     stats
+}
+
+/// The tiled backend's front end for window triangles `range` of `batch` (the first of
+/// which has id `first`): each set up into `sink`, eight at a time in AVX-512 or AVX2 for flat
+/// and smooth colours ([`simd::window_group`]), one at a time otherwise.
+#[inline(always)]
+fn set_up_window<C: WindowColor>(
+    batch: &[[Vertex; 3]],
+    first: usize,
+    range: std::ops::Range<usize>,
+    options: &RenderOptions,
+    level: SimdLevel,
+    sink: &mut bin::Sink<'_, C>,
+) {
+    let set_up_one = |k: usize, sink: &mut bin::Sink<'_, C>| {
+        let tri = &batch[k];
+        let setup = match TriangleSetup::new(tri, options.cull) {
+            Ok(setup) => setup,
+            Err(why) => return sink.skip_many(why.into(), 1),
+        };
+        if sink.coverage().of(&setup).is_none() {
+            return sink.skip_many(Skipped::Empty, 1);
+        }
+        let (depth, payload) = C::shade(tri, &setup, options.shading);
+        let id = (first + k) as i32;
+        sink.push(Prepared { setup, depth, id, payload });
+    };
+    let mut k = range.start;
+    // The first records' memory; each group then asks for the next ones'.
+    sink.prefetch(0, 8);
+    // Flat and smooth colours eight triangles at a time where there is a kernel for it
+    // (the same records; the rest, and perspective colours, one at a time).
+    let mut group = simd::WindowGroup::default();
+    while k + 8 <= range.end && options.shading != Shading::Perspective {
+        let Ok(tris) = <&[[Vertex; 3]; 8]>::try_from(&batch[k..k + 8]) else { break };
+        sink.prefetch(8, 8);
+        if !simd::window_group(level, tris, options.cull, &mut group) {
+            break;
+        }
+        for (l, tri) in tris.iter().enumerate() {
+            let (setup, depth, planes) = match group.lane(l) {
+                Ok(lane) => lane,
+                Err(why) => {
+                    sink.skip_many(why.into(), 1);
+                    continue;
+                }
+            };
+            let payload = C::from_planes(tri, planes, options.shading);
+            let id = (first + k + l) as i32;
+            sink.push(Prepared { setup, depth, id, payload });
+        }
+        k += 8;
+    }
+    for k in k..range.end {
+        if (k - range.start).is_multiple_of(8) {
+            sink.prefetch(8, 8);
+        }
+        set_up_one(k, sink);
+    }
+}
+
+/// The pixels a window triangle's box reaches (`None` for a non-finite vertex), for
+/// [`band::plan`]'s sample.
+fn window_bounds(tri: &[Vertex; 3]) -> Option<PixelRect> {
+    let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+    for v in tri {
+        if !(v.x.is_finite() && v.y.is_finite()) {
+            return None;
+        }
+        lo = [lo[0].min(v.x), lo[1].min(v.y)];
+        hi = [hi[0].max(v.x), hi[1].max(v.y)];
+    }
+    // Saturating casts: a box far off the target is clipped away by the caller.
+    Some(PixelRect { x0: lo[0] as i32, y0: lo[1] as i32, x1: hi[0] as i32, y1: hi[1] as i32 })
 }
 
 /// What the tiled backend keeps per triangle besides its setup and depth plane: for flat and

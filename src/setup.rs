@@ -150,6 +150,13 @@ impl PixelRect {
         (r.x0 <= r.x1 && r.y0 <= r.y1).then_some(r)
     }
 
+    /// Number of pixels (0 when empty).
+    #[must_use]
+    pub fn area(&self) -> i64 {
+        let side = |a: i32, b: i32| (i64::from(b) - i64::from(a) + 1).max(0);
+        side(self.x0, self.x1) * side(self.y0, self.y1)
+    }
+
     /// The smallest rectangle holding both.
     #[must_use]
     pub fn union(&self, other: &Self) -> Self {

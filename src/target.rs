@@ -355,34 +355,58 @@ impl Target {
     /// If `rows` is 0.
     pub fn bands(&mut self, rows: u32) -> Vec<TargetBand<'_>> {
         assert!(rows > 0, "bands need at least one row");
-        let (w, h, n) = (self.width as usize, self.height, self.samples.count());
-        let px = rows as usize * w;
-        fn split<T>(buf: Option<&mut [T]>, chunk: usize, count: usize) -> Vec<Option<&mut [T]>> {
-            match buf {
-                Some(b) => b.chunks_mut(chunk).map(Some).collect(),
-                None => (0..count).map(|_| None).collect(),
-            }
+        let starts: Vec<u32> = (0..self.height).step_by(rows as usize).collect();
+        self.bands_from(&starts)
+    }
+
+    /// The target split into bands starting at rows `starts` (ascending, the first 0), each
+    /// reaching to the next one's start or the bottom.
+    ///
+    /// # Panics
+    /// If `starts` does not begin with 0, is not strictly ascending, or reaches past the last
+    /// row.
+    pub fn bands_from(&mut self, starts: &[u32]) -> Vec<TargetBand<'_>> {
+        let h = self.height;
+        let ascending = starts.windows(2).all(|w| w[0] < w[1]);
+        assert!(
+            starts.first() == Some(&0) && ascending && starts.last().is_some_and(|&l| l < h),
+            "band starts {starts:?} do not cut rows 0..{h}"
+        );
+        let (w, n) = (self.width as usize, self.samples.count());
+        let ends = starts.iter().skip(1).chain([&h]);
+        let rows: Vec<usize> = starts.iter().zip(ends).map(|(s, e)| (e - s) as usize).collect();
+        // A buffer of `per_row` elements per row, cut into the bands' pieces.
+        fn cut<'b, T>(mut rest: &'b mut [T], per_row: usize, rows: &[usize]) -> Vec<&'b mut [T]> {
+            rows.iter()
+                .map(|&r| {
+                    let (piece, tail) = std::mem::take(&mut rest).split_at_mut(r * per_row);
+                    rest = tail;
+                    piece
+                })
+                .collect()
         }
-        let count = h.div_ceil(rows) as usize;
-        let mut ids = split(self.ids.as_deref_mut(), px * n, count).into_iter();
-        let mut overdraw = split(self.overdraw.as_deref_mut(), px, count).into_iter();
-        let mut normals = split(self.normals.as_deref_mut(), px, count).into_iter();
-        self.color
-            .chunks_mut(px * n)
-            .zip(self.depth.chunks_mut(px * n))
+        let color = cut(&mut self.color, w * n, &rows);
+        let depth = cut(&mut self.depth, w * n, &rows);
+        // Optional buffers: their pieces, or none for every band.
+        let mut ids = self.ids.as_deref_mut().map(|b| cut(b, w * n, &rows).into_iter());
+        let mut overdraw = self.overdraw.as_deref_mut().map(|b| cut(b, w, &rows).into_iter());
+        let mut normals = self.normals.as_deref_mut().map(|b| cut(b, w, &rows).into_iter());
+        let samples = self.samples;
+        color
+            .into_iter()
+            .zip(depth)
             .enumerate()
             .map(|(k, (color, depth))| {
-                let y0 = k as u32 * rows;
-                let y1 = (y0 + rows).min(h) - 1;
+                let y0 = starts[k] as i32;
                 TargetBand {
-                    rect: PixelRect { x0: 0, y0: y0 as i32, x1: w as i32 - 1, y1: y1 as i32 },
+                    rect: PixelRect { x0: 0, y0, x1: w as i32 - 1, y1: y0 + rows[k] as i32 - 1 },
                     width: w,
-                    samples: self.samples,
+                    samples,
                     color,
                     depth,
-                    ids: ids.next().flatten(),
-                    overdraw: overdraw.next().flatten(),
-                    normals: normals.next().flatten(),
+                    ids: ids.as_mut().and_then(Iterator::next),
+                    overdraw: overdraw.as_mut().and_then(Iterator::next),
+                    normals: normals.as_mut().and_then(Iterator::next),
                 }
             })
             .collect()

@@ -1,6 +1,6 @@
 //! The tiled, multithreaded backend against the reference, bit for bit: colour, depth, ids and
-//! overdraw, for 1, 2 and 7 threads, at 1x, 4x and 8x, for window-space scenes and the 3D
-//! pipeline.
+//! overdraw, for 1, 2 and 7 threads, at 1x, 4x and 8x, binned and banded, for window-space
+//! scenes and the 3D pipeline.
 
 mod common;
 
@@ -8,10 +8,14 @@ use glam::{Vec3, Vec4};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use trirast::pipeline::{FaceCull, Fragment, Pipeline};
-use trirast::render::Backend;
+use trirast::render::{Backend, Schedule};
 use trirast::sample::SampleCount;
 use trirast::simd::SimdLevel;
 use trirast::{CullMode, DepthTest, PixelRect, RenderOptions, Shading, Target, Vertex};
+
+/// The schedules the tiled backend can be forced to (the tests' scenes are mostly too small
+/// for `Auto` to sample, so it bins them).
+const SCHEDULES: [Schedule; 2] = [Schedule::Binned, Schedule::Banded];
 
 fn pool(threads: usize) -> rayon::ThreadPool {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap()
@@ -86,13 +90,15 @@ fn window_scenes_match_the_reference() {
                 .unwrap();
         for threads in [1, 2, 7] {
             for level in SimdLevel::available() {
-                let mut tiled = fresh();
-                let opts = options.with_backend(Backend::Tiled).with_simd(level);
-                let stats =
-                    pool(threads).install(|| trirast::draw(&mut tiled, &tris, &opts)).unwrap();
-                let what = format!("round {round}, {threads} threads, {level:?}");
-                assert_eq!(stats, ref_stats, "{what}");
-                assert_same(&reference, &tiled, &what);
+                for schedule in SCHEDULES {
+                    let mut tiled = fresh();
+                    let opts = options.with_simd(level).with_schedule(schedule);
+                    let stats =
+                        pool(threads).install(|| trirast::draw(&mut tiled, &tris, &opts)).unwrap();
+                    let what = format!("round {round}, {threads} threads, {level:?}, {schedule:?}");
+                    assert_eq!(stats, ref_stats, "{what}");
+                    assert_same(&reference, &tiled, &what);
+                }
             }
         }
     }
@@ -177,14 +183,16 @@ fn hidden_tiles_match_the_reference() {
             trirast::draw(&mut reference, &tris[tris.len() / 2..], &reference_options).unwrap();
         for threads in [1, 2, 7] {
             for level in SimdLevel::available() {
+                // Bands take no hierarchical depth test: a check of the scene, not of it.
+                let schedule = SCHEDULES[(round + threads) % 2];
                 let mut tiled = Target::multisampled(w, h, samples).unwrap().with_ids();
-                let opts = options.with_backend(Backend::Tiled).with_simd(level);
+                let opts = options.with_simd(level).with_schedule(schedule);
                 let stats = pool(threads).install(|| {
                     let a = trirast::draw(&mut tiled, &tris, &opts).unwrap();
                     let b = trirast::draw(&mut tiled, &tris[tris.len() / 2..], &opts).unwrap();
                     (a, b)
                 });
-                let what = format!("round {round}, {threads} threads, {level:?}");
+                let what = format!("round {round}, {threads} threads, {level:?}, {schedule:?}");
                 assert_eq!(stats, (first, second), "{what}");
                 assert_same(&reference, &tiled, &what);
             }
@@ -224,12 +232,15 @@ fn assert_pipeline_matches_reference_on<FS: trirast::pipeline::FragmentShader<f3
         .draw(&mut reference, &vs, fs, vertices, triangles)
         .unwrap();
     for &threads in threads {
-        let mut tiled = fresh();
-        let stats = pool(threads)
-            .install(|| pipeline.draw(&mut tiled, &vs, fs, vertices, triangles))
-            .unwrap();
-        assert_eq!(stats, ref_stats);
-        assert_same(&reference, &tiled, &format!("{threads} threads"));
+        for schedule in SCHEDULES {
+            let mut tiled = fresh();
+            let pipeline = pipeline.with_schedule(schedule);
+            let stats = pool(threads)
+                .install(|| pipeline.draw(&mut tiled, &vs, fs, vertices, triangles))
+                .unwrap();
+            assert_eq!(stats, ref_stats);
+            assert_same(&reference, &tiled, &format!("{threads} threads, {schedule:?}"));
+        }
     }
 }
 
@@ -319,9 +330,12 @@ fn tilings_match_the_reference() {
         &RenderOptions::default().with_backend(Backend::Reference),
     )
     .unwrap();
-    let mut tiled = fresh();
-    pool(7).install(|| trirast::draw(&mut tiled, &triangles, &RenderOptions::default())).unwrap();
-    assert_same(&reference, &tiled, "tiling");
+    for schedule in SCHEDULES {
+        let mut tiled = fresh();
+        let options = RenderOptions::default().with_schedule(schedule);
+        pool(7).install(|| trirast::draw(&mut tiled, &triangles, &options)).unwrap();
+        assert_same(&reference, &tiled, &format!("tiling, {schedule:?}"));
+    }
 }
 
 /// The 3D pipeline (clipping, culling, perspective varyings, normals) through both backends.
@@ -395,12 +409,16 @@ fn pipeline_matches_the_reference() {
                 .draw(&mut reference, &vs, &fs, &vertices, &triangles)
                 .unwrap();
             for threads in [1, 2, 7] {
-                let mut tiled = fresh();
-                let stats = pool(threads)
-                    .install(|| pipeline.draw(&mut tiled, &vs, &fs, &vertices, &triangles))
-                    .unwrap();
-                assert_eq!(stats, ref_stats);
-                assert_same(&reference, &tiled, &format!("{samples:?} {cull:?} {threads} threads"));
+                for schedule in SCHEDULES {
+                    let mut tiled = fresh();
+                    let pipeline = pipeline.with_schedule(schedule);
+                    let stats = pool(threads)
+                        .install(|| pipeline.draw(&mut tiled, &vs, &fs, &vertices, &triangles))
+                        .unwrap();
+                    assert_eq!(stats, ref_stats);
+                    let what = format!("{samples:?} {cull:?} {threads} threads, {schedule:?}");
+                    assert_same(&reference, &tiled, &what);
+                }
             }
         }
     }
@@ -500,11 +518,18 @@ fn clipped_fans_outnumbering_their_triangles_match_the_reference() {
     // More pieces than triangles, so chunks overflow their 256 input slots.
     assert!(ref_stats.rasterized > 2 * triangles.len(), "{ref_stats:?}");
     for threads in [1, 2] {
-        let mut tiled = fresh();
-        let stats =
-            pool(threads).install(|| pipeline.draw(&mut tiled, &vs, &fs, &vertices, &triangles));
-        assert_eq!(stats.unwrap(), ref_stats);
-        assert_same(&reference, &tiled, &format!("clipped fans, {threads} threads"));
+        for schedule in SCHEDULES {
+            let mut tiled = fresh();
+            let pipeline = pipeline.with_schedule(schedule);
+            let stats = pool(threads)
+                .install(|| pipeline.draw(&mut tiled, &vs, &fs, &vertices, &triangles));
+            assert_eq!(stats.unwrap(), ref_stats);
+            assert_same(
+                &reference,
+                &tiled,
+                &format!("clipped fans, {threads} threads, {schedule:?}"),
+            );
+        }
     }
 }
 
