@@ -93,7 +93,7 @@ pub fn plan(
         return Plan::Binned;
     }
     let runs = RUNS.min(len / RUN);
-    let mut local_runs = 0;
+    let (mut known_runs, mut local_runs) = (0, 0);
     let mut area = 0;
     let mut footprint: Option<PixelRect> = None;
     let mut rows = Vec::with_capacity(RUN * runs);
@@ -112,18 +112,21 @@ pub fn plan(
                 joint = Some(joint.map_or(b, |j| j.union(&b)));
             }
         }
-        if known && joint.is_none_or(|j| j.area() <= LOCAL_RUN) {
-            local_runs += 1;
+        if known {
+            known_runs += 1;
+            local_runs += usize::from(joint.is_none_or(|j| j.area() <= LOCAL_RUN));
         }
         if let Some(j) = joint {
             footprint = Some(footprint.map_or(j, |f| f.union(&j)));
         }
     }
     let small = area <= SMALL_BOX * rows.len() as i64;
+    // Mostly triangles to clip (their corners unknown): every band would clip them all.
+    let known = 4 * known_runs >= 3 * runs;
     let local = 4 * local_runs >= 3 * runs || footprint.is_none_or(|f| f.area() <= FOOTPRINT);
     let banded = match schedule {
         Schedule::Banded => true,
-        _ => runs == RUNS && small && local,
+        _ => runs == RUNS && known && small && local,
     };
     if !banded {
         return Plan::Binned;
@@ -214,5 +217,120 @@ impl Bands {
         debug_assert!(per_band.windows(2).all(|w| w[0].0 == w[1].0), "bands counted differently");
         let stats = per_band.first().map(|b| b.0).unwrap_or_default();
         (stats, per_band.iter().map(|b| b.1).sum())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SCREEN: PixelRect = PixelRect { x0: 0, y0: 0, x1: 1919, y1: 1079 };
+
+    /// A grid of `cols x rows` quads of two triangles each over the screen, row by row: the
+    /// pixel box of triangle `k`.
+    fn grid(cols: i32, rows: i32) -> impl Fn(usize) -> Option<PixelRect> {
+        move |k| {
+            let quad = k as i32 / 2;
+            let (i, j) = (quad % cols, quad / cols);
+            let (x0, y0) = (i * 1920 / cols, j * 1080 / rows);
+            let (x1, y1) = ((i + 1) * 1920 / cols, (j + 1) * 1080 / rows);
+            Some(PixelRect { x0, y0, x1, y1 })
+        }
+    }
+
+    /// Boxes of `side` pixels scattered over the screen (a multiplicative hash of the index).
+    fn scattered(side: i32) -> impl Fn(usize) -> Option<PixelRect> {
+        move |k| {
+            let h = (k as u32).wrapping_mul(0x9E37_79B9);
+            let (x0, y0) = ((h % 1900) as i32, ((h >> 16) % 1060) as i32);
+            Some(PixelRect { x0, y0, x1: x0 + side - 1, y1: y0 + side - 1 })
+        }
+    }
+
+    fn rows_of(plan: &Plan) -> Option<&[u32]> {
+        match plan {
+            Plan::Banded(bands) => Some(bands.starts()),
+            Plan::Binned => None,
+        }
+    }
+
+    /// Small triangles in spatial order, or anywhere in a small part of the target, are
+    /// banded; small triangles scattered over the target, large ones and draw calls too small
+    /// to sample are binned; `Binned` and `Banded` are obeyed whatever the triangles.
+    #[test]
+    fn plans_band_small_triangles_that_stay_together() {
+        let auto = |len, bounds: &dyn Fn(usize) -> Option<PixelRect>| {
+            plan(Schedule::Auto, len, 1080, &SCREEN, 2, bounds)
+        };
+        assert!(rows_of(&auto(1_000_000, &grid(1000, 500))).is_some(), "grid");
+        // The same small boxes, scattered: binned; gathered in a corner of the target: banded.
+        assert_eq!(auto(1_000_000, &scattered(4)), Plan::Binned, "scattered");
+        let corner = |k| scattered(4)(k).map(|b| PixelRect { x0: b.x0 / 4, x1: b.x0 / 4 + 3, ..b });
+        let corner = |k| corner(k).map(|b| PixelRect { y0: b.y0 / 4, y1: b.y0 / 4 + 3, ..b });
+        assert!(rows_of(&auto(1_000_000, &corner)).is_some(), "gathered");
+        // Larger boxes gathered as closely: binned.
+        let large = |k| {
+            scattered(15)(k).map(|b| {
+                let (x0, y0) = (b.x0 * 900 / 1900, b.y0 * 900 / 1060);
+                PixelRect { x0, y0, x1: x0 + 14, y1: y0 + 14 }
+            })
+        };
+        assert_eq!(auto(1_000_000, &large), Plan::Binned, "gathered, large");
+        // Large triangles in order (a coarse grid), and a grid too short to sample.
+        assert_eq!(auto(20_000, &grid(100, 100)), Plan::Binned, "large");
+        assert_eq!(auto(RUN * RUNS - 1, &grid(1000, 500)), Plan::Binned, "too few");
+        // Unknown boxes (corners outside the view volume) are not local.
+        assert_eq!(auto(1_000_000, &|_| None), Plan::Binned, "unknown");
+        for len in [0, 1, 100, 1_000_000] {
+            let forced = |s| plan(s, len, 1080, &SCREEN, 2, grid(1000, 500));
+            assert_eq!(forced(Schedule::Binned), Plan::Binned, "{len}");
+            assert!(rows_of(&forced(Schedule::Banded)).is_some(), "{len}");
+        }
+    }
+
+    /// Bands split the sampled triangles evenly: equal rows for a grid over the whole target,
+    /// the rows of a model's triangles where it covers part of it; at most one band per
+    /// thread, ascending from row 0, each with at least one row.
+    #[test]
+    fn bands_share_the_triangles_evenly() {
+        let bands = |threads, bounds: &dyn Fn(usize) -> Option<PixelRect>| {
+            let p = plan(Schedule::Banded, 1_000_000, 1080, &SCREEN, threads, bounds);
+            rows_of(&p).unwrap().to_vec()
+        };
+        for threads in [1, 2, 3, 7] {
+            let starts = bands(threads, &grid(1000, 500));
+            assert_eq!(starts.len(), threads, "{starts:?}");
+            for (t, &s) in starts.iter().enumerate() {
+                let even = (t * 1080 / threads) as i64;
+                assert!((i64::from(s) - even).abs() <= 8, "{threads} threads: {starts:?}");
+            }
+        }
+        // A model in rows 100..=316 of the target: its rows are split, not the target's.
+        let model = |k| {
+            grid(1000, 500)(k).map(|b| PixelRect { y0: 100 + b.y0 / 5, y1: 100 + b.y1 / 5, ..b })
+        };
+        let starts = bands(2, &model);
+        assert!(starts[0] == 0 && (203..=213).contains(&starts[1]), "{starts:?}");
+        // More threads than rows: fewer bands, none empty.
+        let short = plan(
+            Schedule::Banded,
+            1_000_000,
+            3,
+            &PixelRect { y1: 2, ..SCREEN },
+            7,
+            grid(1000, 500),
+        );
+        let starts = rows_of(&short).unwrap();
+        assert!(
+            starts[0] == 0
+                && starts.windows(2).all(|w| w[0] < w[1])
+                && starts.iter().all(|&s| s < 3),
+            "{starts:?}"
+        );
+        // Nothing visible: bands of equal height.
+        let nowhere = plan(Schedule::Banded, 1_000_000, 1080, &SCREEN, 2, |_| {
+            Some(PixelRect { x0: -9, y0: -9, x1: -5, y1: -5 })
+        });
+        assert_eq!(rows_of(&nowhere), Some(&[0, 540][..]));
     }
 }

@@ -412,3 +412,74 @@ impl Target {
             .collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Bands cut every buffer at their rows: a band's rectangle and each of its buffers hold
+    /// exactly its rows (per sample or per pixel), so that writing the band's number at every
+    /// element of each band leaves row `y` of the target holding the number of the band that
+    /// starts at or above it; `bands(rows)` is `bands_from` every `rows` rows.
+    #[test]
+    fn bands_cut_every_buffer_at_their_rows() {
+        let fresh = || {
+            let target = Target::multisampled(7, 10, SampleCount::X4).unwrap();
+            target.with_ids().with_overdraw().with_normals()
+        };
+        for starts in [vec![0], vec![0, 1], vec![0, 3, 4, 9], (0..10).collect()] {
+            let mut target = fresh();
+            for (k, band) in target.bands_from(&starts).into_iter().enumerate() {
+                let rows = starts.get(k + 1).copied().unwrap_or(10) - starts[k];
+                let r = band.rect();
+                assert_eq!(
+                    (r.x0, r.y0, r.x1, r.y1),
+                    (0, starts[k] as i32, 6, (starts[k] + rows) as i32 - 1)
+                );
+                let per_pixel = 7 * rows as usize;
+                assert_eq!(band.color.len(), 4 * per_pixel);
+                band.color.fill([k as u8; 4]);
+                band.depth.fill(k as f32);
+                band.ids.unwrap().fill(k as i32);
+                band.overdraw.unwrap().fill(k as u32);
+                band.normals.unwrap().fill([k as f32; 3]);
+            }
+            let band_of = |y: usize| starts.iter().rposition(|&s| s as usize <= y).unwrap();
+            for y in 0..10 {
+                let k = band_of(y);
+                let (samples, pixels) = (28 * y..28 * (y + 1), 7 * y..7 * (y + 1));
+                assert!(
+                    target.color[samples.clone()].iter().all(|c| *c == [k as u8; 4]),
+                    "{starts:?} row {y}"
+                );
+                assert!(target.depth[samples.clone()].iter().all(|&d| d == k as f32));
+                assert!(target.ids.as_ref().unwrap()[samples].iter().all(|&i| i == k as i32));
+                assert!(
+                    target.overdraw.as_ref().unwrap()[pixels.clone()]
+                        .iter()
+                        .all(|&o| o == k as u32)
+                );
+                assert!(
+                    target.normals.as_ref().unwrap()[pixels].iter().all(|&n| n == [k as f32; 3])
+                );
+            }
+        }
+        let mut target = fresh();
+        let rects: Vec<PixelRect> = target.bands(4).iter().map(TargetBand::rect).collect();
+        let mut same = fresh();
+        let expected: Vec<PixelRect> =
+            same.bands_from(&[0, 4, 8]).iter().map(TargetBand::rect).collect();
+        assert_eq!(rects, expected);
+    }
+
+    /// Starts that do not cut the rows (not from 0, not ascending, past the last row) are a
+    /// programming error, caught before any buffer is split.
+    #[test]
+    fn bands_need_starts_that_cut_the_rows() {
+        for starts in [&[][..], &[1], &[0, 0], &[0, 5, 3], &[0, 10]] {
+            let result =
+                std::panic::catch_unwind(|| Target::new(7, 10).unwrap().bands_from(starts).len());
+            assert!(result.is_err(), "{starts:?}");
+        }
+    }
+}
