@@ -722,3 +722,36 @@ fn hierarchical_depth_bounds_cover_the_samples() {
         }
     }
 }
+
+/// Bands on targets with fewer rows than threads (one band per row at most), a target one
+/// pixel high, and scissors off the target or of one row: the reference's buffers and counts.
+#[test]
+fn bands_on_few_rows_match_the_reference() {
+    let mut rng = SmallRng::seed_from_u64(8);
+    for (w, h) in [(1u32, 1u32), (5, 2), (40, 1), (3, 9)] {
+        let tris = scene(&mut rng, 300, w as f32, h as f32);
+        let scissors = [None, Some(PixelRect { x0: 0, y0: h as i32, x1: 3, y1: h as i32 + 4 }), {
+            Some(PixelRect { x0: 0, y0: h as i32 / 2, x1: w as i32 - 1, y1: h as i32 / 2 })
+        }];
+        for scissor in scissors {
+            let mut options = RenderOptions::default();
+            if let Some(s) = scissor {
+                options = options.with_scissor(s);
+            }
+            let fresh = || Target::new(w, h).unwrap().with_ids().with_overdraw();
+            let mut reference = fresh();
+            let ref_stats =
+                trirast::draw(&mut reference, &tris, &options.with_backend(Backend::Reference))
+                    .unwrap();
+            for threads in [2, 7] {
+                let mut banded = fresh();
+                let opts = options.with_schedule(Schedule::Banded);
+                let stats =
+                    pool(threads).install(|| trirast::draw(&mut banded, &tris, &opts)).unwrap();
+                let what = format!("{w}x{h}, {scissor:?}, {threads} threads");
+                assert_eq!(stats, ref_stats, "{what}");
+                assert_same(&reference, &banded, &what);
+            }
+        }
+    }
+}
