@@ -37,6 +37,14 @@ const RUN: usize = 16;
 /// Runs of [`RUN`] triangles [`plan`] samples, spread evenly over the draw call.
 const RUNS: usize = 256;
 
+/// Triangles [`plan`] samples, spread evenly over the draw call, for their sizes, the part
+/// of the target they lie in and the rows that split them evenly.
+const SPREAD: usize = 4096;
+
+/// What a triangle costs a band besides its pixels, in pixels of box, when [`plan`] splits
+/// the sampled triangles' work evenly.
+const TRIANGLE_COST: i64 = 2;
+
 /// The largest mean pixel box of the sampled triangles for which [`plan`] bands: the
 /// benchmark meshes that gain average 4 (a grid of two-pixel triangles) and 26 (the Stanford
 /// bunny at 1080p); the 256 large triangles of `fill` average 1.5 million.
@@ -71,15 +79,23 @@ pub struct Bands {
 }
 
 /// How `schedule` ([`Schedule::or_forced`]) draws `len` triangles into `clip` (on a target
-/// `height` rows high) with `threads` threads, given the triangles' pixel boxes (`bounds(k)`,
-/// `None` when unknown, e.g. a corner outside the view volume).
+/// `height` rows high) with `threads` threads, given the triangles' pixel boxes (`bounds(k)`:
+/// `None` when unknown, e.g. a corner outside the view volume or a non-finite vertex; a box
+/// outside `clip` for a triangle with no pixels, e.g. culled).
 ///
-/// [`Schedule::Auto`] samples [`RUNS`] runs of [`RUN`] consecutive triangles and bands when
-/// their boxes within `clip` are small ([`SMALL_BOX`]), and either at least three quarters of
-/// the runs are local ([`LOCAL_RUN`]: the triangles come in spatial order) or all of them lie
-/// in a small part of the target ([`FOOTPRINT`]). Draw calls too small to sample fully are
-/// binned (the choice matters little there). Bands split the sampled triangles' rows evenly,
-/// so that a model covering part of the target still gives each thread a like share.
+/// [`Schedule::Auto`] samples [`RUNS`] runs of [`RUN`] consecutive triangles and [`SPREAD`]
+/// triangles spread evenly, and bands when at least three quarters of the runs have every box
+/// known (triangles to clip would be clipped by every band), the spread triangles' boxes
+/// within `clip` are small on average ([`SMALL_BOX`]; some lie within `clip`), and either
+/// three quarters of the runs are local ([`LOCAL_RUN`]: the triangles come in spatial order)
+/// or all the spread boxes lie in a small part of the target ([`FOOTPRINT`]). Draw calls too
+/// small to sample fully are binned (the choice matters little there). The bands split the
+/// spread triangles' work (a triangle's cost plus its box) evenly, so that a model covering
+/// part of the target still gives each thread a like share.
+///
+/// The thread count only sets the number of bands: every band repeats the front end's first
+/// tests, which in the 3D pipeline (the corner tests, a few nanoseconds a triangle) is small
+/// beside what bands save on two threads, the only count measured here.
 pub fn plan(
     schedule: Schedule,
     len: usize,
@@ -94,21 +110,18 @@ pub fn plan(
     }
     let runs = RUNS.min(len / RUN);
     let (mut known_runs, mut local_runs) = (0, 0);
-    let mut area = 0;
-    let mut footprint: Option<PixelRect> = None;
-    let mut rows = Vec::with_capacity(RUN * runs);
     for r in 0..runs {
-        let first = if runs > 1 { r * (len - RUN) / (runs - 1) } else { 0 };
+        // In `u64`: `r * len` may pass `usize::MAX` on 32-bit targets.
+        let first =
+            if runs > 1 { (r as u64 * (len - RUN) as u64 / (runs - 1) as u64) as usize } else { 0 };
         let mut joint: Option<PixelRect> = None;
         let mut known = true;
         for k in first..first + RUN {
             let Some(b) = bounds(k) else {
                 known = false;
-                continue;
+                break;
             };
             if let Some(b) = b.intersect(clip) {
-                area += b.area();
-                rows.push((b.y0 + b.y1) / 2);
                 joint = Some(joint.map_or(b, |j| j.union(&b)));
             }
         }
@@ -116,9 +129,19 @@ pub fn plan(
             known_runs += 1;
             local_runs += usize::from(joint.is_none_or(|j| j.area() <= LOCAL_RUN));
         }
-        if let Some(j) = joint {
-            footprint = Some(footprint.map_or(j, |f| f.union(&j)));
-        }
+    }
+    // Where the work lies: triangles spread evenly over the draw call (runs are too few
+    // places to split the rows by).
+    let spread = SPREAD.min(len);
+    let mut area = 0;
+    let mut footprint: Option<PixelRect> = None;
+    let mut rows = Vec::with_capacity(spread);
+    for i in 0..spread {
+        let k = (i as u64 * len as u64 / spread as u64) as usize;
+        let Some(b) = bounds(k).and_then(|b| b.intersect(clip)) else { continue };
+        area += b.area();
+        rows.push(((b.y0 + b.y1) / 2, TRIANGLE_COST + b.area()));
+        footprint = Some(footprint.map_or(b, |f| f.union(&b)));
     }
     let small = area <= SMALL_BOX * rows.len() as i64;
     // Mostly triangles to clip (their corners unknown): every band would clip them all.
@@ -126,7 +149,9 @@ pub fn plan(
     let local = 4 * local_runs >= 3 * runs || footprint.is_none_or(|f| f.area() <= FOOTPRINT);
     let banded = match schedule {
         Schedule::Banded => true,
-        _ => runs == RUNS && known && small && local,
+        // Nothing sampled in `clip` (a scissor off the target, a model off screen): no pixels
+        // to gain on, and every band would set every triangle up.
+        _ => runs == RUNS && !rows.is_empty() && known && small && local,
     };
     if !banded {
         return Plan::Binned;
@@ -134,32 +159,36 @@ pub fn plan(
     Plan::Banded(Bands { starts: band_starts(&mut rows, height, threads), triangles: len })
 }
 
-/// The first rows of at most `threads` bands that split `rows` (the sampled triangles' middle
-/// rows) evenly, on a target `height` rows high; bands of equal height when there is no
-/// sample.
-fn band_starts(rows: &mut [i32], height: u32, threads: usize) -> Vec<u32> {
+/// The first rows of at most `threads` bands that split the sampled triangles' work evenly
+/// (`rows`: each one's middle row and cost), on a target `height` rows high; bands of equal
+/// height when there is no sample.
+fn band_starts(rows: &mut [(i32, i64)], height: u32, threads: usize) -> Vec<u32> {
     let threads = threads.max(1);
-    rows.sort_unstable();
     let mut starts = vec![0];
-    for t in 1..threads {
-        let row = match rows.len() {
-            0 => (t as u64 * u64::from(height) / threads as u64) as u32,
-            n => (rows[t * n / threads].max(0) as u32).min(height.saturating_sub(1)),
-        };
-        if row > *starts.last().unwrap_or(&0) && row < height {
-            starts.push(row);
+    if rows.is_empty() {
+        let even = (1..threads).map(|t| (t as u64 * u64::from(height) / threads as u64) as u32);
+        starts.extend(even);
+        starts.dedup();
+        return starts;
+    }
+    rows.sort_unstable();
+    let total: i64 = rows.iter().map(|r| r.1).sum();
+    // Band `t` starts at the first triangle with `t / threads` of the total cost before it.
+    let (mut t, mut before) = (1, 0i64);
+    for &(row, cost) in rows.iter() {
+        while t < threads && before * threads as i64 >= t as i64 * total {
+            let row = (row.max(0) as u32).min(height.saturating_sub(1));
+            if row > *starts.last().unwrap_or(&0) {
+                starts.push(row);
+            }
+            t += 1;
         }
+        before += cost;
     }
     starts
 }
 
 impl Bands {
-    /// The bands' first rows (ascending, the first 0).
-    #[must_use]
-    pub fn starts(&self) -> &[u32] {
-        &self.starts
-    }
-
     /// Draws the draw call's triangles, the bands in parallel on the current rayon pool: each
     /// band gives `prepare(range, sink)` the triangles `range` a chunk at a time, with its rows
     /// (within `coverage`'s clip) as the sink's clip rectangle, and shades the pieces at once,
@@ -249,7 +278,7 @@ mod tests {
 
     fn rows_of(plan: &Plan) -> Option<&[u32]> {
         match plan {
-            Plan::Banded(bands) => Some(bands.starts()),
+            Plan::Banded(bands) => Some(&bands.starts),
             Plan::Binned => None,
         }
     }

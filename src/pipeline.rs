@@ -135,7 +135,8 @@ pub struct Pipeline {
     pub algorithm: Algorithm,
     /// Reference or tiled execution (bit-identical results).
     pub backend: Backend,
-    /// How the tiled backend spreads the work over threads.
+    /// How the tiled backend spreads the work over threads (meshes over 2^20 vertices are
+    /// binned whatever it says: each band would shade their vertices again).
     pub schedule: Schedule,
 }
 
@@ -293,7 +294,7 @@ impl Pipeline {
                         target.height(),
                         clip,
                         threads,
-                        |k| corner_bounds(corners(k)),
+                        |k| corner_bounds(corners(k), front.cull),
                     )
                 } else {
                     band::Plan::Binned
@@ -784,13 +785,17 @@ fn index_range(level: SimdLevel, batch: &[[u32; 3]]) -> (u32, u32) {
 }
 
 /// The pixels a triangle's snapped corners reach (`None` when one is outside the clip
-/// volume), for [`band::plan`]'s sample.
-fn corner_bounds(corners: [Corner; 3]) -> Option<PixelRect> {
+/// volume, none when it is culled), for [`band::plan`]'s sample.
+fn corner_bounds(corners: [Corner; 3], cull: CullMode) -> Option<PixelRect> {
     if corners.contains(&OUTSIDE) {
         return None;
     }
-    let extent = setup::extent(corners.map(|c| c.map(i64::from)));
-    Some(setup::sample_bounds(extent, [0, 0]))
+    let xy = corners.map(|c| c.map(i64::from));
+    if TriangleSetup::signed_area2(xy, cull).is_err() {
+        // Culled or of zero area: no pixels to draw.
+        return Some(PixelRect::EMPTY);
+    }
+    Some(setup::sample_bounds(setup::extent(xy), [0, 0]))
 }
 
 /// The snapped window positions of three vertices, as `i64` for setup.
@@ -882,6 +887,38 @@ mod tests {
     use super::*;
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
+
+    /// The boxes `band::plan` samples from the corners: a grid mesh of two-pixel triangles
+    /// (as the vertex stage snaps them) is banded; a culled or degenerate triangle has no
+    /// pixels, one with a corner outside the clip volume is unknown.
+    #[test]
+    fn corner_bounds_band_a_grid_mesh() {
+        let (cols, rows) = (1000, 500);
+        let corner = |i: i32, j: i32| [i * 1920 * 256 / cols, j * 1080 * 256 / rows];
+        let tri = |k: usize| {
+            let (i, j) = ((k / 2) as i32 % cols, (k / 2) as i32 / cols);
+            let (a, b, c, d) =
+                (corner(i, j), corner(i + 1, j), corner(i, j + 1), corner(i + 1, j + 1));
+            if k.is_multiple_of(2) { [a, b, d] } else { [a, d, c] }
+        };
+        let screen = PixelRect::of_target(1920, 1080);
+        let len = 2 * (cols * rows) as usize;
+        let plan = band::plan(Schedule::Auto, len, 1080, &screen, 2, |k| {
+            corner_bounds(tri(k), CullMode::None)
+        });
+        assert!(matches!(plan, band::Plan::Banded(_)), "{plan:?}");
+        // Both windings of the first quad: one culled, the other kept; zero area; outside.
+        let [a, b, d] = tri(0);
+        let kept = corner_bounds([a, b, d], CullMode::Clockwise);
+        let culled = corner_bounds([a, d, b], CullMode::Clockwise);
+        assert!(kept.is_some_and(|r| r.area() > 0) != culled.is_some_and(|r| r.area() > 0));
+        assert_eq!(corner_bounds([a, a, d], CullMode::None), Some(PixelRect::EMPTY));
+        assert_eq!(corner_bounds([a, OUTSIDE, d], CullMode::None), None);
+        assert_eq!(
+            corner_bounds([a, b, d], CullMode::None),
+            Some(PixelRect { x0: 0, y0: 0, x1: 1, y1: 1 })
+        );
+    }
 
     /// The tiled backend shades the fragments that pass the depth test lanes at a time; the
     /// reference one at a time. Lane by lane they are the same, bit for bit: perspective and

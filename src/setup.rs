@@ -154,7 +154,8 @@ impl PixelRect {
     #[must_use]
     pub fn area(&self) -> i64 {
         let side = |a: i32, b: i32| (i64::from(b) - i64::from(a) + 1).max(0);
-        side(self.x0, self.x1) * side(self.y0, self.y1)
+        // Saturating: the widest rectangle has 2^64 pixels.
+        side(self.x0, self.x1).saturating_mul(side(self.y0, self.y1))
     }
 
     /// The smallest rectangle holding both.

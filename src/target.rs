@@ -245,7 +245,7 @@ impl Target {
 }
 
 /// A horizontal band of a target's rows with mutable views of all its buffers: the part of an
-/// image one thread writes. Bands from [`Target::bands`] are disjoint slices, so threads write
+/// image one thread writes. Bands from [`Target::bands`] (or [`Target::bands_from`]) are disjoint slices, so threads write
 /// them at the same time without locks or `unsafe`.
 #[derive(Debug)]
 pub struct TargetBand<'a> {

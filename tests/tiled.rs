@@ -182,9 +182,11 @@ fn hidden_tiles_match_the_reference() {
         let second =
             trirast::draw(&mut reference, &tris[tris.len() / 2..], &reference_options).unwrap();
         for threads in [1, 2, 7] {
-            for level in SimdLevel::available() {
-                // Bands take no hierarchical depth test: a check of the scene, not of it.
-                let schedule = SCHEDULES[(round + threads) % 2];
+            // Bands take no hierarchical depth test: they draw the same scene another way.
+            for (level, schedule) in SimdLevel::available()
+                .into_iter()
+                .flat_map(|level| SCHEDULES.map(|schedule| (level, schedule)))
+            {
                 let mut tiled = Target::multisampled(w, h, samples).unwrap().with_ids();
                 let opts = options.with_simd(level).with_schedule(schedule);
                 let stats = pool(threads).install(|| {
@@ -238,8 +240,9 @@ fn assert_pipeline_matches_reference_on<FS: trirast::pipeline::FragmentShader<f3
             let stats = pool(threads)
                 .install(|| pipeline.draw(&mut tiled, &vs, fs, vertices, triangles))
                 .unwrap();
-            assert_eq!(stats, ref_stats);
-            assert_same(&reference, &tiled, &format!("{threads} threads, {schedule:?}"));
+            let what = format!("{threads} threads, {schedule:?}");
+            assert_eq!(stats, ref_stats, "{what}");
+            assert_same(&reference, &tiled, &what);
         }
     }
 }
@@ -415,8 +418,8 @@ fn pipeline_matches_the_reference() {
                     let stats = pool(threads)
                         .install(|| pipeline.draw(&mut tiled, &vs, &fs, &vertices, &triangles))
                         .unwrap();
-                    assert_eq!(stats, ref_stats);
                     let what = format!("{samples:?} {cull:?} {threads} threads, {schedule:?}");
+                    assert_eq!(stats, ref_stats, "{what}");
                     assert_same(&reference, &tiled, &what);
                 }
             }
@@ -724,7 +727,8 @@ fn hierarchical_depth_bounds_cover_the_samples() {
 }
 
 /// Bands on targets with fewer rows than threads (one band per row at most), a target one
-/// pixel high, and scissors off the target or of one row: the reference's buffers and counts.
+/// pixel high, and scissors off the target or of one row, at 1x and 4x: the reference's
+/// buffers and counts.
 #[test]
 fn bands_on_few_rows_match_the_reference() {
     let mut rng = SmallRng::seed_from_u64(8);
@@ -738,19 +742,21 @@ fn bands_on_few_rows_match_the_reference() {
             if let Some(s) = scissor {
                 options = options.with_scissor(s);
             }
-            let fresh = || Target::new(w, h).unwrap().with_ids().with_overdraw();
-            let mut reference = fresh();
-            let ref_stats =
-                trirast::draw(&mut reference, &tris, &options.with_backend(Backend::Reference))
-                    .unwrap();
-            for threads in [2, 7] {
-                let mut banded = fresh();
-                let opts = options.with_schedule(Schedule::Banded);
-                let stats =
-                    pool(threads).install(|| trirast::draw(&mut banded, &tris, &opts)).unwrap();
-                let what = format!("{w}x{h}, {scissor:?}, {threads} threads");
-                assert_eq!(stats, ref_stats, "{what}");
-                assert_same(&reference, &banded, &what);
+            for samples in [SampleCount::X1, SampleCount::X4] {
+                let fresh = || Target::multisampled(w, h, samples).unwrap().with_ids();
+                let fresh = || fresh().with_overdraw();
+                let mut reference = fresh();
+                let reference_options = options.with_backend(Backend::Reference);
+                let ref_stats = trirast::draw(&mut reference, &tris, &reference_options).unwrap();
+                for threads in [2, 7] {
+                    let mut banded = fresh();
+                    let opts = options.with_schedule(Schedule::Banded);
+                    let stats =
+                        pool(threads).install(|| trirast::draw(&mut banded, &tris, &opts)).unwrap();
+                    let what = format!("{w}x{h}, {samples:?}, {scissor:?}, {threads} threads");
+                    assert_eq!(stats, ref_stats, "{what}");
+                    assert_same(&reference, &banded, &what);
+                }
             }
         }
     }

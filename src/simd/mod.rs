@@ -572,14 +572,6 @@ pub struct WindowGroup {
 }
 
 impl WindowGroup {
-    /// Lane `k`'s pixel bounds ([`TriangleSetup::bounds`]; meaningful when it was set up).
-    #[inline(always)]
-    #[must_use]
-    pub fn bounds(&self, k: usize) -> PixelRect {
-        let [x0, y0, x1, y1] = self.bounds.map(|b| b[k]);
-        PixelRect { x0, y0, x1, y1 }
-    }
-
     /// Lane `k`: the triangle's setup, depth plane and colour planes (RGBA), or why it was
     /// not set up.
     ///
@@ -607,7 +599,12 @@ impl WindowGroup {
             edges: [e(0), e(1), e(2)],
             area2: self.area2[k],
             clockwise: self.clockwise >> k & 1 != 0,
-            bounds: self.bounds(k),
+            bounds: PixelRect {
+                x0: self.bounds[0][k],
+                y0: self.bounds[1][k],
+                x1: self.bounds[2][k],
+                y1: self.bounds[3][k],
+            },
         };
         let plane = |p: usize| [self.planes[p][0][k], self.planes[p][1][k], self.planes[p][2][k]];
         let depth = PlaneEquation::from_coefficients(plane(0));
