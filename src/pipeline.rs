@@ -770,9 +770,9 @@ impl FrontEnd {
             inv_area2,
         );
         let payload = TriangleData {
-            varyings0: v0.clone(),
-            varyings1: v1.clone(),
-            varyings2: v2.clone(),
+            varyings0: *v0,
+            varyings1: *v1,
+            varyings2: *v2,
             inv_w: [a[1], b[1], c[1]],
             inv_area2,
             front_facing: !setup.clockwise,
