@@ -54,10 +54,12 @@ const SMALL_BOX: i64 = 64;
 /// (16 boxes of at most 64 pixels side by side): the grid's runs cover about 30 pixels.
 const LOCAL_RUN: i64 = 1024;
 
-/// The largest box holding every sampled triangle for which [`plan`] bands triangles that do
-/// not come in spatial order: the bunny's 575,000 pixels (4.6 MB of colour and depth) banded
-/// are 3-5% faster than binned; 1,000,000 random triangles over all 2,073,600 pixels of 1080p
-/// are 10% slower banded on two threads (window triangles: each band sets up all of them).
+/// The most samples in the box holding every sampled triangle for which [`plan`] bands
+/// triangles that do not come in spatial order: the Stanford bunny's 575,000 pixels (4.6 MB of
+/// colour and depth at 1x) are 5% faster banded than binned on two threads, but at 4x, the
+/// Phong bunny of `trirast render` (1080p) is 10-15% slower banded; 1,000,000 random
+/// triangles over all 2,073,600 pixels of 1080p are 10% slower banded on two threads
+/// (window triangles: each band sets up all of them).
 const FOOTPRINT: i64 = 1 << 20;
 
 /// Which schedule [`plan`] chose.
@@ -79,7 +81,7 @@ pub struct Bands {
 }
 
 /// How `schedule` ([`Schedule::or_forced`]) draws `len` triangles into `clip` (on a target
-/// `height` rows high) with `threads` threads, given the triangles' pixel boxes (`bounds(k)`:
+/// `height` rows high with `samples` per pixel) with `threads` threads, given the triangles' pixel boxes (`bounds(k)`:
 /// `None` when unknown, e.g. a corner outside the view volume or a non-finite vertex; a box
 /// outside `clip` for a triangle with no pixels, e.g. culled).
 ///
@@ -88,7 +90,7 @@ pub struct Bands {
 /// known (triangles to clip would be clipped by every band), the spread triangles' boxes
 /// within `clip` are small on average ([`SMALL_BOX`]; some lie within `clip`), and either
 /// three quarters of the runs are local ([`LOCAL_RUN`]: the triangles come in spatial order)
-/// or all the spread boxes lie in a small part of the target ([`FOOTPRINT`]). Draw calls too
+/// or all the spread boxes lie in a small part of the target's samples ([`FOOTPRINT`]). Draw calls too
 /// small to sample fully are binned (the choice matters little there). The bands split the
 /// spread triangles' work (a triangle's cost plus its box) evenly, so that a model covering
 /// part of the target still gives each thread a like share.
@@ -99,7 +101,7 @@ pub struct Bands {
 pub fn plan(
     schedule: Schedule,
     len: usize,
-    height: u32,
+    (height, samples): (u32, usize),
     clip: &PixelRect,
     threads: usize,
     bounds: impl Fn(usize) -> Option<PixelRect>,
@@ -146,7 +148,8 @@ pub fn plan(
     let small = area <= SMALL_BOX * rows.len() as i64;
     // Mostly triangles to clip (their corners unknown): every band would clip them all.
     let known = 4 * known_runs >= 3 * runs;
-    let local = 4 * local_runs >= 3 * runs || footprint.is_none_or(|f| f.area() <= FOOTPRINT);
+    let local = 4 * local_runs >= 3 * runs
+        || footprint.is_none_or(|f| f.area().saturating_mul(samples as i64) <= FOOTPRINT);
     let banded = match schedule {
         Schedule::Banded => true,
         // Nothing sampled in `clip` (a scissor off the target, a model off screen): no pixels
@@ -289,29 +292,31 @@ mod tests {
     #[test]
     fn plans_band_small_triangles_that_stay_together() {
         let auto = |len, bounds: &dyn Fn(usize) -> Option<PixelRect>| {
-            plan(Schedule::Auto, len, 1080, &SCREEN, 2, bounds)
+            plan(Schedule::Auto, len, (1080, 1), &SCREEN, 2, bounds)
         };
         assert!(rows_of(&auto(1_000_000, &grid(1000, 500))).is_some(), "grid");
-        // The same small boxes, scattered: binned; gathered in a corner of the target: banded.
+        // The same small boxes, scattered: binned; gathered in 900 x 900 pixels: banded at 1x,
+        // binned at 4x (four times the samples); larger boxes gathered as closely: binned.
         assert_eq!(auto(1_000_000, &scattered(4)), Plan::Binned, "scattered");
-        let corner = |k| scattered(4)(k).map(|b| PixelRect { x0: b.x0 / 4, x1: b.x0 / 4 + 3, ..b });
-        let corner = |k| corner(k).map(|b| PixelRect { y0: b.y0 / 4, y1: b.y0 / 4 + 3, ..b });
-        assert!(rows_of(&auto(1_000_000, &corner)).is_some(), "gathered");
-        // Larger boxes gathered as closely: binned.
-        let large = |k| {
-            scattered(15)(k).map(|b| {
-                let (x0, y0) = (b.x0 * 900 / 1900, b.y0 * 900 / 1060);
-                PixelRect { x0, y0, x1: x0 + 14, y1: y0 + 14 }
-            })
+        let gathered = |side: i32| {
+            move |k| {
+                scattered(side)(k).map(|b| {
+                    let (x0, y0) = (b.x0 * 900 / 1900, b.y0 * 900 / 1060);
+                    PixelRect { x0, y0, x1: x0 + side - 1, y1: y0 + side - 1 }
+                })
+            }
         };
-        assert_eq!(auto(1_000_000, &large), Plan::Binned, "gathered, large");
+        assert!(rows_of(&auto(1_000_000, &gathered(4))).is_some(), "gathered");
+        let at_4x = plan(Schedule::Auto, 1_000_000, (1080, 4), &SCREEN, 2, gathered(4));
+        assert_eq!(at_4x, Plan::Binned, "gathered, 4x");
+        assert_eq!(auto(1_000_000, &gathered(15)), Plan::Binned, "gathered, large");
         // Large triangles in order (a coarse grid), and a grid too short to sample.
         assert_eq!(auto(20_000, &grid(100, 100)), Plan::Binned, "large");
         assert_eq!(auto(RUN * RUNS - 1, &grid(1000, 500)), Plan::Binned, "too few");
         // Unknown boxes (corners outside the view volume) are not local.
         assert_eq!(auto(1_000_000, &|_| None), Plan::Binned, "unknown");
         for len in [0, 1, 100, 1_000_000] {
-            let forced = |s| plan(s, len, 1080, &SCREEN, 2, grid(1000, 500));
+            let forced = |s| plan(s, len, (1080, 1), &SCREEN, 2, grid(1000, 500));
             assert_eq!(forced(Schedule::Binned), Plan::Binned, "{len}");
             assert!(rows_of(&forced(Schedule::Banded)).is_some(), "{len}");
         }
@@ -323,7 +328,7 @@ mod tests {
     #[test]
     fn bands_share_the_triangles_evenly() {
         let bands = |threads, bounds: &dyn Fn(usize) -> Option<PixelRect>| {
-            let p = plan(Schedule::Banded, 1_000_000, 1080, &SCREEN, threads, bounds);
+            let p = plan(Schedule::Banded, 1_000_000, (1080, 1), &SCREEN, threads, bounds);
             rows_of(&p).unwrap().to_vec()
         };
         for threads in [1, 2, 3, 7] {
@@ -344,7 +349,7 @@ mod tests {
         let short = plan(
             Schedule::Banded,
             1_000_000,
-            3,
+            (3, 1),
             &PixelRect { y1: 2, ..SCREEN },
             7,
             grid(1000, 500),
@@ -357,7 +362,7 @@ mod tests {
             "{starts:?}"
         );
         // Nothing visible: bands of equal height.
-        let nowhere = plan(Schedule::Banded, 1_000_000, 1080, &SCREEN, 2, |_| {
+        let nowhere = plan(Schedule::Banded, 1_000_000, (1080, 1), &SCREEN, 2, |_| {
             Some(PixelRect { x0: -9, y0: -9, x1: -5, y1: -5 })
         });
         assert_eq!(rows_of(&nowhere), Some(&[0, 540][..]));

@@ -291,7 +291,7 @@ impl Pipeline {
                     band::plan(
                         self.schedule,
                         triangles.len(),
-                        target.height(),
+                        (target.height(), target.samples().count()),
                         clip,
                         threads,
                         |k| corner_bounds(corners(k), front.cull),
@@ -911,7 +911,7 @@ mod tests {
         };
         let screen = PixelRect::of_target(1920, 1080);
         let len = 2 * (cols * rows) as usize;
-        let plan = band::plan(Schedule::Auto, len, 1080, &screen, 2, |k| {
+        let plan = band::plan(Schedule::Auto, len, (1080, 1), &screen, 2, |k| {
             corner_bounds(tri(k), CullMode::None)
         });
         assert!(matches!(plan, band::Plan::Banded(_)), "{plan:?}");

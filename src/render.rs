@@ -271,7 +271,8 @@ fn draw_tiled<C: WindowColor>(
         Schedule::Auto if threads > 2 => Schedule::Binned,
         schedule => schedule,
     };
-    let plan = band::plan(schedule, triangles.len(), target.height(), &visible, threads, |k| {
+    let canvas = (target.height(), target.samples().count());
+    let plan = band::plan(schedule, triangles.len(), canvas, &visible, threads, |k| {
         window_bounds(&triangles[k])
     });
     if let Plan::Banded(bands) = plan {
@@ -527,7 +528,8 @@ mod tests {
         };
         let screen = PixelRect::of_target(1920, 1080);
         let len = 2 * (cols * rows) as usize;
-        let plan = band::plan(Schedule::Auto, len, 1080, &screen, 2, |k| window_bounds(&tri(k)));
+        let plan =
+            band::plan(Schedule::Auto, len, (1080, 1), &screen, 2, |k| window_bounds(&tri(k)));
         assert!(matches!(plan, Plan::Banded(_)), "{plan:?}");
         let [a, b, d] = tri(0);
         assert_eq!(window_bounds(&[a, b, d]), Some(PixelRect { x0: 0, y0: 0, x1: 1, y1: 2 }));
