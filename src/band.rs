@@ -5,7 +5,7 @@
 //! Why: binning ([`crate::bin`], sort-middle) writes each set-up triangle's record (about 250
 //! bytes) to memory and reads it back tile by tile. For a mesh of small triangles submitted in
 //! spatial order that round trip costs more than the tiles' cache locality gives back: a grid
-//! of 1,000,000 two-pixel triangles took 109 ms binned on one thread and 88 ms here. Here a
+//! of 1,000,000 two-pixel triangles took 114 ms binned on one thread and 85-90 ms here. Here a
 //! chunk of records is written to a buffer that stays in the cache and drawn straight away,
 //! and the pixels a coherent mesh reaches next are the ones it reached last. The price: every
 //! band runs the first tests (for a mesh, the corner tests; for window triangles, setup) on
@@ -58,7 +58,7 @@ const LOCAL_RUN: i64 = 1024;
 /// triangles that do not come in spatial order: the Stanford bunny's 575,000 pixels (4.6 MB of
 /// colour and depth at 1x) are 5% faster banded than binned on two threads, but at 4x, the
 /// Phong bunny of `trirast render` (1080p) is 10-15% slower banded; 1,000,000 random
-/// triangles over all 2,073,600 pixels of 1080p are 10% slower banded on two threads
+/// triangles over all 2,073,600 pixels of 1080p are 10-15% slower banded on two threads
 /// (window triangles: each band sets up all of them).
 const FOOTPRINT: i64 = 1 << 20;
 
