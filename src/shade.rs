@@ -556,12 +556,11 @@ pub fn shade_triangle(
                 *row = setup.edge_values(x + ox, y + oy);
             }
             let (step_x, step_y) = setup.pixel_steps();
-            let in_box = (1u32 << columns) - 1;
             for py in r.y0..=r.y1 {
                 let mut masks = [0u32; MAX_SAMPLES];
                 let mut any = 0;
                 for (mask, row) in masks.iter_mut().zip(rows.iter_mut()).take(n) {
-                    *mask = raster::edge::row_coverage(*row, step_x) & in_box;
+                    *mask = raster::edge::row_coverage_within(*row, step_x, columns as usize);
                     any |= *mask;
                     *row = [row[0] + step_y[0], row[1] + step_y[1], row[2] + step_y[2]];
                 }
@@ -790,7 +789,7 @@ fn shade_single_sample(
             let mut covered = 0u64;
             let mut row = edges;
             for py in r.y0..=r.y1 {
-                let mut mask = raster::edge::row_coverage(row, step_x) & ((1 << columns) - 1);
+                let mut mask = raster::edge::row_coverage_within(row, step_x, columns);
                 covered += u64::from(mask.count_ones());
                 let first = target.index(r.x0, py);
                 while mask != 0 {

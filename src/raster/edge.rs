@@ -72,9 +72,26 @@ pub const NARROW: i32 = 8;
 /// slower on two threads (unchanged on one).
 #[inline(always)]
 #[must_use]
-pub fn row_coverage(mut e: [i64; 3], step_x: [i64; 3]) -> u32 {
+pub fn row_coverage(e: [i64; 3], step_x: [i64; 3]) -> u32 {
+    row_coverage_of::<{ NARROW as u32 }>(e, step_x)
+}
+
+/// [`row_coverage`] of the first `columns` pixels (at most [`NARROW`]), the rest clear. Boxes
+/// up to 4 pixels wide step 4 pixels, not 8 (a branch per row, the same for every row of a
+/// triangle): grid, one thread, 87-89 -> 80-83 ms.
+#[inline(always)]
+#[must_use]
+pub fn row_coverage_within(e: [i64; 3], step_x: [i64; 3], columns: usize) -> u32 {
+    let mask = if columns <= 4 { row_coverage_of::<4>(e, step_x) } else { row_coverage(e, step_x) };
+    mask & ((1 << columns) - 1)
+}
+
+/// [`row_coverage`] of the first `N` pixels only (at most 32).
+#[inline(always)]
+#[must_use]
+fn row_coverage_of<const N: u32>(mut e: [i64; 3], step_x: [i64; 3]) -> u32 {
     let mut mask = 0u32;
-    for x in 0..NARROW as u32 {
+    for x in 0..N {
         let out = ((e[0] | e[1] | e[2]) >> 63) as u32 & 1;
         mask |= (out ^ 1) << x;
         e = std::array::from_fn(|k| e[k] + step_x[k]);
