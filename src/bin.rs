@@ -847,7 +847,7 @@ impl TileDepth {
 fn coverage_count(setup: &TriangleSetup, rect: &PixelRect, samples: SampleCount) -> u64 {
     let n = samples.count();
     if crate::raster::covers_rect_within(setup, rect, samples.reach()) {
-        return ((rect.x1 - rect.x0 + 1) as u64) * ((rect.y1 - rect.y0 + 1) as u64) * n as u64;
+        return rect.area() as u64 * n as u64;
     }
     let mut covered = 0;
     for s in 0..n {

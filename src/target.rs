@@ -245,8 +245,8 @@ impl Target {
 }
 
 /// A horizontal band of a target's rows with mutable views of all its buffers: the part of an
-/// image one thread writes. Bands from [`Target::bands`] (or [`Target::bands_from`]) are disjoint slices, so threads write
-/// them at the same time without locks or `unsafe`.
+/// image one thread writes. Bands from [`Target::bands`] (or [`Target::bands_from`]) are
+/// disjoint slices, so threads write them at the same time without locks or `unsafe`.
 #[derive(Debug)]
 pub struct TargetBand<'a> {
     rect: PixelRect,
