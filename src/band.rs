@@ -85,14 +85,14 @@ pub struct Bands {
 /// pixel boxes (`bounds(k)`: `None` when unknown, e.g. a corner outside the view volume or a
 /// non-finite vertex; a box outside `clip` for a triangle with no pixels, e.g. culled).
 ///
-/// [`Schedule::Auto`] samples `RUNS` runs of `RUN` consecutive triangles and `SPREAD`
-/// triangles spread evenly, and bands when at least three quarters of the runs have every box
-/// known (triangles to clip would be clipped by every band), the spread triangles' boxes
-/// within `clip` are small on average (`SMALL_BOX`; some lie within `clip`), and either
-/// three quarters of the runs are local (`LOCAL_RUN`: the triangles come in spatial order)
-/// or all the spread boxes lie in a small part of the target's samples (`FOOTPRINT`). Draw
-/// calls too small to sample fully are binned (the choice matters little there). The bands
-/// split the spread triangles' work (a triangle's cost plus its box) evenly, so that a model
+/// [`Schedule::Auto`] samples 256 runs of 16 consecutive triangles and 4096 triangles spread
+/// evenly, and bands when at least three quarters of the runs have every box known
+/// (triangles to clip would be clipped by every band), the spread triangles' boxes within
+/// `clip` are small on average (at most 64 pixels; some lie within `clip`), and either three
+/// quarters of the runs are local (a joint box of at most 1024 pixels: the triangles come in
+/// spatial order) or all the spread boxes lie within 2^20 of the target's samples. Draw calls
+/// too small to sample fully are binned (the choice matters little there). The bands split
+/// the spread triangles' work (a triangle's cost plus its box) evenly, so that a model
 /// covering part of the target still gives each thread a like share.
 ///
 /// The thread count only sets the number of bands: every band repeats the front end's first
