@@ -235,9 +235,33 @@ impl Pipeline {
         // vectors had their pages faulted in and zeroed by the kernel every frame).
         let mut scratch: Scratch<VS::Varyings> = target.take_scratch();
         let Scratch { shaded, window, prepared } = &mut scratch;
-        shaded.clear();
-        if whole {
-            vertices.par_iter().map(shade_vertex).collect_into_vec(shaded);
+        match vertices.first() {
+            // The tiled backend's corner tests read a window of corners, written in the same
+            // pass as the vertices: a pass of its own read every shaded vertex back (a
+            // fortieth of a frame of a grid mesh of small triangles).
+            Some(first) if whole && self.backend == Backend::Tiled => {
+                // Overwritten in place: only a longer mesh than the last one's fills the new
+                // elements first.
+                let n = vertices.len();
+                shaded.truncate(n);
+                if shaded.len() < n {
+                    shaded.resize(n, shade_vertex(first));
+                }
+                window.truncate(n);
+                window.resize(n, OUTSIDE);
+                shaded
+                    .par_chunks_mut(VERTEX_CHUNK)
+                    .zip(window.par_chunks_mut(VERTEX_CHUNK))
+                    .zip(vertices.par_chunks(VERTEX_CHUNK))
+                    .for_each(|((shaded, corners), vertices)| {
+                        for ((s, c), v) in shaded.iter_mut().zip(corners).zip(vertices) {
+                            *s = shade_vertex(v);
+                            *c = s.corner();
+                        }
+                    });
+            }
+            _ if whole => vertices.par_iter().map(shade_vertex).collect_into_vec(shaded),
+            _ => shaded.clear(),
         }
         let shaded = &*shaded;
         let want_normal = target.normals.is_some();
@@ -278,10 +302,7 @@ impl Pipeline {
             }
             Backend::Tiled => {
                 // The corner tests read corners from a window of them: for a small mesh, all
-                // its vertices'; for a large one, each batch's index range.
-                if whole {
-                    shaded.par_iter().map(ShadedVertex::corner).collect_into_vec(window);
-                }
+                // its vertices' (written above); for a large one, each batch's index range.
                 // Small meshes may take bands instead (vertices shaded up front: each band
                 // reads them; a large mesh's are shaded batch by batch).
                 let threads = rayon::current_num_threads();
@@ -414,6 +435,9 @@ const LARGE_MESH_BATCH: usize = 1 << 19;
 /// Meshes with at most this many vertices have them all shaded before any triangle; larger
 /// ones are shaded batch by batch, bounding memory.
 const VERTEX_CACHE: usize = 1 << 20;
+
+/// Vertices per task of the vertex pass of a small mesh.
+const VERTEX_CHUNK: usize = 4096;
 
 /// What [`Pipeline::draw`] keeps on the target between draw calls with the same varyings.
 struct Scratch<V> {
