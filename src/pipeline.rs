@@ -235,33 +235,36 @@ impl Pipeline {
         // vectors had their pages faulted in and zeroed by the kernel every frame).
         let mut scratch: Scratch<VS::Varyings> = target.take_scratch();
         let Scratch { shaded, window, prepared } = &mut scratch;
-        match vertices.first() {
-            // The tiled backend's corner tests read a window of corners, written in the same
-            // pass as the vertices: a pass of its own read every shaded vertex back (a
-            // fortieth of a frame of a grid mesh of small triangles).
-            Some(first) if whole && self.backend == Backend::Tiled => {
-                // Overwritten in place: only a longer mesh than the last one's fills the new
-                // elements first.
-                let n = vertices.len();
-                shaded.truncate(n);
-                if shaded.len() < n {
-                    shaded.resize(n, shade_vertex(first));
-                }
-                window.truncate(n);
-                window.resize(n, OUTSIDE);
-                shaded
-                    .par_chunks_mut(VERTEX_CHUNK)
-                    .zip(window.par_chunks_mut(VERTEX_CHUNK))
-                    .zip(vertices.par_chunks(VERTEX_CHUNK))
-                    .for_each(|((shaded, corners), vertices)| {
-                        for ((s, c), v) in shaded.iter_mut().zip(corners).zip(vertices) {
-                            *s = shade_vertex(v);
-                            *c = s.corner();
-                        }
-                    });
-            }
-            _ if whole => vertices.par_iter().map(shade_vertex).collect_into_vec(shaded),
-            _ => shaded.clear(),
+        // The tiled backend's corner tests read a window of corners, written in the same pass
+        // as the vertices: a pass of its own read every shaded vertex back (a fortieth of a
+        // frame of a grid mesh of small triangles).
+        let n = vertices.len();
+        if whole && self.backend == Backend::Tiled && shaded.len() >= n {
+            // Overwritten in place (buffers kept from a draw of a mesh at least as long).
+            shaded.truncate(n);
+            window.truncate(n);
+            window.resize(n, OUTSIDE);
+            shaded
+                .par_chunks_mut(VERTEX_CHUNK)
+                .zip(window.par_chunks_mut(VERTEX_CHUNK))
+                .zip(vertices.par_chunks(VERTEX_CHUNK))
+                .for_each(|((shaded, corners), vertices)| {
+                    for ((s, c), v) in shaded.iter_mut().zip(corners).zip(vertices) {
+                        *s = shade_vertex(v);
+                        *c = s.corner();
+                    }
+                });
+        } else if whole && self.backend == Backend::Tiled {
+            // Collected (there is no value to fill longer buffers with first).
+            let both = |v| {
+                let s = shade_vertex(v);
+                (s, s.corner())
+            };
+            vertices.par_iter().map(both).unzip_into_vecs(shaded, window);
+        } else if whole {
+            vertices.par_iter().map(shade_vertex).collect_into_vec(shaded);
+        } else {
+            shaded.clear();
         }
         let shaded = &*shaded;
         let want_normal = target.normals.is_some();
