@@ -602,6 +602,50 @@ fn reused_targets_draw_what_fresh_ones_draw() {
     assert_same(&expected, &reused, "after release_scratch");
 }
 
+/// Each vertex of a small mesh goes through the vertex shader exactly once per draw call,
+/// on both backends and every thread count: on a fresh target, again on the same target
+/// (whose buffers the vertex pass then overwrites in place), and after a longer mesh.
+#[test]
+fn vertices_are_shaded_once_per_draw() {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let mut rng = SmallRng::seed_from_u64(99);
+    let mesh = |n: u32, rng: &mut SmallRng| {
+        let vertices: Vec<Vec3> = (0..n)
+            .map(|_| Vec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), 0.5))
+            .collect();
+        let triangles: Vec<[u32; 3]> =
+            (0..n).map(|_| std::array::from_fn(|_| rng.random_range(0..n))).collect();
+        (vertices, triangles)
+    };
+    let (small, small_tris) = mesh(300, &mut rng);
+    let (large, large_tris) = mesh(9000, &mut rng);
+    let calls = AtomicUsize::new(0);
+    let vs = |p: &Vec3| {
+        calls.fetch_add(1, Ordering::Relaxed);
+        (p.extend(1.0), *p)
+    };
+    let fs = |f: &Fragment<Vec3>| Some(f.varyings.extend(1.0));
+    for backend in [Backend::Tiled, Backend::Reference] {
+        let pipeline = Pipeline::default().with_cull(FaceCull::None).with_backend(backend);
+        for threads in [1, 2, 7] {
+            let mut target = Target::new(64, 48).unwrap();
+            for (vertices, triangles) in [
+                (&small, &small_tris),
+                (&small, &small_tris),
+                (&large, &large_tris),
+                (&small, &small_tris),
+            ] {
+                calls.store(0, Ordering::Relaxed);
+                pool(threads).install(|| {
+                    pipeline.draw(&mut target, &vs, &fs, vertices, triangles).unwrap();
+                });
+                let what = format!("{backend:?}, {threads} threads, {} vertices", vertices.len());
+                assert_eq!(calls.load(Ordering::Relaxed), vertices.len(), "{what}");
+            }
+        }
+    }
+}
+
 /// `n` opaque triangles piled on a `w x h` target (seeded by `seed`): each within `size` of a
 /// random centre, one in 500 within 150 pixels, at one of four depths, so `Less` meets ties.
 fn piled_triangles(seed: u64, n: usize, w: f32, h: f32, size: f32) -> Vec<[Vertex; 3]> {
