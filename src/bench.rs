@@ -16,7 +16,7 @@ use crate::error::Error;
 use crate::mesh::Mesh;
 use crate::model::{self, Lighting, MaterialTextures, ModelOptions};
 use crate::pipeline::{FaceCull, Fragment, Pipeline};
-use crate::render::{self, DrawStats, RenderOptions};
+use crate::render::{self, DrawStats, RenderOptions, Schedule};
 use crate::sample::SampleCount;
 use crate::scene;
 use crate::setup::Vertex;
@@ -76,6 +76,9 @@ pub struct BenchResult {
     pub median_ms: f64,
     /// Fastest frame time, ms.
     pub min_ms: f64,
+    /// How the tiled backend spread the frames over threads (what [`Schedule::Auto`] chose,
+    /// or `TRIRAST_SCHEDULE` forced).
+    pub schedule: Option<Schedule>,
 }
 
 impl BenchResult {
@@ -297,6 +300,7 @@ pub fn run(
         msaa: msaa.count(),
         median_ms: times[times.len() / 2],
         min_ms: times[0],
+        schedule: target.last_schedule(),
     })
 }
 

@@ -10,6 +10,7 @@ use trirast::camera::{self, Camera, Projection};
 use trirast::mesh::Mesh;
 use trirast::model::{self, Lighting, MaterialTextures, ModelOptions};
 use trirast::pipeline::FaceCull;
+use trirast::render::Schedule;
 use trirast::sample::SampleCount;
 
 /// mimalloc rather than glibc's malloc, which hands every large block back to the system
@@ -486,12 +487,13 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
                 let median = times[times.len() / 2];
                 println!(
                     "{} frames, {} threads: median {median:.2} ms, min {:.2} ms per frame; \
-                     {:.1} Mtri/s, {:.3} G frag/s",
+                     {:.1} Mtri/s, {:.3} G frag/s{}",
                     times.len(),
                     rayon::current_num_threads(),
                     times[0],
                     stats.submitted as f64 / median / 1e3,
-                    stats.fragments as f64 / median / 1e6
+                    stats.fragments as f64 / median / 1e6,
+                    target.last_schedule().map_or(String::new(), |s| format!("; {}", s.name()))
                 );
             }
             write_outputs(args, &target, None)
@@ -685,9 +687,12 @@ fn bench(
     // What the kernels run on, so that figures from different machines can be told apart.
     let simd = trirast::simd::SimdLevel::detect();
     if !json {
-        println!("SIMD level: {simd:?} (TRIRAST_SIMD=scalar|avx2|avx512 forces one)");
         println!(
-            "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10} {:>10} {:>9} {:>9}",
+            "SIMD level: {simd:?} (TRIRAST_SIMD=scalar|avx2|avx512 forces one; \
+             TRIRAST_SCHEDULE=binned|banded forces a schedule)"
+        );
+        println!(
+            "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10} {:>10} {:>9} {:>9}  schedule",
             "scene",
             "triangles",
             "pixels",
@@ -711,7 +716,7 @@ fn bench(
                 pool.install(|| bench::run(scene, frames, threads, samples, dense_triangles))?;
             if json {
                 println!(
-                    "{{\"scene\":\"{}\",\"source\":{:?},\"triangles\":{},\"pixels\":{},\"fragments\":{},\"threads\":{},\"msaa\":{},\"simd\":\"{simd:?}\",\"median_ms\":{:.3},\"min_ms\":{:.3},\"mtri_per_s\":{:.2},\"gfrag_per_s\":{:.3}}}",
+                    "{{\"scene\":\"{}\",\"source\":{:?},\"triangles\":{},\"pixels\":{},\"fragments\":{},\"threads\":{},\"msaa\":{},\"simd\":\"{simd:?}\",\"median_ms\":{:.3},\"min_ms\":{:.3},\"mtri_per_s\":{:.2},\"gfrag_per_s\":{:.3},\"schedule\":\"{}\"}}",
                     r.scene,
                     r.source,
                     r.triangles,
@@ -722,7 +727,8 @@ fn bench(
                     r.median_ms,
                     r.min_ms,
                     r.mtri_per_s(),
-                    r.gfrag_per_s()
+                    r.gfrag_per_s(),
+                    r.schedule.map_or("-", Schedule::name)
                 );
             } else {
                 let cost = match baseline {
@@ -730,7 +736,7 @@ fn bench(
                     _ => String::new(),
                 };
                 println!(
-                    "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10.2} {:>10.2} {:>9.1} {:>9.3}{cost}",
+                    "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10.2} {:>10.2} {:>9.1} {:>9.3}  {}{cost}",
                     r.scene,
                     r.triangles,
                     r.pixels,
@@ -740,7 +746,8 @@ fn bench(
                     r.median_ms,
                     r.min_ms,
                     r.mtri_per_s(),
-                    r.gfrag_per_s()
+                    r.gfrag_per_s(),
+                    r.schedule.map_or("-", Schedule::name)
                 );
                 if r.source != "generated" && r.msaa == 1 {
                     println!("       ({})", r.source);

@@ -186,6 +186,7 @@ impl Pipeline {
         VS: VertexShader<I>,
         FS: FragmentShader<VS::Varyings>,
     {
+        target.set_schedule(None);
         // Each batch's index range, in parallel: the largest index validates them all (a serial
         // search was a twentieth of a dense mesh's frame), the ranges size the batches' vertex
         // windows below; the first bad triangle is searched for only when there is one.
@@ -327,6 +328,7 @@ impl Pipeline {
                     band::Plan::Binned
                 };
                 if let band::Plan::Banded(bands) = plan {
+                    target.set_schedule(Some(Schedule::Banded));
                     let (counts, covered) = bands.draw(
                         target,
                         front.coverage,
@@ -345,6 +347,7 @@ impl Pipeline {
                     target.keep_scratch(scratch);
                     return Ok(stats);
                 }
+                target.set_schedule(Some(Schedule::Binned));
                 let mut counts = DrawStats::default();
                 let mut fragments = 0;
                 let prepare = |b: usize, first, batch: &[_], out: &mut bin::PreparedBatch<_>| {

@@ -69,6 +69,16 @@ pub enum Schedule {
 }
 
 impl Schedule {
+    /// Its name in lower case, as `TRIRAST_SCHEDULE` and `trirast bench` spell it.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Auto => "auto",
+            Self::Binned => "binned",
+            Self::Banded => "banded",
+        }
+    }
+
     /// This schedule, or for [`Schedule::Auto`] the one named by the environment variable
     /// `TRIRAST_SCHEDULE` (`binned`, `banded`) when that is set (comparisons, as
     /// `TRIRAST_SIMD` for kernels).
@@ -206,6 +216,7 @@ pub fn draw(
     triangles: &[[Vertex; 3]],
     options: &RenderOptions,
 ) -> Result<DrawStats, Error> {
+    target.set_schedule(None);
     check_range(triangles)?;
     let clip = match options.scissor {
         Some(s) => s.intersect(&target.rect()),
@@ -276,6 +287,7 @@ fn draw_tiled<C: WindowColor>(
         window_bounds(&triangles[k])
     });
     if let Plan::Banded(bands) = plan {
+        target.set_schedule(Some(Schedule::Banded));
         let (counts, fragments) = bands.draw(
             target,
             coverage,
@@ -290,6 +302,7 @@ fn draw_tiled<C: WindowColor>(
         stats.fragments += fragments;
         return stats;
     }
+    target.set_schedule(Some(Schedule::Binned));
     let mut pair: bin::PreparedPair<C> = target.take_scratch();
     let batch_len = bin::batch_len(target.samples());
     let mut fragments = 0;

@@ -11,6 +11,7 @@ use rayon::prelude::*;
 use crate::color::{linear_to_srgb8, srgb_to_linear};
 use crate::error::Error;
 use crate::fixed::MAX_TARGET_SIZE;
+use crate::render::Schedule;
 use crate::sample::SampleCount;
 use crate::setup::PixelRect;
 
@@ -35,6 +36,9 @@ pub struct Target {
     /// Normal of the last written fragment (zero where none), when a pipeline provides one.
     pub normals: Option<Vec<[f32; 3]>>,
     scratch: Scratch,
+    /// How the last draw call spread its triangles over threads (see
+    /// [`Target::last_schedule`]).
+    schedule: Option<Schedule>,
 }
 
 /// Memory a draw call leaves for the next one on the same target: the tiled backend's
@@ -105,6 +109,7 @@ impl Target {
             overdraw: None,
             normals: None,
             scratch: Scratch::default(),
+            schedule: None,
         })
     }
 
@@ -125,6 +130,21 @@ impl Target {
     /// Leaves `scratch` for the next draw call.
     pub(crate) fn keep_scratch<T: Send + Sync + 'static>(&mut self, scratch: T) {
         self.scratch = Scratch(Some(Box::new(scratch)));
+    }
+
+    /// How the tiled backend spread the last draw call on this target ([`crate::render::draw`],
+    /// [`crate::pipeline::Pipeline::draw`]) over threads: [`Schedule::Binned`] or
+    /// [`Schedule::Banded`], what [`Schedule::Auto`] chose. `None` before any draw call, and
+    /// after one on the reference backend or one that failed. For benchmarks and tuning: every
+    /// schedule draws the same pixels.
+    #[must_use]
+    pub fn last_schedule(&self) -> Option<Schedule> {
+        self.schedule
+    }
+
+    /// Records how the draw call being made is scheduled (`None` as it starts).
+    pub(crate) fn set_schedule(&mut self, schedule: Option<Schedule>) {
+        self.schedule = schedule;
     }
 
     /// Adds a triangle-id buffer, cleared to -1.

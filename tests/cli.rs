@@ -708,8 +708,8 @@ fn demos_write_pngs() {
     assert_eq!((img.width, img.height), (512, 512));
 }
 
-/// `trirast bench --json` reports each scene with the SIMD level it ran at, and the work it
-/// measures does not depend on that level: forcing the scalar kernels reports the same
+/// `trirast bench --json` reports each scene with the SIMD level and schedule it ran at, and
+/// the work it measures does not depend on the level: forcing the scalar kernels reports the same
 /// triangles and fragments.
 #[test]
 fn bench_reports_its_simd_level_and_the_same_work_at_every_level() {
@@ -737,5 +737,7 @@ fn bench_reports_its_simd_level_and_the_same_work_at_every_level() {
         assert_eq!(field(&default, name), field(&scalar, name), "{name}");
     }
     assert_eq!(field(&default, "triangles"), "256");
+    // The fill scene's 256 large triangles are binned (too few to sample for bands).
+    assert_eq!(field(&default, "schedule"), "binned");
     assert!(field(&default, "median_ms").parse::<f64>().unwrap() > 0.0);
 }

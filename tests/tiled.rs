@@ -805,3 +805,57 @@ fn bands_on_few_rows_match_the_reference() {
         }
     }
 }
+
+/// `Target::last_schedule` says what the tiled backend did: `Auto` bands a grid mesh of small
+/// triangles in spatial order and bins the same triangles shuffled (as `band::plan` decides),
+/// forced schedules are reported as given, and the reference backend and a failed draw call
+/// report none.
+#[test]
+fn last_schedule_reports_the_schedule_used() {
+    let (nx, ny) = (400u32, 200u32);
+    let positions: Vec<Vec4> = (0..=ny)
+        .flat_map(|j| {
+            (0..=nx).map(move |i| {
+                let x = -1.0 + 2.0 * i as f32 / nx as f32;
+                Vec4::new(x, -1.0 + 2.0 * j as f32 / ny as f32, 0.5, 1.0)
+            })
+        })
+        .collect();
+    let row = nx + 1;
+    let grid: Vec<[u32; 3]> = (0..ny)
+        .flat_map(|j| (0..nx).map(move |i| j * row + i))
+        .flat_map(|a| [[a, a + 1, a + row + 1], [a, a + row + 1, a + row]])
+        .collect();
+    let mut shuffled = grid.clone();
+    let mut rng = SmallRng::seed_from_u64(5);
+    for k in (1..shuffled.len()).rev() {
+        shuffled.swap(k, rng.random_range(0..=k));
+    }
+    let vs = |p: &Vec4| (*p, ());
+    let fs = |_: &Fragment<()>| Some(Vec4::ONE);
+    let mut target = Target::new(1920, 1080).unwrap();
+    assert_eq!(target.last_schedule(), None, "before any draw call");
+    let pipeline = Pipeline::default().with_cull(FaceCull::None);
+    let mut schedule_of = |pipeline: Pipeline, triangles: &[[u32; 3]]| {
+        pool(2).install(|| pipeline.draw(&mut target, &vs, &fs, &positions, triangles)).unwrap();
+        target.last_schedule()
+    };
+    assert_eq!(schedule_of(pipeline, &grid), Some(Schedule::Banded), "grid");
+    assert_eq!(schedule_of(pipeline, &shuffled), Some(Schedule::Binned), "shuffled grid");
+    for forced in SCHEDULES {
+        let pipeline = pipeline.with_schedule(forced);
+        assert_eq!(schedule_of(pipeline, &shuffled), Some(forced), "{forced:?}");
+    }
+    let reference = pipeline.with_backend(Backend::Reference);
+    assert_eq!(schedule_of(reference, &grid[..100]), None, "reference backend");
+
+    // Window triangles: the same, through `draw`; a failed call reports none.
+    let tris = scene(&mut rng, 300, 1920.0, 1080.0);
+    for forced in SCHEDULES {
+        trirast::draw(&mut target, &tris, &RenderOptions::default().with_schedule(forced)).unwrap();
+        assert_eq!(target.last_schedule(), Some(forced), "window, {forced:?}");
+    }
+    let far = [Vertex::new(1e9, 0.0, 0.5, [0; 4]); 3];
+    assert!(trirast::draw(&mut target, &[far], &RenderOptions::default()).is_err());
+    assert_eq!(target.last_schedule(), None, "failed draw call");
+}
