@@ -43,8 +43,8 @@ enum Command {
         /// Scenes to run (default: all five).
         #[arg(value_enum)]
         scenes: Vec<SceneArg>,
-        /// Worker threads (default: all cores).
-        #[arg(long)]
+        /// Worker threads, 1 to 1024 (default: all cores).
+        #[arg(long, value_parser = parse_threads)]
         threads: Option<usize>,
         /// Timed frames per scene, after one warm-up frame.
         #[arg(long, default_value_t = 10)]
@@ -65,8 +65,8 @@ enum Command {
         /// Point counts (default: the three above).
         #[arg(long, value_delimiter = ',')]
         points: Vec<usize>,
-        /// Worker threads (default: all cores).
-        #[arg(long)]
+        /// Worker threads, 1 to 1024 (default: all cores).
+        #[arg(long, value_parser = parse_threads)]
         threads: Option<usize>,
         /// Timed frames per count.
         #[arg(long, default_value_t = 10)]
@@ -310,6 +310,31 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((side(w)?, side(h)?))
 }
 
+/// The most worker threads `--threads` and `RAYON_NUM_THREADS` may ask for. Far more than
+/// the work splits into usefully, and few enough to start: a hundred thousand threads cannot
+/// get their stacks, and a thread that fails to start aborts the process.
+const MAX_THREADS: usize = 1024;
+
+fn parse_threads(s: &str) -> Result<usize, String> {
+    s.parse::<usize>()
+        .ok()
+        .filter(|n| (1..=MAX_THREADS).contains(n))
+        .ok_or_else(|| format!("--threads takes 1 to {MAX_THREADS}, found `{s}`"))
+}
+
+/// The thread count `RAYON_NUM_THREADS` asks the global pool for, checked before the pool
+/// starts: rayon reads it (0 or not a number means all cores), but a count too large to start
+/// aborts the process.
+fn check_rayon_threads() -> Result<(), Error> {
+    let Some(value) = std::env::var_os("RAYON_NUM_THREADS") else { return Ok(()) };
+    match value.to_str().and_then(|v| v.parse::<usize>().ok()) {
+        Some(n) if n > MAX_THREADS => Err(usage(format!(
+            "RAYON_NUM_THREADS={n}: at most {MAX_THREADS} worker threads (0 or unset: all cores)"
+        ))),
+        _ => Ok(()),
+    }
+}
+
 fn parse_msaa(s: &str) -> Result<SampleCount, String> {
     s.parse::<u32>()
         .ok()
@@ -374,7 +399,7 @@ fn usage(message: String) -> Error {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result = match cli.command {
+    let result = check_rayon_threads().and_then(|()| match cli.command {
         Command::Render(args) => render(&args),
         Command::Info { file } => info(&file),
         Command::Sample { file, points, output, seed } => sample(&file, points, &output, seed),
@@ -385,7 +410,7 @@ fn main() -> ExitCode {
             bench(&scenes, threads, frames, msaa, dense_triangles, json)
         }
         Command::Demo { which, output, size, algorithm } => demo(which, &output, size, algorithm),
-    };
+    });
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

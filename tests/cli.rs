@@ -741,3 +741,38 @@ fn bench_reports_its_simd_level_and_the_same_work_at_every_level() {
     assert_eq!(field(&default, "schedule"), "binned");
     assert!(field(&default, "median_ms").parse::<f64>().unwrap() > 0.0);
 }
+
+/// Thread counts that cannot be honoured are usage errors, not a silent default or an abort:
+/// `--threads 0` (which rayon would take as "all cores" while the table printed 0), and counts
+/// too large to start (a hundred thousand threads cannot get their stacks, and a thread that
+/// fails to start aborts the process), on the command line or in `RAYON_NUM_THREADS`.
+#[test]
+fn impossible_thread_counts_are_usage_errors() {
+    let dir = TempDir::new("threads");
+    for command in ["bench", "splat-bench"] {
+        for threads in ["0", "100000", "many"] {
+            let err = run_err(&dir.0, [command, "--threads", threads, "--frames", "1"]);
+            assert!(err.contains("--threads"), "{command} --threads {threads}: {err}");
+        }
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_trirast"))
+        .args(["render", "-o", "out.png"])
+        .env("RAYON_NUM_THREADS", "100000")
+        .current_dir(&dir.0)
+        .output()
+        .expect("failed to start the trirast binary");
+    let err = stderr_of(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("RAYON_NUM_THREADS=100000"), "{err}");
+    assert!(!dir.path("out.png").exists(), "nothing is rendered");
+    // What rayon takes as "all cores" (0, not a number) still runs.
+    for value in ["0", "lots"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_trirast"))
+            .args(["render", "--size", "64x48", "-o", "out.png"])
+            .env("RAYON_NUM_THREADS", value)
+            .current_dir(&dir.0)
+            .output()
+            .expect("failed to start the trirast binary");
+        assert!(out.status.success(), "RAYON_NUM_THREADS={value}: {}", stderr_of(&out));
+    }
+}
