@@ -329,7 +329,7 @@ pub struct SplatBenchResult {
 }
 
 /// Samples `points` points from the bunny (or a generated sphere), builds, encodes, decodes and
-/// renders the hierarchy `frames` times at 1920x1080.
+/// renders the hierarchy `frames` times at 1920x1080. No points is an error.
 pub fn run_splats(points: usize, frames: usize) -> Result<SplatBenchResult, Error> {
     use crate::splat::render::{self as splat_render, SplatOptions};
     use crate::splat::{SplatTree, cloud, format};
@@ -345,7 +345,10 @@ pub fn run_splats(points: usize, frames: usize) -> Result<SplatBenchResult, Erro
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
     let bytes = format::encode(&tree);
     let tree = format::decode(&bytes).map_err(|e| Error::Usage(format!("decoding: {e}")))?;
-    let (centre, radius) = (Vec3::from(tree.nodes[0].centre), tree.nodes[0].radius);
+    let Some(root) = tree.nodes.first() else {
+        return Err(Error::Usage(format!("no points to time: {points} sampled")));
+    };
+    let (centre, radius) = (Vec3::from(root.centre), root.radius);
     let projection = Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y };
     let camera = Camera::framing_sphere(centre, radius, 0.5, 0.35, 16.0 / 9.0, projection);
     let mut target = Target::new(1920, 1080)?;

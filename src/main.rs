@@ -46,14 +46,14 @@ enum Command {
         /// Worker threads, 1 to 1024 (default: all cores).
         #[arg(long, value_parser = parse_threads)]
         threads: Option<usize>,
-        /// Timed frames per scene, after one warm-up frame.
-        #[arg(long, default_value_t = 10)]
+        /// Timed frames per scene, after one warm-up frame (1 to 1,000,000).
+        #[arg(long, default_value_t = 10, value_parser = parse_frames)]
         frames: usize,
         /// Samples per pixel; with 4 or 8, each scene is also timed at 1x for comparison.
         #[arg(long, value_parser = parse_msaa, default_value = "1")]
         msaa: SampleCount,
-        /// Triangles in the dense scene.
-        #[arg(long, default_value_t = trirast::bench::DENSE_TRIANGLES)]
+        /// Triangles in the dense scene (1 to 1,000,000,000; a sphere has at least 12).
+        #[arg(long, default_value_t = trirast::bench::DENSE_TRIANGLES, value_parser = parse_dense)]
         dense_triangles: usize,
         /// Print one JSON object per scene instead of a table.
         #[arg(long)]
@@ -62,22 +62,22 @@ enum Command {
     /// Time the splat hierarchy: build, bytes per point, ms per frame at 1920x1080, for the
     /// lectures' 130,712 / 1,017,149 / 14,835,967 points sampled from the bunny.
     SplatBench {
-        /// Point counts (default: the three above).
-        #[arg(long, value_delimiter = ',')]
+        /// Point counts, each 1 to 2^30 (default: the three above).
+        #[arg(long, value_delimiter = ',', value_parser = parse_points)]
         points: Vec<usize>,
         /// Worker threads, 1 to 1024 (default: all cores).
         #[arg(long, value_parser = parse_threads)]
         threads: Option<usize>,
-        /// Timed frames per count.
-        #[arg(long, default_value_t = 10)]
+        /// Timed frames per count (1 to 1,000,000).
+        #[arg(long, default_value_t = 10, value_parser = parse_frames)]
         frames: usize,
     },
     /// Sample points from a mesh (area-weighted, with normals and colours) into a PLY cloud.
     Sample {
         /// Mesh file (.obj, .ply, .stl).
         file: PathBuf,
-        /// Number of points.
-        #[arg(long, default_value_t = 1_000_000)]
+        /// Number of points (1 to 2^30).
+        #[arg(long, default_value_t = 1_000_000, value_parser = parse_points)]
         points: usize,
         /// Output point cloud (.ply, binary).
         #[arg(short, long, default_value = "cloud.ply")]
@@ -165,8 +165,8 @@ struct RenderArgs {
     /// Camera up direction X,Y,Z.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, default_value = "0,1,0")]
     up: [f32; 3],
-    /// Vertical field of view in degrees (perspective).
-    #[arg(long, default_value_t = 35.0)]
+    /// Vertical field of view in degrees (perspective), 1 to 170.
+    #[arg(long, default_value_t = 35.0, value_parser = parse_fov)]
     fov: f32,
     /// Texture filtering.
     #[arg(long, value_enum, default_value_t = FilterArg::Bilinear)]
@@ -189,8 +189,9 @@ struct RenderArgs {
     #[arg(long)]
     per_sample: bool,
     /// Time the render: draw N frames after a warm-up one and print median / min ms per frame
-    /// and throughput (loading excluded). The image written is the last frame.
-    #[arg(long, value_name = "N")]
+    /// and throughput (loading excluded). The image written is the last frame. N is 1 to
+    /// 1,000,000.
+    #[arg(long, value_name = "N", value_parser = parse_frames)]
     frames: Option<usize>,
     /// Render N frames orbiting the model (3D only).
     #[arg(long, value_name = "N")]
@@ -316,10 +317,41 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
 const MAX_THREADS: usize = 1024;
 
 fn parse_threads(s: &str) -> Result<usize, String> {
+    parse_count(s, "--threads", MAX_THREADS)
+}
+
+/// The most frames a timing run may ask for: each one's time is kept for the median, and a
+/// count far past what a benchmark needs is a typo, not a plan (a billion frames asked for
+/// gigabytes of timings up front, and aborted when they could not be had).
+const MAX_FRAMES: usize = 1_000_000;
+
+fn parse_frames(s: &str) -> Result<usize, String> {
+    parse_count(s, "--frames", MAX_FRAMES)
+}
+
+/// The most points `sample` and `splat-bench` take: 2^30 points are about 40 GB of cloud and
+/// hierarchy. Counts far past it are typos, whose allocations aborted the process (capacity
+/// overflow) instead of reporting an error.
+const MAX_POINTS: usize = 1 << 30;
+
+fn parse_points(s: &str) -> Result<usize, String> {
+    parse_count(s, "--points", MAX_POINTS)
+}
+
+/// The largest dense scene: a billion triangles are 12 GB of indices and 6 GB of positions,
+/// past which generating the mesh aborted the process when memory ran out.
+const MAX_DENSE_TRIANGLES: usize = 1_000_000_000;
+
+fn parse_dense(s: &str) -> Result<usize, String> {
+    parse_count(s, "--dense-triangles", MAX_DENSE_TRIANGLES)
+}
+
+/// A whole number from 1 to `max` for option `name`.
+fn parse_count(s: &str, name: &str, max: usize) -> Result<usize, String> {
     s.parse::<usize>()
         .ok()
-        .filter(|n| (1..=MAX_THREADS).contains(n))
-        .ok_or_else(|| format!("--threads takes 1 to {MAX_THREADS}, found `{s}`"))
+        .filter(|n| (1..=max).contains(n))
+        .ok_or_else(|| format!("{name} takes 1 to {max}, found `{s}`"))
 }
 
 /// The thread count `RAYON_NUM_THREADS` asks the global pool for, checked before the pool
@@ -355,6 +387,16 @@ fn parse_floats<const N: usize>(s: &str) -> Result<[f32; N], String> {
         }
     }
     Ok(out)
+}
+
+/// A field of view in degrees, 1 to 170: NaN drew nothing and other values were clamped
+/// without a word.
+fn parse_fov(s: &str) -> Result<f32, String> {
+    s.trim()
+        .parse::<f32>()
+        .ok()
+        .filter(|f| (1.0..=170.0).contains(f))
+        .ok_or_else(|| format!("--fov takes 1 to 170 degrees, found `{s}`"))
 }
 
 fn parse_vec2(s: &str) -> Result<[f32; 2], String> {
@@ -421,6 +463,13 @@ fn main() -> ExitCode {
 }
 
 fn render(args: &RenderArgs) -> Result<(), Error> {
+    check_outputs(&[
+        ("--output", Some(&args.output)),
+        ("--depth", args.depth.as_ref()),
+        ("--ids", args.ids.as_ref()),
+        ("--overdraw", args.overdraw.as_ref()),
+        ("--normals", args.normals.as_ref()),
+    ])?;
     let (width, height) = args.size;
     let window = args.projection == ProjectionArg::Window;
     let default_msaa = if window { SampleCount::X1 } else { SampleCount::X4 };
@@ -472,7 +521,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     let camera_at = |azimuth: f32| -> Camera {
         let projection = match args.projection {
             ProjectionArg::Orthographic => Projection::Orthographic { height: 2.0 * radius },
-            _ => Projection::Perspective { fov_y: args.fov.clamp(1.0, 170.0).to_radians() },
+            _ => Projection::Perspective { fov_y: args.fov.to_radians() },
         };
         let mut cam = Camera::framing_sphere(
             centre,
@@ -641,6 +690,29 @@ fn frame_path(output: &Path, k: u32) -> PathBuf {
 }
 
 /// Writes the PNG and the requested buffers; a turntable `frame` numbers every file name.
+/// Checks the files a command will write before it does any work: two options naming one
+/// file (the second silently overwrote the first, and "wrote" named a PNG holding an `.npy`),
+/// and a directory that does not exist (found only after rendering, with some files already
+/// written).
+fn check_outputs(outputs: &[(&str, Option<&PathBuf>)]) -> Result<(), Error> {
+    let named: Vec<(&str, &PathBuf)> =
+        outputs.iter().filter_map(|&(option, path)| Some((option, path?))).collect();
+    for (k, &(option, path)) in named.iter().enumerate() {
+        if let Some(&(first, _)) = named[..k].iter().find(|(_, p)| p == &path) {
+            return Err(usage(format!("{first} and {option} both name {}", path.display())));
+        }
+        let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
+        if let Some(dir) = dir.filter(|d| !d.is_dir()) {
+            return Err(usage(format!(
+                "{option} {}: there is no directory {}",
+                path.display(),
+                dir.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
 fn write_outputs(args: &RenderArgs, target: &Target, frame: Option<u32>) -> Result<(), Error> {
     let (width, height) = (target.width(), target.height());
     let named = |p: &PathBuf| frame.map_or_else(|| p.clone(), |k| frame_path(p, k));
@@ -881,6 +953,7 @@ fn pack(file: &Path, output: &Path) -> Result<(), Error> {
 
 fn splat(args: &SplatArgs) -> Result<(), Error> {
     use trirast::splat::render::{Progressive, SplatOptions, SplatShape};
+    check_outputs(&[("--output", Some(&args.output)), ("--depth", args.depth.as_ref())])?;
     let tree = load_splats(&args.file)?;
     let (width, height) = args.size;
     let mut target = Target::new(width, height)?;

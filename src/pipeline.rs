@@ -714,6 +714,12 @@ impl FrontEnd {
             emit(self.setup_inside(input, id));
             return;
         }
+        // A NaN or infinite coordinate is outside every clip plane's test; clipped, it made a
+        // fan of pieces, each counted as non-finite: one triangle reported as several.
+        if !input.iter().all(|v| v.clip.position.is_finite()) {
+            emit(Err(Skipped::Rejected(Rejection::NonFinite)));
+            return;
+        }
         let polygon = self.volume.clip(input.map(|v| v.clip));
         if polygon.is_empty() {
             // Entirely outside the view volume: counted with the culled.

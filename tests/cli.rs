@@ -776,3 +776,56 @@ fn impossible_thread_counts_are_usage_errors() {
         assert!(out.status.success(), "RAYON_NUM_THREADS={value}: {}", stderr_of(&out));
     }
 }
+
+/// Counts and angles that cannot be meant are usage errors naming the option, not an abort,
+/// a panic or a silent clamp: frames and points by the billion (whose allocations aborted the
+/// process, or overflowed), zero points (a panic reading the empty hierarchy's root), a dense
+/// scene past a billion triangles, and a field of view that is NaN (a blank image) or out of
+/// 1 to 170 degrees (clamped without a word).
+#[test]
+fn absurd_counts_and_angles_are_usage_errors() {
+    let dir = TempDir::new("absurd");
+    let huge = "18446744073709551615";
+    let cases: [(&[&str], &str); 11] = [
+        (&["bench", "fill", "--frames", huge], "--frames"),
+        (&["bench", "fill", "--frames", "0"], "--frames"),
+        (&["bench", "dense", "--dense-triangles", "10000000000"], "--dense-triangles"),
+        (&["splat-bench", "--points", "0"], "--points"),
+        (&["splat-bench", "--points", huge], "--points"),
+        (&["splat-bench", "--frames", huge], "--frames"),
+        (&["sample", "mesh.obj", "--points", "1000000000000"], "--points"),
+        (&["render", "--frames", huge, "-o", "out.png"], "--frames"),
+        (&["render", "--fov", "nan", "-o", "out.png"], "--fov"),
+        (&["render", "--fov", "0", "-o", "out.png"], "--fov"),
+        (&["render", "--fov", "inf", "-o", "out.png"], "--fov"),
+    ];
+    for (args, option) in cases {
+        let err = run_err(&dir.0, args);
+        assert!(err.contains(option), "{args:?}: {err}");
+    }
+    assert!(!dir.path("out.png").exists());
+    // The library's splat benchmark reports an empty cloud instead of panicking.
+    assert!(trirast::bench::run_splats(0, 1).is_err());
+}
+
+/// Output files are checked before anything is rendered: two options naming one file (the
+/// second overwrote the first, which then held an `.npy` under a `.png` name) and a missing
+/// directory (found only after some files were written) are usage errors, and nothing is
+/// written.
+#[test]
+fn clashing_or_unreachable_outputs_are_refused_before_rendering() {
+    let dir = TempDir::new("outputs");
+    let cases: [&[&str]; 4] = [
+        &["render", "--size", "64x48", "-o", "a.png", "--depth", "a.png"],
+        &["render", "--size", "64x48", "-o", "a.png", "--ids", "d.npy", "--overdraw", "d.npy"],
+        &["render", "--size", "64x48", "-o", "a.png", "--ids", "missing/ids.npy"],
+        &["render", "--size", "64x48", "-o", "missing/a.png"],
+    ];
+    for args in cases {
+        let err = run_err(&dir.0, args);
+        assert!(err.contains("both name") || err.contains("no directory"), "{args:?}: {err}");
+        assert!(!dir.path("a.png").exists(), "{args:?}: nothing is written");
+    }
+    run_ok(&dir.0, ["render", "--size", "64x48", "-o", "a.png", "--depth", "a.npy"]);
+    assert!(dir.path("a.png").exists() && dir.path("a.npy").exists());
+}

@@ -441,3 +441,33 @@ fn perspective_checkerboard_matches_the_analytic_checker() {
     }
     assert!(checked > 3000, "{checked}");
 }
+
+/// A triangle with a NaN or infinite clip-space coordinate is dropped and counted once as
+/// non-finite, whichever coordinate it is and on both backends; the finite triangle beside it
+/// is still drawn. (Clipped, a NaN vertex made a fan of pieces, each counted: "dropped 2".)
+#[test]
+fn non_finite_vertices_drop_their_triangle_once() {
+    use trirast::render::Backend;
+    let good = [Vec4::new(-0.5, -0.5, 0.5, 1.0), Vec4::new(0.5, -0.5, 0.5, 1.0)];
+    let third = Vec4::new(0.0, 0.5, 0.5, 1.0);
+    for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        for k in 0..4 {
+            let mut p = third;
+            p[k] = bad;
+            let vertices = [good[0], good[1], p, third];
+            let triangles = [[0, 1, 2], [0, 1, 3]];
+            for backend in [Backend::Reference, Backend::Tiled] {
+                let mut target = Target::new(W, H).unwrap().with_ids();
+                let pipeline = Pipeline::default().with_cull(FaceCull::None).with_backend(backend);
+                let vs = |v: &Vec4| (*v, ());
+                let fs = |_: &Fragment<()>| Some(Vec4::ONE);
+                let stats = pipeline.draw(&mut target, &vs, &fs, &vertices, &triangles).unwrap();
+                let what = format!("{bad} at coordinate {k}, {backend:?}");
+                assert_eq!((stats.non_finite, stats.rasterized), (1, 1), "{what}: {stats:?}");
+                let ids = target.ids.as_ref().unwrap();
+                assert!(ids.iter().all(|&i| i == -1 || i == 1), "{what}: triangle 0 drawn");
+                assert!(ids.contains(&1), "{what}: the finite triangle is drawn");
+            }
+        }
+    }
+}
