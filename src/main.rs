@@ -155,6 +155,7 @@ struct RenderArgs {
     depth_test: DepthTestArg,
     /// Orbit the camera: AZIMUTH,ELEVATION in degrees around the model's bounding sphere.
     #[arg(long, value_name = "AZ,EL", value_parser = parse_vec2, allow_hyphen_values = true)]
+    #[arg(conflicts_with = "eye")]
     view: Option<[f32; 2]>,
     /// Explicit eye position X,Y,Z (overrides the automatic framing; needs --target).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "target")]
@@ -194,7 +195,7 @@ struct RenderArgs {
     #[arg(long, value_name = "N", value_parser = parse_frames)]
     frames: Option<usize>,
     /// Render N frames orbiting the model (3D only).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", conflicts_with_all = ["frames", "eye"])]
     turntable: Option<u32>,
 }
 
@@ -209,12 +210,12 @@ struct SplatArgs {
     #[arg(long, default_value = "800x600", value_parser = parse_size)]
     size: (u32, u32),
     /// Stop refining at nodes whose points spread over less than this many pixels on screen
-    /// (0 draws every point).
-    #[arg(long, default_value_t = 1.0)]
+    /// (0 draws every point; a finite number, 0 or more).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_threshold)]
     threshold: f32,
     /// Time budget: draw coarse-to-fine levels while the next is expected to fit; the image
-    /// is the finest level completed.
-    #[arg(long, value_name = "MS")]
+    /// is the finest level completed (a finite number over 0).
+    #[arg(long, value_name = "MS", value_parser = parse_budget)]
     budget_ms: Option<f64>,
     /// Also write the depth buffer (float32 .npy, shape (H, W)).
     #[arg(long, value_name = "FILE")]
@@ -399,6 +400,23 @@ fn parse_fov(s: &str) -> Result<f32, String> {
         .ok_or_else(|| format!("--fov takes 1 to 170 degrees, found `{s}`"))
 }
 
+/// A splat threshold in pixels: NaN and negative values were taken as 0 (every point), and
+/// infinity drew a single splat, without a word.
+fn parse_threshold(s: &str) -> Result<f32, String> {
+    s.trim().parse::<f32>().ok().filter(|t| t.is_finite() && *t >= 0.0).ok_or_else(|| {
+        format!("--threshold takes a finite number of pixels, 0 or more, found `{s}`")
+    })
+}
+
+/// A time budget in ms: NaN meant no budget, and 0 or less the coarsest level, silently.
+fn parse_budget(s: &str) -> Result<f64, String> {
+    s.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|b| b.is_finite() && *b > 0.0)
+        .ok_or_else(|| format!("--budget-ms takes a finite number of ms over 0, found `{s}`"))
+}
+
 fn parse_vec2(s: &str) -> Result<[f32; 2], String> {
     parse_floats::<2>(s)
 }
@@ -491,16 +509,21 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         Some(path) => trirast::mesh::load(path)?,
         None => scene::default_model(),
     };
-    if let Some(texture) = &args.texture {
+    // A texture asked for by name that cannot be read is an error (naming it), not a warning
+    // and a plain-colour image as for a material's.
+    let mut texture = None;
+    if let Some(path) = &args.texture {
         if mesh.texcoords.is_none() {
             eprintln!("trirast: warning: the mesh has no texture coordinates; --texture ignored");
+        } else {
+            texture = Some(trirast::texture::Texture::load(path)?);
+            mesh.materials = vec![trirast::mesh::Material {
+                name: "texture".into(),
+                diffuse: [1.0; 3],
+                diffuse_texture: Some(path.clone()),
+            }];
+            mesh.triangle_materials = Some(vec![0; mesh.triangles.len()]);
         }
-        mesh.materials = vec![trirast::mesh::Material {
-            name: "texture".into(),
-            diffuse: [1.0; 3],
-            diffuse_texture: Some(texture.clone()),
-        }];
-        mesh.triangle_materials = Some(vec![0; mesh.triangles.len()]);
     }
     warn_about(&mesh);
     if let (Some(eye), Some(look)) = (args.eye, args.target)
@@ -509,7 +532,10 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         return Err(usage("--eye and --target must differ".into()));
     }
     model::with_vertex_normals(&mut mesh);
-    let textures = MaterialTextures::load(&mesh);
+    let textures = match texture {
+        Some(t) => MaterialTextures::from_loaded(vec![Some(t)]),
+        None => MaterialTextures::load(&mesh),
+    };
     for w in &textures.warnings {
         eprintln!("trirast: warning: {w}");
     }
@@ -545,31 +571,9 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     match args.turntable {
         None => {
             let camera = camera_at(az);
-            let mut times = Vec::new();
-            let mut stats = trirast::DrawStats::default();
-            for frame in 0..=args.frames.unwrap_or(0) {
-                target.clear(clear);
-                let start = std::time::Instant::now();
-                stats = model::render_mesh(&mut target, &mesh, &camera, &options, &textures)?;
-                if frame > 0 {
-                    times.push(start.elapsed().as_secs_f64() * 1e3);
-                }
-            }
-            report(&stats);
-            if !times.is_empty() {
-                times.sort_by(f64::total_cmp);
-                let median = times[times.len() / 2];
-                println!(
-                    "{} frames, {} threads: median {median:.2} ms, min {:.2} ms per frame; \
-                     {:.1} Mtri/s, {:.3} G frag/s{}",
-                    times.len(),
-                    rayon::current_num_threads(),
-                    times[0],
-                    stats.submitted as f64 / median / 1e3,
-                    stats.fragments as f64 / median / 1e6,
-                    target.last_schedule().map_or(String::new(), |s| format!("; {}", s.name()))
-                );
-            }
+            draw_timed(&mut target, args.frames, clear, |t| {
+                model::render_mesh(t, &mesh, &camera, &options, &textures)
+            })?;
             write_outputs(args, &target, None)
         }
         Some(0) => Err(usage("--turntable needs at least 1 frame".into())),
@@ -671,25 +675,29 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
     if args.normals.is_some() {
         return Err(usage("--normals needs a 3D projection".into()));
     }
-    if let Some([r, g, b]) = args.background {
-        target.clear([r, g, b, 255]);
+    if args.turntable.is_some() {
+        return Err(usage("--turntable needs a 3D projection".into()));
     }
+    let clear =
+        args.background.map_or(trirast::target::DEFAULT_CLEAR_COLOR, |[r, g, b]| [r, g, b, 255]);
     let options = RenderOptions::default()
         .with_algorithm(args.algorithm.into())
         .with_shading(shading)
         .with_cull(cull)
         .with_depth_test(args.depth_test.into());
-    draw_and_report(target, &triangles, &options)
+    draw_timed(target, args.frames, clear, |t| trirast::draw(t, &triangles, &options))?;
+    Ok(())
 }
 
-/// `out.png` -> `out_007.png`.
-fn frame_path(output: &Path, k: u32) -> PathBuf {
+/// `out.png` -> `out_007.png`: frame `k` of `total`, numbered with at least three digits and
+/// as many as the last frame needs, so that the names sort in frame order.
+fn frame_path(output: &Path, k: u32, total: u32) -> PathBuf {
     let stem = output.file_stem().and_then(|s| s.to_str()).unwrap_or("frame");
     let ext = output.extension().and_then(|s| s.to_str()).unwrap_or("png");
-    output.with_file_name(format!("{stem}_{k:03}.{ext}"))
+    let digits = total.saturating_sub(1).max(1).ilog10() as usize + 1;
+    output.with_file_name(format!("{stem}_{k:0width$}.{ext}", width = digits.max(3)))
 }
 
-/// Writes the PNG and the requested buffers; a turntable `frame` numbers every file name.
 /// Checks the files a command will write before it does any work: two options naming one
 /// file (the second silently overwrote the first, and "wrote" named a PNG holding an `.npy`),
 /// and a directory that does not exist (found only after rendering, with some files already
@@ -713,9 +721,11 @@ fn check_outputs(outputs: &[(&str, Option<&PathBuf>)]) -> Result<(), Error> {
     Ok(())
 }
 
+/// Writes the PNG and the requested buffers; a turntable `frame` numbers every file name.
 fn write_outputs(args: &RenderArgs, target: &Target, frame: Option<u32>) -> Result<(), Error> {
     let (width, height) = (target.width(), target.height());
-    let named = |p: &PathBuf| frame.map_or_else(|| p.clone(), |k| frame_path(p, k));
+    let total = args.turntable.unwrap_or(1);
+    let named = |p: &PathBuf| frame.map_or_else(|| p.clone(), |k| frame_path(p, k, total));
     let png = named(&args.output);
     trirast::output::write_png(&png, target)?;
     if let Some(p) = &args.depth {
@@ -981,7 +991,7 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
     let options = SplatOptions::default().with_shape(shape);
     let background = args.background.unwrap_or([38, 42, 52]);
     let clear = [background[0], background[1], background[2], 255];
-    let threshold = args.threshold.max(0.0);
+    let threshold = args.threshold;
     let start = std::time::Instant::now();
     let mut progressive = Progressive::new(threshold);
     if args.budget_ms.is_none() {
@@ -1091,6 +1101,43 @@ fn draw_and_report(
     Ok(())
 }
 
+/// Draws a frame with `draw`, or with `frames = Some(n)` one untimed frame and `n` timed ones
+/// (each on a target cleared to `clear`), then reports the last frame's counts and the median
+/// and fastest frame times with the throughput (`trirast render --frames`).
+fn draw_timed(
+    target: &mut Target,
+    frames: Option<usize>,
+    clear: [u8; 4],
+    mut draw: impl FnMut(&mut Target) -> Result<trirast::DrawStats, Error>,
+) -> Result<trirast::DrawStats, Error> {
+    let mut times = Vec::new();
+    let mut stats = trirast::DrawStats::default();
+    for frame in 0..=frames.unwrap_or(0) {
+        target.clear(clear);
+        let start = std::time::Instant::now();
+        stats = draw(target)?;
+        if frame > 0 {
+            times.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    report(&stats);
+    if !times.is_empty() {
+        times.sort_by(f64::total_cmp);
+        let median = times[times.len() / 2];
+        println!(
+            "{} frames, {} threads: median {median:.2} ms, min {:.2} ms per frame; \
+             {:.1} Mtri/s, {:.3} G frag/s{}",
+            times.len(),
+            rayon::current_num_threads(),
+            times[0],
+            stats.submitted as f64 / median / 1e3,
+            stats.fragments as f64 / median / 1e6,
+            target.last_schedule().map_or(String::new(), |s| format!("; {}", s.name()))
+        );
+    }
+    Ok(stats)
+}
+
 fn report(stats: &trirast::DrawStats) {
     if stats.non_finite > 0 {
         eprintln!(
@@ -1102,4 +1149,23 @@ fn report(stats: &trirast::DrawStats) {
         "{} triangles: {} rasterized, {} culled or clipped away, {} degenerate; {} fragments",
         stats.submitted, stats.rasterized, stats.culled, stats.degenerate, stats.fragments
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Turntable frame names sort in frame order: three digits up to 1,000 frames, as many as
+    /// the last frame needs beyond.
+    #[test]
+    fn frame_names_sort_in_frame_order() {
+        let name = |k, total| frame_path(Path::new("out/t.png"), k, total);
+        assert_eq!(name(7, 1), Path::new("out/t_007.png"));
+        assert_eq!(name(999, 1000), Path::new("out/t_999.png"));
+        assert_eq!(name(7, 1001), Path::new("out/t_0007.png"));
+        for total in [1, 9, 10, 999, 1000, 1001, 123_456] {
+            let names: Vec<PathBuf> = (0..total.min(2000)).map(|k| name(k, total)).collect();
+            assert!(names.is_sorted(), "{total} frames");
+        }
+    }
 }

@@ -148,6 +148,13 @@ impl MaterialTextures {
         self.textures.get(material).and_then(Option::as_ref)
     }
 
+    /// Textures already loaded: `textures[k]` is material `k`'s (`None`: none). For a texture
+    /// whose loading error the caller reports itself, rather than as a warning.
+    #[must_use]
+    pub fn from_loaded(textures: Vec<Option<Texture>>) -> Self {
+        Self { textures, warnings: Vec::new() }
+    }
+
     /// Loads the diffuse textures of `mesh`'s materials.
     #[must_use]
     pub fn load(mesh: &Mesh) -> Self {

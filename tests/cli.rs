@@ -829,3 +829,48 @@ fn clashing_or_unreachable_outputs_are_refused_before_rendering() {
     run_ok(&dir.0, ["render", "--size", "64x48", "-o", "a.png", "--depth", "a.npy"]);
     assert!(dir.path("a.png").exists() && dir.path("a.npy").exists());
 }
+
+/// Options are honoured or refused, never silently ignored: `--frames` times window
+/// projection too (its image the same as one untimed frame's, on the same background), and
+/// `--turntable` refuses the window projection, `--frames` and `--eye` (its frames would all
+/// be one view); `--view` refuses `--eye`; a `--texture` that cannot be read is an error
+/// naming it; splat thresholds and budgets must be numbers that mean something; turntable
+/// frames are numbered so that their names sort.
+#[test]
+fn options_are_honoured_or_refused() {
+    let dir = TempDir::new("options");
+    dir.write("uv.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n");
+    let window = ["render", "--projection", "window", "--size", "64x48", "--background", "9,8,7"];
+    run_ok(&dir.0, [&window[..], &["-o", "once.png"]].concat());
+    let out = trirast_in(&dir.0, [&window[..], &["-o", "timed.png", "--frames", "3"]].concat());
+    assert!(out.status.success(), "{}", stderr_of(&out));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("3 frames"));
+    let (once, timed) = (read_png(&dir.path("once.png")), read_png(&dir.path("timed.png")));
+    assert!(once.rgba == timed.rgba, "timing changes the image");
+
+    let refused: [(&[&str], &str); 5] = [
+        (&["render", "--projection", "window", "--turntable", "3"], "--turntable"),
+        (&["render", "--turntable", "3", "--frames", "2"], "--frames"),
+        (&["render", "--turntable", "3", "--eye", "1,1,1", "--target", "0,0,0"], "--eye"),
+        (&["render", "--view", "10,10", "--eye", "1,1,1", "--target", "0,0,0"], "--eye"),
+        (&["render", "uv.obj", "--texture", "no-such.png"], "no-such.png"),
+    ];
+    for (args, named) in refused {
+        let err = run_err(&dir.0, [args, &["--size", "32x24", "-o", "x.png"]].concat());
+        assert!(err.contains(named), "{args:?}: {err}");
+    }
+    assert!(!dir.path("x.png").exists());
+    for bad in ["nan", "-1", "inf"]
+        .map(|v| format!("--threshold={v}"))
+        .into_iter()
+        .chain(["nan", "0", "-5"].map(|v| format!("--budget-ms={v}")))
+    {
+        let err = run_err(&dir.0, ["splat", "cloud.ply", &bad]);
+        let option = bad.split('=').next().unwrap();
+        assert!(err.contains(option), "{bad}: {err}");
+    }
+    run_ok(&dir.0, ["render", "--size", "16x12", "--turntable", "3", "-o", "t.png"]);
+    for k in 0..3 {
+        assert!(dir.path(&format!("t_{k:03}.png")).exists(), "frame {k}");
+    }
+}
