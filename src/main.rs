@@ -643,8 +643,11 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
                     path.display()
                 )));
             }
-            let mesh = trirast::mesh::obj::read(path)?;
-            (trirast::mesh::window_triangles(&mesh), Shading::Smooth)
+            let triangles = trirast::mesh::window_triangles(&trirast::mesh::obj::read(path)?);
+            if triangles.is_empty() {
+                eprintln!("trirast: warning: {} has no faces: nothing to draw", path.display());
+            }
+            (triangles, Shading::Smooth)
         }
         None => {
             let s = scene::default_scene(width, height);
@@ -685,7 +688,15 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
         .with_shading(shading)
         .with_cull(cull)
         .with_depth_test(args.depth_test.into());
-    draw_timed(target, args.frames, clear, |t| trirast::draw(t, &triangles, &options))?;
+    draw_timed(target, args.frames, clear, |t| {
+        trirast::draw(t, &triangles, &options).map_err(|e| match (&args.file, e) {
+            // The triangle is the file's: say which file.
+            (Some(path), e @ Error::CoordinateOutOfRange { .. }) => {
+                usage(format!("{}: {e}", path.display()))
+            }
+            (_, e) => e,
+        })
+    })?;
     Ok(())
 }
 
@@ -700,12 +711,17 @@ fn frame_path(output: &Path, k: u32, total: u32) -> PathBuf {
 
 /// Checks the files a command will write before it does any work: two options naming one
 /// file (the second silently overwrote the first, and "wrote" named a PNG holding an `.npy`),
-/// and a directory that does not exist (found only after rendering, with some files already
-/// written).
+/// a directory that does not exist (found only after rendering, with some files already
+/// written), and an `--output` image named other than `.png`.
 fn check_outputs(outputs: &[(&str, Option<&PathBuf>)]) -> Result<(), Error> {
     let named: Vec<(&str, &PathBuf)> =
         outputs.iter().filter_map(|&(option, path)| Some((option, path?))).collect();
     for (k, &(option, path)) in named.iter().enumerate() {
+        // The colour image is PNG whatever its name: a `.jpg` held PNG bytes.
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        if option == "--output" && ext.is_some_and(|e| e != "png") {
+            return Err(usage(format!("--output {}: images are written as .png", path.display())));
+        }
         if let Some(&(first, _)) = named[..k].iter().find(|(_, p)| p == &path) {
             return Err(usage(format!("{first} and {option} both name {}", path.display())));
         }
@@ -909,6 +925,8 @@ fn warn_about(mesh: &Mesh) {
              `trirast splat`",
             mesh.positions.len()
         );
+    } else if mesh.triangles.is_empty() {
+        eprintln!("trirast: warning: the file has no vertices and no faces: nothing to draw");
     }
 }
 
@@ -918,6 +936,13 @@ fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Er
     let textures = MaterialTextures::load(&mesh);
     let start = std::time::Instant::now();
     let cloud = trirast::splat::cloud::sample_mesh(&mesh, &textures, points, seed);
+    if cloud.positions.is_empty() {
+        // An empty cloud written here was refused by every command that reads one.
+        return Err(usage(format!(
+            "{}: no surface to sample (no triangle of finite, non-zero area)",
+            file.display()
+        )));
+    }
     trirast::splat::cloud::write_ply(output, &cloud)?;
     eprintln!(
         "sampled {} points in {:.0} ms; wrote {}",
@@ -947,6 +972,10 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
 
 fn pack(file: &Path, output: &Path) -> Result<(), Error> {
     let tree = load_splats(file)?;
+    if tree.nodes.is_empty() {
+        // As `splat` says of it: nothing to pack that anything could draw.
+        return Err(usage(format!("{}: the point cloud is empty", file.display())));
+    }
     trirast::splat::format::write(output, &tree)?;
     let bytes = std::fs::metadata(output).map_err(|e| Error::io(output, e))?.len();
     eprintln!(

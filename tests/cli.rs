@@ -874,3 +874,35 @@ fn options_are_honoured_or_refused() {
         assert!(dir.path(&format!("t_{k:03}.png")).exists(), "frame {k}");
     }
 }
+
+/// Nothing to draw or sample is said, not passed over: an empty mesh renders with a warning
+/// (3D and window), sampling it is an error (its empty cloud was refused by everything that
+/// reads one), and so is packing an empty cloud; a window vertex out of range names the file;
+/// an `--output` image not named `.png` is refused (it held PNG bytes).
+#[test]
+fn empty_inputs_and_misnamed_outputs_are_reported() {
+    let dir = TempDir::new("empty");
+    dir.write("empty.obj", "");
+    for projection in [None, Some("window")] {
+        let err = run_ok(&dir.0, render_file_args(&dir.path("empty.obj"), projection));
+        assert!(err.contains("warning") && err.contains("nothing to draw"), "{err}");
+    }
+    let err = run_err(&dir.0, ["sample", "empty.obj", "-o", "cloud.ply"]);
+    assert!(err.contains("empty.obj") && err.contains("no surface"), "{err}");
+    assert!(!dir.path("cloud.ply").exists());
+    let header = "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\n\
+                  property float z\nend_header\n";
+    dir.write("zero.ply", header);
+    let err = run_err(&dir.0, ["pack", "zero.ply", "-o", "zero.tsplat"]);
+    assert!(err.contains("zero.ply") && err.contains("empty"), "{err}");
+    assert!(!dir.path("zero.tsplat").exists());
+
+    dir.write("far.obj", "v 40000 0 0\nv 0 0 0\nv 0 1 0\nf 1 2 3\n");
+    let err = run_err(&dir.0, render_file_args(&dir.path("far.obj"), Some("window")));
+    assert!(err.contains("far.obj") && err.contains("outside"), "{err}");
+    for name in ["x.jpg", "x.npy"] {
+        let err = run_err(&dir.0, ["render", "--size", "16x12", "-o", name]);
+        assert!(err.contains(".png"), "{name}: {err}");
+    }
+    run_ok(&dir.0, ["render", "--size", "16x12", "-o", "x.PNG"]);
+}
