@@ -163,9 +163,10 @@ struct RenderArgs {
     /// Point the camera looks at, X,Y,Z.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, requires = "eye")]
     target: Option<[f32; 3]>,
-    /// Camera up direction X,Y,Z.
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, default_value = "0,1,0")]
-    up: [f32; 3],
+    /// Camera up direction X,Y,Z, with --eye (default 0,1,0); not along the view direction.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    #[arg(requires_all = ["eye", "target"])]
+    up: Option<[f32; 3]>,
     /// Vertical field of view in degrees (perspective), 1 to 170.
     #[arg(long, default_value_t = 35.0, value_parser = parse_fov)]
     fov: f32,
@@ -526,10 +527,20 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         }
     }
     warn_about(&mesh);
-    if let (Some(eye), Some(look)) = (args.eye, args.target)
-        && eye == look
-    {
-        return Err(usage("--eye and --target must differ".into()));
+    if let (Some(eye), Some(look)) = (args.eye, args.target) {
+        if eye == look {
+            return Err(usage("--eye and --target must differ".into()));
+        }
+        // An up direction along the view (or zero) leaves the image's roll undefined; the
+        // camera fell back to another up without a word.
+        let view = (Vec3::from(look) - Vec3::from(eye)).normalize();
+        let up = Vec3::from(args.up.unwrap_or([0.0, 1.0, 0.0]));
+        if up.normalize_or_zero().cross(view).length() < 1e-3 {
+            let which = if args.up.is_some() { "--up" } else { "the default --up 0,1,0" };
+            return Err(usage(format!(
+                "{which} is zero or along the view from --eye to --target: give another --up"
+            )));
+        }
     }
     model::with_vertex_normals(&mut mesh);
     let textures = match texture {
@@ -562,7 +573,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
             let distance = eye.distance(centre);
             cam.eye = eye;
             cam.target = look;
-            cam.up = Vec3::from(args.up);
+            cam.up = Vec3::from(args.up.unwrap_or([0.0, 1.0, 0.0]));
             cam.near = (distance - radius * 1.5).max(radius * 1e-3);
             cam.far = distance + radius * 1.5;
         }

@@ -834,8 +834,9 @@ fn clashing_or_unreachable_outputs_are_refused_before_rendering() {
 /// projection too (its image the same as one untimed frame's, on the same background), and
 /// `--turntable` refuses the window projection, `--frames` and `--eye` (its frames would all
 /// be one view); `--view` refuses `--eye`; a `--texture` that cannot be read is an error
-/// naming it; splat thresholds and budgets must be numbers that mean something; turntable
-/// frames are numbered so that their names sort.
+/// naming it; `--up` needs `--eye` and must not lie along the view; splat thresholds and
+/// budgets must be numbers that mean something; turntable frames are numbered so that their
+/// names sort.
 #[test]
 fn options_are_honoured_or_refused() {
     let dir = TempDir::new("options");
@@ -869,6 +870,14 @@ fn options_are_honoured_or_refused() {
         let option = bad.split('=').next().unwrap();
         assert!(err.contains(option), "{bad}: {err}");
     }
+    // `--up` needs an explicit camera (it was ignored without one), and must not lie along
+    // the view (the camera fell back to another up without a word).
+    let above =
+        ["render", "--size", "16x12", "-o", "up.png", "--eye", "0,5,0", "--target", "0,0,0"];
+    assert!(run_err(&dir.0, ["render", "--up", "0,0,1"]).contains("--eye"));
+    assert!(run_err(&dir.0, above).contains("--up"));
+    assert!(run_err(&dir.0, [&above[..], &["--up", "0,-2,0"]].concat()).contains("--up"));
+    run_ok(&dir.0, [&above[..], &["--up", "0,0,1"]].concat());
     run_ok(&dir.0, ["render", "--size", "16x12", "--turntable", "3", "-o", "t.png"]);
     for k in 0..3 {
         assert!(dir.path(&format!("t_{k:03}.png")).exists(), "frame {k}");
