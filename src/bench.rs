@@ -265,7 +265,27 @@ fn draw(
     }
 }
 
-/// Renders `scene` `frames` times after one warm-up frame and reports the timings.
+/// Runs `frame` once to warm up (caches, the thread pool, the target's kept buffers) and then
+/// `frames` more times, timing each: returns the last frame's counts and the times in ms,
+/// fastest first (empty when `frames` is 0). The one timing loop of `trirast bench` and
+/// `trirast render --frames`.
+pub fn time_frames(
+    frames: usize,
+    mut frame: impl FnMut() -> Result<DrawStats, Error>,
+) -> Result<(DrawStats, Vec<f64>), Error> {
+    let mut stats = frame()?;
+    let mut times = Vec::new();
+    for _ in 0..frames {
+        let start = Instant::now();
+        stats = frame()?;
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+    }
+    times.sort_by(f64::total_cmp);
+    Ok((stats, times))
+}
+
+/// Renders `scene` `frames` times (0 is taken as 1) after one warm-up frame and reports the
+/// timings.
 pub fn run(
     scene: BenchScene,
     frames: usize,
@@ -279,17 +299,10 @@ pub fn run(
         _ => MaterialTextures::default(),
     };
     let mut target = Target::multisampled(width, height, msaa)?;
-    let mut times = Vec::with_capacity(frames);
-    let mut stats = DrawStats::default();
-    for frame in 0..=frames {
+    let (stats, times) = time_frames(frames.max(1), || {
         target.clear([0, 0, 0, 255]);
-        let start = Instant::now();
-        stats = draw(&prepared, &mut target, &textures)?;
-        if frame > 0 {
-            times.push(start.elapsed().as_secs_f64() * 1e3);
-        }
-    }
-    times.sort_by(f64::total_cmp);
+        draw(&prepared, &mut target, &textures)
+    })?;
     Ok(BenchResult {
         scene: scene.name(),
         source,
@@ -329,7 +342,7 @@ pub struct SplatBenchResult {
 }
 
 /// Samples `points` points from the bunny (or a generated sphere), builds, encodes, decodes and
-/// renders the hierarchy `frames` times at 1920x1080. No points is an error.
+/// renders the hierarchy `frames` times (0 is taken as 1) at 1920x1080. No points is an error.
 pub fn run_splats(points: usize, frames: usize) -> Result<SplatBenchResult, Error> {
     use crate::splat::render::{self as splat_render, SplatOptions};
     use crate::splat::{SplatTree, cloud, format};

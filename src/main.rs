@@ -20,7 +20,7 @@ use trirast::sample::SampleCount;
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 use trirast::scene::{self, Demo};
 use trirast::texture::{Filter, Wrap};
-use trirast::{Algorithm, CullMode, DepthTest, Error, RenderOptions, Shading, Target, Vertex};
+use trirast::{Algorithm, CullMode, DepthTest, Error, RenderOptions, Shading, Target};
 
 #[derive(Parser)]
 #[command(name = "trirast", version, about = "An exact software triangle rasterizer")]
@@ -195,8 +195,9 @@ struct RenderArgs {
     /// 1,000,000.
     #[arg(long, value_name = "N", value_parser = parse_frames)]
     frames: Option<usize>,
-    /// Render N frames orbiting the model (3D only).
-    #[arg(long, value_name = "N", conflicts_with_all = ["frames", "eye"])]
+    /// Render N frames orbiting the model (3D only), N 1 to 1,000,000.
+    #[arg(long, value_name = "N", value_parser = parse_turntable)]
+    #[arg(conflicts_with_all = ["frames", "eye"])]
     turntable: Option<u32>,
 }
 
@@ -331,6 +332,11 @@ fn parse_frames(s: &str) -> Result<usize, String> {
     parse_count(s, "--frames", MAX_FRAMES)
 }
 
+fn parse_turntable(s: &str) -> Result<u32, String> {
+    // MAX_FRAMES fits in u32.
+    parse_count(s, "--turntable", MAX_FRAMES).map(|n| n as u32)
+}
+
 /// The most points `sample` and `splat-bench` take: 2^30 points are about 40 GB of cloud and
 /// hierarchy. Counts far past it are typos, whose allocations aborted the process (capacity
 /// overflow) instead of reporting an error.
@@ -357,16 +363,21 @@ fn parse_count(s: &str, name: &str, max: usize) -> Result<usize, String> {
 }
 
 /// The thread count `RAYON_NUM_THREADS` asks the global pool for, checked before the pool
-/// starts: rayon reads it (0 or not a number means all cores), but a count too large to start
-/// aborts the process.
+/// starts, whatever the command: rayon reads it (0 or not a number means all cores), but a
+/// count too large to start aborts the process.
 fn check_rayon_threads() -> Result<(), Error> {
-    let Some(value) = std::env::var_os("RAYON_NUM_THREADS") else { return Ok(()) };
-    match value.to_str().and_then(|v| v.parse::<usize>().ok()) {
-        Some(n) if n > MAX_THREADS => Err(usage(format!(
-            "RAYON_NUM_THREADS={n}: at most {MAX_THREADS} worker threads (0 or unset: all cores)"
-        ))),
-        _ => Ok(()),
+    // The second is rayon's older name for the first, still read.
+    for name in ["RAYON_NUM_THREADS", "RAYON_RS_NUM_CPUS"] {
+        let Some(value) = std::env::var_os(name) else { continue };
+        if let Some(n) = value.to_str().and_then(|v| v.parse::<usize>().ok())
+            && n > MAX_THREADS
+        {
+            return Err(usage(format!(
+                "{name}={n}: at most {MAX_THREADS} worker threads (0 or unset: all cores)"
+            )));
+        }
     }
+    Ok(())
 }
 
 fn parse_msaa(s: &str) -> Result<SampleCount, String> {
@@ -453,7 +464,9 @@ impl From<DepthTestArg> for DepthTest {
     }
 }
 
-/// A command-line mistake that clap cannot see (a value that does not fit the projection).
+/// A mistake in what the command was given that clap cannot see and the library has no error
+/// for: a value that does not fit the projection, an input with nothing to sample, a file's
+/// triangle out of the window range (said with the file's name).
 fn usage(message: String) -> Error {
     Error::Usage(message)
 }
@@ -483,11 +496,11 @@ fn main() -> ExitCode {
 
 fn render(args: &RenderArgs) -> Result<(), Error> {
     check_outputs(&[
-        ("--output", Some(&args.output)),
-        ("--depth", args.depth.as_ref()),
-        ("--ids", args.ids.as_ref()),
-        ("--overdraw", args.overdraw.as_ref()),
-        ("--normals", args.normals.as_ref()),
+        ("--output", Some(&args.output), Written::Png),
+        ("--depth", args.depth.as_ref(), Written::Npy),
+        ("--ids", args.ids.as_ref(), Written::Npy),
+        ("--overdraw", args.overdraw.as_ref(), Written::Npy),
+        ("--normals", args.normals.as_ref(), Written::Npy),
     ])?;
     let (width, height) = args.size;
     let window = args.projection == ProjectionArg::Window;
@@ -527,6 +540,9 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         }
     }
     warn_about(&mesh);
+    if mesh.positions.is_empty() {
+        eprintln!("trirast: warning: the file has no vertices and no faces: nothing to draw");
+    }
     if let (Some(eye), Some(look)) = (args.eye, args.target) {
         if eye == look {
             return Err(usage("--eye and --target must differ".into()));
@@ -587,7 +603,6 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
             })?;
             write_outputs(args, &target, None)
         }
-        Some(0) => Err(usage("--turntable needs at least 1 frame".into())),
         Some(frames) => {
             let bar = ProgressBar::new(u64::from(frames)).with_style(
                 ProgressStyle::with_template("{bar:40} {pos}/{len} frames, {eta} left")
@@ -707,8 +722,7 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
             }
             (_, e) => e,
         })
-    })?;
-    Ok(())
+    })
 }
 
 /// `out.png` -> `out_007.png`: frame `k` of `total`, numbered with at least three digits and
@@ -720,20 +734,49 @@ fn frame_path(output: &Path, k: u32, total: u32) -> PathBuf {
     output.with_file_name(format!("{stem}_{k:0width$}.{ext}", width = digits.max(3)))
 }
 
+/// What a command writes to a file, for [`check_outputs`].
+#[derive(Clone, Copy, PartialEq)]
+enum Written {
+    /// A PNG image.
+    Png,
+    /// A NumPy array.
+    Npy,
+    /// Another format (a point cloud, a packed hierarchy): only the directory is checked.
+    Other,
+}
+
+/// Extensions of formats trirast does not write: a PNG or `.npy` named with one would be read
+/// as that format by whatever opens it.
+const OTHER_FORMATS: [&str; 14] = [
+    "jpg", "jpeg", "bmp", "gif", "tif", "tiff", "webp", "tga", "exr", "hdr", "ppm", "ply", "obj",
+    "tsplat",
+];
+
 /// Checks the files a command will write before it does any work: two options naming one
 /// file (the second silently overwrote the first, and "wrote" named a PNG holding an `.npy`),
 /// a directory that does not exist (found only after rendering, with some files already
-/// written), and an `--output` image named other than `.png`.
-fn check_outputs(outputs: &[(&str, Option<&PathBuf>)]) -> Result<(), Error> {
-    let named: Vec<(&str, &PathBuf)> =
-        outputs.iter().filter_map(|&(option, path)| Some((option, path?))).collect();
-    for (k, &(option, path)) in named.iter().enumerate() {
-        // The colour image is PNG whatever its name: a `.jpg` held PNG bytes.
+/// written), and a name that says another format (a `.jpg` held PNG bytes).
+fn check_outputs(outputs: &[(&str, Option<&PathBuf>, Written)]) -> Result<(), Error> {
+    let named: Vec<(&str, &PathBuf, Written)> =
+        outputs.iter().filter_map(|&(option, path, kind)| Some((option, path?, kind))).collect();
+    // `a.png` and `./a.png` are one file.
+    let same = |a: &Path, b: &Path| {
+        let cur = std::path::Component::CurDir;
+        a.components().filter(|c| *c != cur).eq(b.components().filter(|c| *c != cur))
+    };
+    for (k, &(option, path, kind)) in named.iter().enumerate() {
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-        if option == "--output" && ext.is_some_and(|e| e != "png") {
-            return Err(usage(format!("--output {}: images are written as .png", path.display())));
+        let ext = ext.as_deref().unwrap_or("");
+        let misnamed = match kind {
+            Written::Png => OTHER_FORMATS.contains(&ext) || ext == "npy",
+            Written::Npy => OTHER_FORMATS.contains(&ext) || ext == "png",
+            Written::Other => false,
+        };
+        if misnamed {
+            let format = if kind == Written::Png { ".png" } else { ".npy" };
+            return Err(usage(format!("{option} {}: it is written as {format}", path.display())));
         }
-        if let Some(&(first, _)) = named[..k].iter().find(|(_, p)| p == &path) {
+        if let Some(&(first, ..)) = named[..k].iter().find(|(_, p, _)| same(p, path)) {
             return Err(usage(format!("{first} and {option} both name {}", path.display())));
         }
         let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
@@ -817,7 +860,6 @@ fn bench(
             })
             .collect()
     };
-    let frames = frames.max(1);
     // What the kernels run on, so that figures from different machines can be told apart.
     let simd = trirast::simd::SimdLevel::detect();
     if !json {
@@ -850,7 +892,7 @@ fn bench(
                 pool.install(|| bench::run(scene, frames, threads, samples, dense_triangles))?;
             if json {
                 println!(
-                    "{{\"scene\":\"{}\",\"source\":{:?},\"triangles\":{},\"pixels\":{},\"fragments\":{},\"threads\":{},\"msaa\":{},\"simd\":\"{simd:?}\",\"median_ms\":{:.3},\"min_ms\":{:.3},\"mtri_per_s\":{:.2},\"gfrag_per_s\":{:.3},\"schedule\":\"{}\"}}",
+                    "{{\"scene\":\"{}\",\"source\":{:?},\"triangles\":{},\"pixels\":{},\"fragments\":{},\"threads\":{},\"msaa\":{},\"simd\":\"{simd:?}\",\"median_ms\":{:.3},\"min_ms\":{:.3},\"mtri_per_s\":{:.2},\"gfrag_per_s\":{:.3},\"schedule\":{}}}",
                     r.scene,
                     r.source,
                     r.triangles,
@@ -862,7 +904,7 @@ fn bench(
                     r.min_ms,
                     r.mtri_per_s(),
                     r.gfrag_per_s(),
-                    r.schedule.map_or("-", Schedule::name)
+                    r.schedule.map_or("null".into(), |s| format!("\"{}\"", s.name()))
                 );
             } else {
                 let cost = match baseline {
@@ -870,7 +912,7 @@ fn bench(
                     _ => String::new(),
                 };
                 println!(
-                    "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10.2} {:>10.2} {:>9.1} {:>9.3}  {}{cost}",
+                    "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10.2} {:>10.2} {:>9.1} {:>9.3}  {:<6}{cost}",
                     r.scene,
                     r.triangles,
                     r.pixels,
@@ -936,12 +978,11 @@ fn warn_about(mesh: &Mesh) {
              `trirast splat`",
             mesh.positions.len()
         );
-    } else if mesh.triangles.is_empty() {
-        eprintln!("trirast: warning: the file has no vertices and no faces: nothing to draw");
     }
 }
 
 fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Error> {
+    check_outputs(&[("--output", Some(&output.to_path_buf()), Written::Other)])?;
     let mesh = trirast::mesh::load(file)?;
     warn_about(&mesh);
     let textures = MaterialTextures::load(&mesh);
@@ -964,29 +1005,33 @@ fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Er
     Ok(())
 }
 
+/// The splat hierarchy of a `.tsplat` file, or built from a PLY cloud; an empty cloud is an
+/// error (nothing could draw it, so nothing should pack it).
 fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
     let is_tsplat = file.extension().is_some_and(|e| e.eq_ignore_ascii_case("tsplat"));
-    if is_tsplat {
-        return trirast::splat::format::read(file);
+    let tree = if is_tsplat {
+        trirast::splat::format::read(file)?
+    } else {
+        let cloud = trirast::splat::cloud::read_ply(file)?;
+        let start = std::time::Instant::now();
+        let tree = trirast::splat::SplatTree::build(&cloud);
+        eprintln!(
+            "built the hierarchy of {} points ({} nodes) in {:.0} ms",
+            cloud.positions.len(),
+            tree.nodes.len(),
+            start.elapsed().as_secs_f64() * 1e3
+        );
+        tree
+    };
+    if tree.nodes.is_empty() {
+        return Err(usage(format!("{}: the point cloud is empty", file.display())));
     }
-    let cloud = trirast::splat::cloud::read_ply(file)?;
-    let start = std::time::Instant::now();
-    let tree = trirast::splat::SplatTree::build(&cloud);
-    eprintln!(
-        "built the hierarchy of {} points ({} nodes) in {:.0} ms",
-        cloud.positions.len(),
-        tree.nodes.len(),
-        start.elapsed().as_secs_f64() * 1e3
-    );
     Ok(tree)
 }
 
 fn pack(file: &Path, output: &Path) -> Result<(), Error> {
+    check_outputs(&[("--output", Some(&output.to_path_buf()), Written::Other)])?;
     let tree = load_splats(file)?;
-    if tree.nodes.is_empty() {
-        // As `splat` says of it: nothing to pack that anything could draw.
-        return Err(usage(format!("{}: the point cloud is empty", file.display())));
-    }
     trirast::splat::format::write(output, &tree)?;
     let bytes = std::fs::metadata(output).map_err(|e| Error::io(output, e))?.len();
     eprintln!(
@@ -1003,13 +1048,13 @@ fn pack(file: &Path, output: &Path) -> Result<(), Error> {
 
 fn splat(args: &SplatArgs) -> Result<(), Error> {
     use trirast::splat::render::{Progressive, SplatOptions, SplatShape};
-    check_outputs(&[("--output", Some(&args.output)), ("--depth", args.depth.as_ref())])?;
+    check_outputs(&[
+        ("--output", Some(&args.output), Written::Png),
+        ("--depth", args.depth.as_ref(), Written::Npy),
+    ])?;
     let tree = load_splats(&args.file)?;
     let (width, height) = args.size;
     let mut target = Target::new(width, height)?;
-    if tree.nodes.is_empty() {
-        return Err(usage(format!("{}: the point cloud is empty", args.file.display())));
-    }
     // Framed like `trirast render` frames a mesh: by the points' bounding box, so a cloud
     // sampled from a mesh appears exactly where the mesh does.
     let leaves: Vec<[f32; 3]> =
@@ -1122,60 +1167,43 @@ fn demo(
         DemoArg::Smooth => Demo::Smooth,
         DemoArg::Soup => Demo::Soup,
     };
+    check_outputs(&[("--output", Some(&output.to_path_buf()), Written::Png)])?;
     let mut target = Target::new(size.0, size.1)?;
     let s = scene::demo(which, size.0, size.1);
     let options = RenderOptions::default().with_shading(s.shading).with_algorithm(algorithm.into());
-    draw_and_report(&mut target, &s.triangles, &options)?;
+    let clear = trirast::target::DEFAULT_CLEAR_COLOR;
+    draw_timed(&mut target, None, clear, |t| trirast::draw(t, &s.triangles, &options))?;
     trirast::output::write_png(output, &target)?;
     eprintln!("wrote {}", output.display());
     Ok(())
 }
 
-fn draw_and_report(
-    target: &mut Target,
-    triangles: &[[Vertex; 3]],
-    options: &RenderOptions,
-) -> Result<(), Error> {
-    let stats = trirast::draw(target, triangles, options)?;
-    report(&stats);
-    Ok(())
-}
-
-/// Draws a frame with `draw`, or with `frames = Some(n)` one untimed frame and `n` timed ones
-/// (each on a target cleared to `clear`), then reports the last frame's counts and the median
-/// and fastest frame times with the throughput (`trirast render --frames`).
+/// Draws a frame with `draw` on a target cleared to `clear`, or with `frames = Some(n)` one
+/// untimed frame and `n` timed ones, then reports the last frame's counts and, when timed, the
+/// median and fastest frame times with the throughput (`trirast render --frames`).
 fn draw_timed(
     target: &mut Target,
     frames: Option<usize>,
     clear: [u8; 4],
     mut draw: impl FnMut(&mut Target) -> Result<trirast::DrawStats, Error>,
-) -> Result<trirast::DrawStats, Error> {
-    let mut times = Vec::new();
-    let mut stats = trirast::DrawStats::default();
-    for frame in 0..=frames.unwrap_or(0) {
+) -> Result<(), Error> {
+    let (stats, times) = trirast::bench::time_frames(frames.unwrap_or(0), || {
         target.clear(clear);
-        let start = std::time::Instant::now();
-        stats = draw(target)?;
-        if frame > 0 {
-            times.push(start.elapsed().as_secs_f64() * 1e3);
-        }
-    }
+        draw(target)
+    })?;
     report(&stats);
-    if !times.is_empty() {
-        times.sort_by(f64::total_cmp);
-        let median = times[times.len() / 2];
+    if let (Some(fastest), Some(&median)) = (times.first(), times.get(times.len() / 2)) {
         println!(
-            "{} frames, {} threads: median {median:.2} ms, min {:.2} ms per frame; \
+            "{} frames, {} threads: median {median:.2} ms, min {fastest:.2} ms per frame; \
              {:.1} Mtri/s, {:.3} G frag/s{}",
             times.len(),
             rayon::current_num_threads(),
-            times[0],
             stats.submitted as f64 / median / 1e3,
             stats.fragments as f64 / median / 1e6,
             target.last_schedule().map_or(String::new(), |s| format!("; {}", s.name()))
         );
     }
-    Ok(stats)
+    Ok(())
 }
 
 fn report(stats: &trirast::DrawStats) {

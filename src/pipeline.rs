@@ -714,8 +714,8 @@ impl FrontEnd {
             emit(self.setup_inside(input, id));
             return;
         }
-        // A NaN or infinite coordinate is outside every clip plane's test; clipped, it made a
-        // fan of pieces, each counted as non-finite: one triangle reported as several.
+        // Rejected before clipping so that a triangle with a NaN or infinite coordinate is
+        // counted once, as non-finite: clipped, it could make a fan of pieces, each counted.
         if !input.iter().all(|v| v.clip.position.is_finite()) {
             emit(Err(Skipped::Rejected(Rejection::NonFinite)));
             return;

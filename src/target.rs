@@ -132,11 +132,13 @@ impl Target {
         self.scratch = Scratch(Some(Box::new(scratch)));
     }
 
-    /// How the tiled backend spread the last draw call on this target ([`crate::render::draw`],
-    /// [`crate::pipeline::Pipeline::draw`]) over threads: [`Schedule::Binned`] or
-    /// [`Schedule::Banded`], what [`Schedule::Auto`] chose. `None` before any draw call, and
-    /// after one on the reference backend or one that failed. For benchmarks and tuning: every
-    /// schedule draws the same pixels.
+    /// How the tiled backend spread the last call of [`crate::render::draw`] or
+    /// [`crate::pipeline::Pipeline::draw`] on this target over threads (the calls every
+    /// triangle draw goes through, `model::render_mesh`'s and the polygon fills' among them):
+    /// [`Schedule::Binned`] or [`Schedule::Banded`], what [`Schedule::Auto`] chose. `None`
+    /// before any such call, and after one on the reference backend or one that failed.
+    /// Splat rendering does not change it. For benchmarks and tuning: every schedule draws the
+    /// same pixels.
     #[must_use]
     pub fn last_schedule(&self) -> Option<Schedule> {
         self.schedule

@@ -815,15 +815,17 @@ fn absurd_counts_and_angles_are_usage_errors() {
 #[test]
 fn clashing_or_unreachable_outputs_are_refused_before_rendering() {
     let dir = TempDir::new("outputs");
-    let cases: [&[&str]; 4] = [
+    let cases: [&[&str]; 5] = [
         &["render", "--size", "64x48", "-o", "a.png", "--depth", "a.png"],
-        &["render", "--size", "64x48", "-o", "a.png", "--ids", "d.npy", "--overdraw", "d.npy"],
+        &["demo", "-o", "a.jpg"],
+        &["render", "--size", "64x48", "-o", "a.png", "--ids", "d.npy", "--overdraw", "./d.npy"],
         &["render", "--size", "64x48", "-o", "a.png", "--ids", "missing/ids.npy"],
         &["render", "--size", "64x48", "-o", "missing/a.png"],
     ];
     for args in cases {
         let err = run_err(&dir.0, args);
-        assert!(err.contains("both name") || err.contains("no directory"), "{args:?}: {err}");
+        let refused = ["both name", "no directory", "written as"];
+        assert!(refused.iter().any(|r| err.contains(r)), "{args:?}: {err}");
         assert!(!dir.path("a.png").exists(), "{args:?}: nothing is written");
     }
     run_ok(&dir.0, ["render", "--size", "64x48", "-o", "a.png", "--depth", "a.npy"]);
