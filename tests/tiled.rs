@@ -427,6 +427,21 @@ fn pipeline_matches_the_reference() {
     }
 }
 
+/// A grid of `nx x ny` quads, two triangles each, in rows: vertex `(i, j)` at
+/// `position(i / nx, j / ny)`.
+fn grid_mesh(nx: u32, ny: u32, position: impl Fn(f32, f32) -> Vec4) -> (Vec<Vec4>, Vec<[u32; 3]>) {
+    let positions = (0..=ny)
+        .flat_map(|j| (0..=nx).map(move |i| (i as f32 / nx as f32, j as f32 / ny as f32)))
+        .map(|(x, y)| position(x, y))
+        .collect();
+    let row = nx + 1;
+    let triangles = (0..ny)
+        .flat_map(|j| (0..nx).map(move |i| j * row + i))
+        .flat_map(|a| [[a, a + 1, a + row + 1], [a, a + row + 1, a + row]])
+        .collect();
+    (positions, triangles)
+}
+
 /// Meshes with more vertices than the pipeline shades up front go through per-batch windows
 /// of corners (compact index ranges; triangles that pass the corner tests or need clipping
 /// shade their vertices again) or per-corner shading (scattered indices); both give the
@@ -434,26 +449,11 @@ fn pipeline_matches_the_reference() {
 /// and, along one side, behind the near plane (clipped).
 #[test]
 fn large_meshes_shade_vertices_in_batches() {
-    let (nx, ny) = (1100u32, 1000u32);
-    let positions: Vec<Vec4> = (0..=ny)
-        .flat_map(|j| {
-            (0..=nx).map(move |i| {
-                let (x, y) = (i as f32 / nx as f32, j as f32 / ny as f32);
-                let z = 0.5 * x * y + 0.3 * y - 0.02;
-                Vec4::new(2.4 * x - 1.2, 2.0 * y - 1.0, z, 1.0)
-            })
-        })
-        .collect();
+    let (positions, triangles) = grid_mesh(1100, 1000, |x, y| {
+        let z = 0.5 * x * y + 0.3 * y - 0.02;
+        Vec4::new(2.4 * x - 1.2, 2.0 * y - 1.0, z, 1.0)
+    });
     assert!(positions.len() > 1 << 20);
-    let row = nx + 1;
-    let mut triangles: Vec<[u32; 3]> = Vec::new();
-    for j in 0..ny {
-        for i in 0..nx {
-            let a = j * row + i;
-            triangles.push([a, a + 1, a + row + 1]);
-            triangles.push([a, a + row + 1, a + row]);
-        }
-    }
     // Also a scattered order: every 7th triangle moved to the end.
     let mut scattered: Vec<[u32; 3]> = triangles.iter().copied().step_by(7).collect();
     scattered.extend(triangles.iter().enumerate().filter(|(k, _)| k % 7 != 0).map(|(_, t)| *t));
@@ -812,20 +812,8 @@ fn bands_on_few_rows_match_the_reference() {
 /// report none.
 #[test]
 fn last_schedule_reports_the_schedule_used() {
-    let (nx, ny) = (400u32, 200u32);
-    let positions: Vec<Vec4> = (0..=ny)
-        .flat_map(|j| {
-            (0..=nx).map(move |i| {
-                let x = -1.0 + 2.0 * i as f32 / nx as f32;
-                Vec4::new(x, -1.0 + 2.0 * j as f32 / ny as f32, 0.5, 1.0)
-            })
-        })
-        .collect();
-    let row = nx + 1;
-    let grid: Vec<[u32; 3]> = (0..ny)
-        .flat_map(|j| (0..nx).map(move |i| j * row + i))
-        .flat_map(|a| [[a, a + 1, a + row + 1], [a, a + row + 1, a + row]])
-        .collect();
+    let (positions, grid) =
+        grid_mesh(400, 200, |x, y| Vec4::new(2.0 * x - 1.0, 2.0 * y - 1.0, 0.5, 1.0));
     let mut shuffled = grid.clone();
     let mut rng = SmallRng::seed_from_u64(5);
     for k in (1..shuffled.len()).rev() {
