@@ -496,11 +496,11 @@ fn main() -> ExitCode {
 
 fn render(args: &RenderArgs) -> Result<(), Error> {
     check_outputs(&[
-        ("--output", Some(&args.output), Written::Png),
-        ("--depth", args.depth.as_ref(), Written::Npy),
-        ("--ids", args.ids.as_ref(), Written::Npy),
-        ("--overdraw", args.overdraw.as_ref(), Written::Npy),
-        ("--normals", args.normals.as_ref(), Written::Npy),
+        ("--output", Some(args.output.as_path()), Written::Png),
+        ("--depth", args.depth.as_deref(), Written::Npy),
+        ("--ids", args.ids.as_deref(), Written::Npy),
+        ("--overdraw", args.overdraw.as_deref(), Written::Npy),
+        ("--normals", args.normals.as_deref(), Written::Npy),
     ])?;
     let (width, height) = args.size;
     let window = args.projection == ProjectionArg::Window;
@@ -756,8 +756,8 @@ const OTHER_FORMATS: [&str; 14] = [
 /// file (the second silently overwrote the first, and "wrote" named a PNG holding an `.npy`),
 /// a directory that does not exist (found only after rendering, with some files already
 /// written), and a name that says another format (a `.jpg` held PNG bytes).
-fn check_outputs(outputs: &[(&str, Option<&PathBuf>, Written)]) -> Result<(), Error> {
-    let named: Vec<(&str, &PathBuf, Written)> =
+fn check_outputs(outputs: &[(&str, Option<&Path>, Written)]) -> Result<(), Error> {
+    let named: Vec<(&str, &Path, Written)> =
         outputs.iter().filter_map(|&(option, path, kind)| Some((option, path?, kind))).collect();
     // `a.png` and `./a.png` are one file.
     let same = |a: &Path, b: &Path| {
@@ -982,7 +982,7 @@ fn warn_about(mesh: &Mesh) {
 }
 
 fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Error> {
-    check_outputs(&[("--output", Some(&output.to_path_buf()), Written::Other)])?;
+    check_outputs(&[("--output", Some(output), Written::Other)])?;
     let mesh = trirast::mesh::load(file)?;
     warn_about(&mesh);
     let textures = MaterialTextures::load(&mesh);
@@ -1030,7 +1030,7 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
 }
 
 fn pack(file: &Path, output: &Path) -> Result<(), Error> {
-    check_outputs(&[("--output", Some(&output.to_path_buf()), Written::Other)])?;
+    check_outputs(&[("--output", Some(output), Written::Other)])?;
     let tree = load_splats(file)?;
     trirast::splat::format::write(output, &tree)?;
     let bytes = std::fs::metadata(output).map_err(|e| Error::io(output, e))?.len();
@@ -1049,8 +1049,8 @@ fn pack(file: &Path, output: &Path) -> Result<(), Error> {
 fn splat(args: &SplatArgs) -> Result<(), Error> {
     use trirast::splat::render::{Progressive, SplatOptions, SplatShape};
     check_outputs(&[
-        ("--output", Some(&args.output), Written::Png),
-        ("--depth", args.depth.as_ref(), Written::Npy),
+        ("--output", Some(args.output.as_path()), Written::Png),
+        ("--depth", args.depth.as_deref(), Written::Npy),
     ])?;
     let tree = load_splats(&args.file)?;
     let (width, height) = args.size;
@@ -1167,7 +1167,7 @@ fn demo(
         DemoArg::Smooth => Demo::Smooth,
         DemoArg::Soup => Demo::Soup,
     };
-    check_outputs(&[("--output", Some(&output.to_path_buf()), Written::Png)])?;
+    check_outputs(&[("--output", Some(output), Written::Png)])?;
     let mut target = Target::new(size.0, size.1)?;
     let s = scene::demo(which, size.0, size.1);
     let options = RenderOptions::default().with_shading(s.shading).with_algorithm(algorithm.into());
