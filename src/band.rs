@@ -71,6 +71,18 @@ pub enum Plan {
     Banded(Bands),
 }
 
+impl Plan {
+    /// The schedule this plan carries out (what [`crate::target::Target::last_schedule`]
+    /// reports).
+    #[must_use]
+    pub fn schedule(&self) -> Schedule {
+        match self {
+            Self::Binned => Schedule::Binned,
+            Self::Banded(_) => Schedule::Banded,
+        }
+    }
+}
+
 /// The bands a draw call's triangles are drawn in ([`Bands::draw`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Bands {

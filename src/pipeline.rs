@@ -327,8 +327,8 @@ impl Pipeline {
                 } else {
                     band::Plan::Binned
                 };
+                target.set_schedule(Some(plan.schedule()));
                 if let band::Plan::Banded(bands) = plan {
-                    target.set_schedule(Some(Schedule::Banded));
                     let (counts, covered) = bands.draw(
                         target,
                         front.coverage,
@@ -347,7 +347,6 @@ impl Pipeline {
                     target.keep_scratch(scratch);
                     return Ok(stats);
                 }
-                target.set_schedule(Some(Schedule::Binned));
                 let mut counts = DrawStats::default();
                 let mut fragments = 0;
                 let prepare = |b: usize, first, batch: &[_], out: &mut bin::PreparedBatch<_>| {

@@ -286,8 +286,8 @@ fn draw_tiled<C: WindowColor>(
     let plan = band::plan(schedule, triangles.len(), canvas, &visible, threads, |k| {
         window_bounds(&triangles[k])
     });
+    target.set_schedule(Some(plan.schedule()));
     if let Plan::Banded(bands) = plan {
-        target.set_schedule(Some(Schedule::Banded));
         let (counts, fragments) = bands.draw(
             target,
             coverage,
@@ -302,7 +302,6 @@ fn draw_tiled<C: WindowColor>(
         stats.fragments += fragments;
         return stats;
     }
-    target.set_schedule(Some(Schedule::Binned));
     let mut pair: bin::PreparedPair<C> = target.take_scratch();
     let batch_len = bin::batch_len(target.samples());
     let mut fragments = 0;
