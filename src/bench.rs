@@ -266,13 +266,13 @@ fn draw(
 }
 
 /// Runs `frame` once to warm up (caches, the thread pool, the target's kept buffers) and then
-/// `frames` more times, timing each: returns the last frame's counts and the times in ms,
-/// fastest first (empty when `frames` is 0). The one timing loop of `trirast bench` and
-/// `trirast render --frames`.
-pub fn time_frames(
+/// `frames` more times, timing each: returns what the last frame returned (its counts) and
+/// the times in ms, fastest first (empty when `frames` is 0). The one timing loop of
+/// `trirast bench`, `splat-bench` and `render --frames`.
+pub fn time_frames<T>(
     frames: usize,
-    mut frame: impl FnMut() -> Result<DrawStats, Error>,
-) -> Result<(DrawStats, Vec<f64>), Error> {
+    mut frame: impl FnMut() -> Result<T, Error>,
+) -> Result<(T, Vec<f64>), Error> {
     let mut stats = frame()?;
     let mut times = Vec::new();
     for _ in 0..frames {
@@ -365,17 +365,10 @@ pub fn run_splats(points: usize, frames: usize) -> Result<SplatBenchResult, Erro
     let projection = Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y };
     let camera = Camera::framing_sphere(centre, radius, 0.5, 0.35, 16.0 / 9.0, projection);
     let mut target = Target::new(1920, 1080)?;
-    let mut times = Vec::new();
-    let mut splats = 0;
-    for frame in 0..=frames.max(1) {
+    let (splats, times) = time_frames(frames.max(1), || {
         target.clear([0, 0, 0, 255]);
-        let t = Instant::now();
-        splats = splat_render::render(&mut target, &tree, &camera, &SplatOptions::default()).drawn;
-        if frame > 0 {
-            times.push(t.elapsed().as_secs_f64() * 1e3);
-        }
-    }
-    times.sort_by(f64::total_cmp);
+        Ok(splat_render::render(&mut target, &tree, &camera, &SplatOptions::default()).drawn)
+    })?;
     Ok(SplatBenchResult {
         points: cloud.positions.len(),
         nodes: tree.nodes.len(),
