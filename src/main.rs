@@ -543,6 +543,8 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     if mesh.positions.is_empty() {
         eprintln!("trirast: warning: the file has no vertices and no faces: nothing to draw");
     }
+    // The camera's up with --eye and --target (Y, unless --up says otherwise).
+    let up = Vec3::from(args.up.unwrap_or([0.0, 1.0, 0.0]));
     if let (Some(eye), Some(look)) = (args.eye, args.target) {
         if eye == look {
             return Err(usage("--eye and --target must differ".into()));
@@ -550,7 +552,6 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         // An up direction along the view (or zero) leaves the image's roll undefined; the
         // camera fell back to another up without a word.
         let view = (Vec3::from(look) - Vec3::from(eye)).normalize();
-        let up = Vec3::from(args.up.unwrap_or([0.0, 1.0, 0.0]));
         if up.normalize_or_zero().cross(view).length() < 1e-3 {
             let which = if args.up.is_some() { "--up" } else { "the default --up 0,1,0" };
             return Err(usage(format!(
@@ -589,7 +590,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
             let distance = eye.distance(centre);
             cam.eye = eye;
             cam.target = look;
-            cam.up = Vec3::from(args.up.unwrap_or([0.0, 1.0, 0.0]));
+            cam.up = up;
             cam.near = (distance - radius * 1.5).max(radius * 1e-3);
             cam.far = distance + radius * 1.5;
         }
