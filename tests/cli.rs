@@ -53,11 +53,22 @@ where
     I: IntoIterator<Item = S>,
     S: AsRef<OsStr>,
 {
-    Command::new(env!("CARGO_BIN_EXE_trirast"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("failed to start the trirast binary")
+    trirast_with_env(dir, args, ("", ""))
+}
+
+/// [`trirast_in`] with the environment variable `name` set to `value` (none when `name` is
+/// empty).
+fn trirast_with_env<I, S>(dir: &Path, args: I, (name, value): (&str, &str)) -> Output
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<OsStr>,
+{
+    let mut command = Command::new(env!("CARGO_BIN_EXE_trirast"));
+    command.args(args).current_dir(dir);
+    if !name.is_empty() {
+        command.env(name, value);
+    }
+    command.output().expect("failed to start the trirast binary")
 }
 
 fn stderr_of(out: &Output) -> String {
@@ -720,13 +731,8 @@ fn bench_reports_its_simd_level_and_the_same_work_at_every_level() {
         rest[..rest.find([',', '}']).unwrap()].trim_matches('"').to_string()
     };
     let run = |simd: Option<&str>| {
-        let mut cmd = Command::new(env!("CARGO_BIN_EXE_trirast"));
-        cmd.args(["bench", "fill", "--frames", "1", "--threads", "2", "--json"])
-            .current_dir(&dir.0);
-        if let Some(level) = simd {
-            cmd.env("TRIRAST_SIMD", level);
-        }
-        let out = cmd.output().expect("failed to start the trirast binary");
+        let args = ["bench", "fill", "--frames", "1", "--threads", "2", "--json"];
+        let out = trirast_with_env(&dir.0, args, simd.map_or(("", ""), |l| ("TRIRAST_SIMD", l)));
         assert!(out.status.success(), "bench failed: {}", stderr_of(&out));
         String::from_utf8(out.stdout).unwrap().trim().to_string()
     };
@@ -755,24 +761,16 @@ fn impossible_thread_counts_are_usage_errors() {
             assert!(err.contains("--threads"), "{command} --threads {threads}: {err}");
         }
     }
-    let out = Command::new(env!("CARGO_BIN_EXE_trirast"))
-        .args(["render", "-o", "out.png"])
-        .env("RAYON_NUM_THREADS", "100000")
-        .current_dir(&dir.0)
-        .output()
-        .expect("failed to start the trirast binary");
+    let out =
+        trirast_with_env(&dir.0, ["render", "-o", "out.png"], ("RAYON_NUM_THREADS", "100000"));
     let err = stderr_of(&out);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("RAYON_NUM_THREADS=100000"), "{err}");
     assert!(!dir.path("out.png").exists(), "nothing is rendered");
     // What rayon takes as "all cores" (0, not a number) still runs.
     for value in ["0", "lots"] {
-        let out = Command::new(env!("CARGO_BIN_EXE_trirast"))
-            .args(["render", "--size", "64x48", "-o", "out.png"])
-            .env("RAYON_NUM_THREADS", value)
-            .current_dir(&dir.0)
-            .output()
-            .expect("failed to start the trirast binary");
+        let args = ["render", "--size", "64x48", "-o", "out.png"];
+        let out = trirast_with_env(&dir.0, args, ("RAYON_NUM_THREADS", value));
         assert!(out.status.success(), "RAYON_NUM_THREADS={value}: {}", stderr_of(&out));
     }
 }
