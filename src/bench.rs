@@ -317,6 +317,95 @@ pub fn run(
     })
 }
 
+/// Writes `scene`'s input into `dir` as NumPy arrays beside a JSON file naming them (returned),
+/// so that another renderer can draw the same triangles: `tools/llvmpipe/bench.py` times
+/// Mesa's llvmpipe on them. Arrays are `NAME_positions.npy` and, per scene kind:
+/// - `window` (soup, fill): positions (3n, 3) in pixels and depth, colours (3n, 4) `u8`, three
+///   rows per triangle;
+/// - `lit` (bunny): positions (v, 3), normals (v, 3), indices (n, 3) `u32`, with the
+///   [`ModelView`](model::ModelView) matrices (column-major), light and colour in the JSON;
+/// - `grid`: clip-space positions (v, 4), linear colours (v, 3), indices;
+/// - `dense`: positions (v, 3), indices, the view-projection matrix in the JSON.
+pub fn export(
+    scene: BenchScene,
+    dense_triangles: usize,
+    dir: &Path,
+) -> Result<std::path::PathBuf, Error> {
+    use crate::output::write_npy_shaped;
+    let (prepared, width, height, source) = prepare(scene, dense_triangles)?;
+    let name = scene.name();
+    let array = |what: &str| dir.join(format!("{name}_{what}.npy"));
+    let rows = |n: usize| n as u64;
+    let matrix = |m: &glam::Mat4| format!("{:?}", m.to_cols_array());
+    let vec3 = |v: Vec3| format!("{:?}", v.to_array());
+    let extra = match &prepared {
+        Prepared::Window { triangles, .. } => {
+            let corners = triangles.as_flattened();
+            let positions: Vec<f32> = corners.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
+            let colors: Vec<u8> = corners.iter().flat_map(|v| v.color).collect();
+            write_npy_shaped(&array("positions"), &positions, &[rows(corners.len()), 3])?;
+            write_npy_shaped(&array("colors"), &colors, &[rows(corners.len()), 4])?;
+            "\"kind\":\"window\"".to_string()
+        }
+        Prepared::Model { mesh, camera, options } => {
+            let view = model::ModelView::new(camera, width as f32 / height as f32);
+            let normals = mesh.normals.as_deref().unwrap_or_default();
+            let v = rows(mesh.positions.len());
+            write_npy_shaped(&array("positions"), mesh.positions.as_flattened(), &[v, 3])?;
+            write_npy_shaped(&array("normals"), normals.as_flattened(), &[v, 3])?;
+            let indices = mesh.triangles.as_flattened();
+            write_npy_shaped(&array("indices"), indices, &[rows(mesh.triangles.len()), 3])?;
+            let light = &options.light;
+            format!(
+                "\"kind\":\"lit\",\"origin\":{},\"view\":{},\"view_proj\":{},\"albedo\":{:?},\
+                 \"light\":{{\"direction\":{},\"diffuse\":{:?},\"ambient\":{:?},\
+                 \"specular\":{:?},\"shininess\":{:?}}}",
+                vec3(view.origin),
+                matrix(&view.view),
+                matrix(&view.view_proj),
+                model::CLAY.to_array(),
+                vec3(light.direction),
+                light.diffuse,
+                light.ambient,
+                light.specular,
+                light.shininess,
+            )
+        }
+        Prepared::Grid { positions, colors, triangles, .. } => {
+            let v = rows(positions.len());
+            let flat: Vec<f32> = positions.iter().flat_map(|p| p.to_array()).collect();
+            write_npy_shaped(&array("positions"), &flat, &[v, 4])?;
+            let flat: Vec<f32> = colors.iter().flat_map(|c| c.to_array()).collect();
+            write_npy_shaped(&array("colors"), &flat, &[v, 3])?;
+            write_npy_shaped(
+                &array("indices"),
+                triangles.as_flattened(),
+                &[rows(triangles.len()), 3],
+            )?;
+            "\"kind\":\"grid\"".to_string()
+        }
+        Prepared::Dense { positions, triangles, view_proj } => {
+            write_npy_shaped(
+                &array("positions"),
+                positions.as_flattened(),
+                &[rows(positions.len()), 3],
+            )?;
+            write_npy_shaped(
+                &array("indices"),
+                triangles.as_flattened(),
+                &[rows(triangles.len()), 3],
+            )?;
+            format!("\"kind\":\"dense\",\"view_proj\":{}", matrix(view_proj))
+        }
+    };
+    let json = dir.join(format!("{name}.json"));
+    let text = format!(
+        "{{\"scene\":\"{name}\",\"source\":{source:?},\"width\":{width},\"height\":{height},{extra}}}\n"
+    );
+    std::fs::write(&json, text).map_err(|e| Error::io(&json, e))?;
+    Ok(json)
+}
+
 /// The point counts of the lectures' splatting figures.
 pub const SPLAT_COUNTS: [usize; 3] = [130_712, 1_017_149, 14_835_967];
 

@@ -58,6 +58,11 @@ enum Command {
         /// Print one JSON object per scene instead of a table.
         #[arg(long)]
         json: bool,
+        /// Write each scene's triangles (NumPy arrays and a JSON file) into this existing
+        /// directory instead of timing it, for drawing them with another renderer
+        /// (tools/llvmpipe/bench.py times Mesa's llvmpipe on them).
+        #[arg(long, value_name = "DIR", conflicts_with_all = ["json", "threads", "frames", "msaa"])]
+        export: Option<PathBuf>,
     },
     /// Time the splat hierarchy: build, bytes per point, ms per frame at 1920x1080, for the
     /// lectures' 130,712 / 1,017,149 / 14,835,967 points sampled from the bunny.
@@ -480,7 +485,10 @@ fn main() -> ExitCode {
         Command::SplatBench { points, threads, frames } => splat_bench(&points, threads, frames),
         Command::Pack { file, output } => pack(&file, &output),
         Command::Splat(args) => splat(&args),
-        Command::Bench { scenes, threads, frames, msaa, dense_triangles, json } => {
+        Command::Bench { scenes, dense_triangles, export: Some(dir), .. } => {
+            export(&scenes, dense_triangles, &dir)
+        }
+        Command::Bench { scenes, threads, frames, msaa, dense_triangles, json, export: None } => {
             bench(&scenes, threads, frames, msaa, dense_triangles, json)
         }
         Command::Demo { which, output, size, algorithm } => demo(which, &output, size, algorithm),
@@ -832,6 +840,36 @@ where
     }
 }
 
+/// The scenes named on the command line, or all five.
+fn bench_scenes(scenes: &[SceneArg]) -> Vec<trirast::bench::BenchScene> {
+    use trirast::bench::BenchScene;
+    if scenes.is_empty() {
+        return BenchScene::ALL.to_vec();
+    }
+    scenes
+        .iter()
+        .map(|s| match s {
+            SceneArg::Bunny => BenchScene::Bunny,
+            SceneArg::Soup => BenchScene::Soup,
+            SceneArg::Grid => BenchScene::Grid,
+            SceneArg::Fill => BenchScene::Fill,
+            SceneArg::Dense => BenchScene::Dense,
+        })
+        .collect()
+}
+
+/// `trirast bench --export DIR`: the scenes' triangles written out, not timed.
+fn export(scenes: &[SceneArg], dense_triangles: usize, dir: &Path) -> Result<(), Error> {
+    if !dir.is_dir() {
+        return Err(usage(format!("--export {}: no such directory", dir.display())));
+    }
+    for scene in bench_scenes(scenes) {
+        let json = trirast::bench::export(scene, dense_triangles, dir)?;
+        println!("{}: {}", scene.name(), json.display());
+    }
+    Ok(())
+}
+
 fn bench(
     scenes: &[SceneArg],
     threads: Option<usize>,
@@ -840,27 +878,14 @@ fn bench(
     dense_triangles: usize,
     json: bool,
 ) -> Result<(), Error> {
-    use trirast::bench::{self, BenchScene};
+    use trirast::bench;
     let threads =
         threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .map_err(|e| usage(format!("cannot start {threads} threads: {e}")))?;
-    let scenes: Vec<BenchScene> = if scenes.is_empty() {
-        BenchScene::ALL.to_vec()
-    } else {
-        scenes
-            .iter()
-            .map(|s| match s {
-                SceneArg::Bunny => BenchScene::Bunny,
-                SceneArg::Soup => BenchScene::Soup,
-                SceneArg::Grid => BenchScene::Grid,
-                SceneArg::Fill => BenchScene::Fill,
-                SceneArg::Dense => BenchScene::Dense,
-            })
-            .collect()
-    };
+    let scenes = bench_scenes(scenes);
     // What the kernels run on, so that figures from different machines can be told apart.
     let simd = trirast::simd::SimdLevel::detect();
     if !json {

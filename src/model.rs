@@ -228,6 +228,35 @@ struct Surface<'a> {
     face_normals: Vec<Vec3>,
 }
 
+/// The colour (linear RGBA) of a mesh with neither vertex colours nor materials: a light clay,
+/// not pure white, so that highlights stay visible.
+pub const CLAY: Vec4 = Vec4::new(0.62, 0.6, 0.56, 1.0);
+
+/// The transforms [`render_mesh`] applies: a vertex `p` goes to view space as
+/// `view * (p - origin)` and to clip space as `view_proj * (p - origin)`.
+#[derive(Clone, Copy, Debug)]
+pub struct ModelView {
+    /// The point looked at. Working relative to it keeps a model far from the world origin
+    /// (scans in survey coordinates, say) in f32 precision: `p - origin` is exact for
+    /// nearby values.
+    pub origin: Vec3,
+    /// World (relative to `origin`) to view space.
+    pub view: Mat4,
+    /// World (relative to `origin`) to clip space.
+    pub view_proj: Mat4,
+}
+
+impl ModelView {
+    /// The transforms of `camera` on a target of the given aspect ratio (width / height).
+    #[must_use]
+    pub fn new(camera: &Camera, aspect: f32) -> Self {
+        let origin = camera.target;
+        let local_camera = Camera { eye: camera.eye - origin, target: Vec3::ZERO, ..*camera };
+        let view = local_camera.view();
+        Self { origin, view, view_proj: camera.projection(aspect) * view }
+    }
+}
+
 /// Varyings of the model shaders: view-space normal, texture coordinate, linear colour (for
 /// Gouraud: already lit), view-space position.
 type ModelVaryings = (Vec3, Vec2, Vec4, Vec3);
@@ -330,12 +359,7 @@ pub fn render_mesh(
 ) -> Result<DrawStats, Error> {
     check_mesh(mesh)?;
     let aspect = target.width() as f32 / target.height() as f32;
-    // Work relative to the point looked at: a model far from the origin (scans in survey
-    // coordinates, say) keeps its f32 precision, since p - origin is exact for nearby values.
-    let origin = camera.target;
-    let local_camera = Camera { eye: camera.eye - origin, target: Vec3::ZERO, ..*camera };
-    let view = local_camera.view();
-    let view_proj = camera.projection(aspect) * view;
+    let ModelView { origin, view, view_proj } = ModelView::new(camera, aspect);
     let normal_matrix = Mat3::from_mat4(view).inverse().transpose();
     // Vertex normals, where something reads them: the lighting per vertex or per pixel, or
     // the normal buffer (flat lighting writes face normals there). Borrowed when the mesh
@@ -364,13 +388,8 @@ pub fn render_mesh(
 
     let light = options.light;
     let light_direction = light.unit_direction();
-    // A mesh with neither colours nor materials gets a light clay colour, not pure white,
-    // so highlights stay visible.
-    let base_albedo = if mesh.colors.is_none() && mesh.materials.is_empty() {
-        Vec4::new(0.62, 0.6, 0.56, 1.0)
-    } else {
-        Vec4::ONE
-    };
+    let base_albedo =
+        if mesh.colors.is_none() && mesh.materials.is_empty() { CLAY } else { Vec4::ONE };
     let vertex = |&i: &u32| -> (Vec4, ModelVaryings) {
         let i = i as usize;
         let p = (Vec3::from(mesh.positions[i]) - origin).extend(1.0);

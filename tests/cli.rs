@@ -748,6 +748,71 @@ fn bench_reports_its_simd_level_and_the_same_work_at_every_level() {
     assert!(field(&default, "median_ms").parse::<f64>().unwrap() > 0.0);
 }
 
+/// `trirast bench --export` writes the triangles it times, for another renderer to draw: the
+/// fill scene's exported window triangles, drawn again through the library, give the
+/// fragments `bench` counts; indexed scenes export in-range indices, normals beside positions
+/// and their matrices; a missing directory is a usage error.
+#[test]
+fn bench_export_writes_the_scenes_it_times() {
+    let dir = TempDir::new("bench-export");
+    let out = dir.path("out");
+    fs::create_dir(&out).unwrap();
+    let args = ["bench", "fill", "bunny", "dense", "--dense-triangles", "2000", "--export"];
+    let stdout = |args: Vec<&OsStr>| {
+        let output = trirast_in(&dir.0, args);
+        assert!(output.status.success(), "trirast failed: {}", stderr_of(&output));
+        String::from_utf8(output.stdout).unwrap()
+    };
+    let listed = stdout(args.iter().map(OsStr::new).chain([out.as_os_str()]).collect());
+    assert!(listed.contains("fill.json") && listed.contains("dense.json"), "{listed}");
+    let json = |scene: &str| fs::read_to_string(out.join(format!("{scene}.json"))).unwrap();
+    let npy = |name: &str| read_npy(&out.join(format!("{name}.npy")));
+
+    // Fill: three rows (x, y, z) and three colours per triangle.
+    assert!(json("fill").contains("\"width\":3840,\"height\":2160,\"kind\":\"window\""));
+    let (positions, colors) = (npy("fill_positions"), npy("fill_colors"));
+    assert_eq!((positions.descr.as_str(), positions.shape.as_slice()), ("<f4", &[768, 3][..]));
+    assert_eq!((colors.descr.as_str(), colors.shape.as_slice()), ("|u1", &[768, 4][..]));
+    let xyz: Vec<f32> =
+        positions.data.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
+    let vertex = |i: usize| {
+        let (p, c) = (&xyz[3 * i..3 * i + 3], &colors.data[4 * i..4 * i + 4]);
+        trirast::Vertex::new(p[0], p[1], p[2], c.try_into().unwrap())
+    };
+    let triangles: Vec<[trirast::Vertex; 3]> =
+        (0..256).map(|t| [vertex(3 * t), vertex(3 * t + 1), vertex(3 * t + 2)]).collect();
+    let mut target = trirast::Target::new(3840, 2160).unwrap();
+    let options = trirast::RenderOptions::default().with_shading(trirast::Shading::Smooth);
+    let drawn = trirast::draw(&mut target, &triangles, &options).unwrap();
+    let timed = stdout(["bench", "fill", "--frames", "1", "--json"].map(OsStr::new).to_vec());
+    assert!(timed.contains(&format!("\"fragments\":{},", drawn.fragments)), "{timed}");
+
+    // Indexed scenes: indices within the positions, one normal per position.
+    for (scene, columns) in [("bunny", 3), ("dense", 3)] {
+        let positions = npy(&format!("{scene}_positions"));
+        let indices = npy(&format!("{scene}_indices"));
+        assert_eq!(positions.shape[1], columns);
+        assert_eq!((indices.descr.as_str(), indices.shape[1]), ("<u4", 3));
+        assert!(indices.u32s().iter().all(|&i| (i as usize) < positions.shape[0]), "{scene}");
+    }
+    let timed = stdout(["bench", "bunny", "--frames", "1", "--json"].map(OsStr::new).to_vec());
+    let triangles = npy("bunny_indices").shape[0];
+    assert!(timed.contains(&format!("\"triangles\":{triangles},")), "{timed}");
+    assert_eq!(npy("bunny_normals").shape, npy("bunny_positions").shape);
+    assert!(
+        json("bunny").contains("\"kind\":\"lit\"") && json("bunny").contains("\"view_proj\":[")
+    );
+    let dense = json("dense");
+    let matrix = dense.split("\"view_proj\":[").nth(1).and_then(|m| m.split(']').next());
+    assert_eq!(matrix.map(|m| m.split(',').count()), Some(16), "{dense}");
+    assert!(npy("dense_indices").shape[0] > 0);
+
+    let err = run_err(&dir.0, ["bench", "fill", "--export", "no/such/dir"]);
+    assert!(err.contains("--export no/such/dir"), "{err}");
+    let err = run_err(&dir.0, ["bench", "fill", "--json", "--export", "."]);
+    assert!(err.contains("--export"), "{err}");
+}
+
 /// Thread counts that cannot be honoured are usage errors, not a silent default or an abort:
 /// `--threads 0` (which rayon would take as "all cores" while the table printed 0), and counts
 /// too large to start (a hundred thousand threads cannot get their stacks, and a thread that
