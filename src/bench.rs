@@ -19,7 +19,7 @@ use crate::pipeline::{FaceCull, Fragment, Pipeline};
 use crate::render::{self, DrawStats, RenderOptions, Schedule};
 use crate::sample::SampleCount;
 use crate::scene;
-use crate::setup::Vertex;
+use crate::setup::{CullMode, Vertex};
 use crate::shade::Shading;
 use crate::target::Target;
 
@@ -258,9 +258,7 @@ fn draw(
         Prepared::Grid { positions, colors, vertices, triangles } => {
             let vs = |&i: &u32| (positions[i as usize], colors[i as usize]);
             let fs = |f: &Fragment<Vec3>| Some(f.varyings.extend(1.0));
-            Pipeline::default()
-                .with_cull(FaceCull::None)
-                .draw(target, &vs, &fs, vertices, triangles)
+            Pipeline::default().with_cull(GRID_CULL).draw(target, &vs, &fs, vertices, triangles)
         }
     }
 }
@@ -317,6 +315,18 @@ pub fn run(
     })
 }
 
+/// The grid culls nothing: every one of its triangles is drawn.
+const GRID_CULL: FaceCull = FaceCull::None;
+
+/// A cull mode as `export` names it.
+fn face_cull(cull: FaceCull) -> &'static str {
+    match cull {
+        FaceCull::None => "none",
+        FaceCull::Back => "back",
+        FaceCull::Front => "front",
+    }
+}
+
 /// Writes `scene`'s input into `dir` as NumPy arrays beside a JSON file naming them (returned),
 /// so that another renderer can draw the same triangles: `tools/llvmpipe/bench.py` times
 /// Mesa's llvmpipe on them. Arrays are `NAME_positions.npy` and, per scene kind:
@@ -339,13 +349,18 @@ pub fn export(
     let matrix = |m: &glam::Mat4| format!("{:?}", m.to_cols_array());
     let vec3 = |v: Vec3| format!("{:?}", v.to_array());
     let extra = match &prepared {
-        Prepared::Window { triangles, .. } => {
+        Prepared::Window { triangles, options } => {
             let corners = triangles.as_flattened();
             let positions: Vec<f32> = corners.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
             let colors: Vec<u8> = corners.iter().flat_map(|v| v.color).collect();
             write_npy_shaped(&array("positions"), &positions, &[rows(corners.len()), 3])?;
             write_npy_shaped(&array("colors"), &colors, &[rows(corners.len()), 4])?;
-            "\"kind\":\"window\"".to_string()
+            let cull = match options.cull {
+                CullMode::None => "none",
+                CullMode::Clockwise => "cw",
+                CullMode::CounterClockwise => "ccw",
+            };
+            format!("\"kind\":\"window\",\"cull\":\"{cull}\"")
         }
         Prepared::Model { mesh, camera, options } => {
             let view = model::ModelView::new(camera, width as f32 / height as f32);
@@ -357,9 +372,10 @@ pub fn export(
             write_npy_shaped(&array("indices"), indices, &[rows(mesh.triangles.len()), 3])?;
             let light = &options.light;
             format!(
-                "\"kind\":\"lit\",\"origin\":{},\"view\":{},\"view_proj\":{},\"albedo\":{:?},\
+                "\"kind\":\"lit\",\"cull\":\"{}\",\"origin\":{},\"view\":{},\"view_proj\":{},\"albedo\":{:?},\
                  \"light\":{{\"direction\":{},\"diffuse\":{:?},\"ambient\":{:?},\
                  \"specular\":{:?},\"shininess\":{:?}}}",
+                face_cull(options.cull),
                 vec3(view.origin),
                 matrix(&view.view),
                 matrix(&view.view_proj),
@@ -382,7 +398,7 @@ pub fn export(
                 triangles.as_flattened(),
                 &[rows(triangles.len()), 3],
             )?;
-            "\"kind\":\"grid\"".to_string()
+            format!("\"kind\":\"grid\",\"cull\":\"{}\"", face_cull(GRID_CULL))
         }
         Prepared::Dense { positions, triangles, view_proj } => {
             write_npy_shaped(
@@ -395,7 +411,8 @@ pub fn export(
                 triangles.as_flattened(),
                 &[rows(triangles.len()), 3],
             )?;
-            format!("\"kind\":\"dense\",\"view_proj\":{}", matrix(view_proj))
+            let cull = face_cull(FaceCull::default());
+            format!("\"kind\":\"dense\",\"cull\":\"{cull}\",\"view_proj\":{}", matrix(view_proj))
         }
     };
     let json = dir.join(format!("{name}.json"));

@@ -770,6 +770,11 @@ fn bench_export_writes_the_scenes_it_times() {
 
     // Fill: three rows (x, y, z) and three colours per triangle.
     assert!(json("fill").contains("\"width\":3840,\"height\":2160,\"kind\":\"window\""));
+    // What is culled is exported: the 3D scenes cull back faces as `Pipeline` does by default.
+    assert!(json("fill").contains("\"cull\":\"none\""));
+    assert!(
+        json("bunny").contains("\"cull\":\"back\"") && json("dense").contains("\"cull\":\"back\"")
+    );
     let (positions, colors) = (npy("fill_positions"), npy("fill_colors"));
     assert_eq!((positions.descr.as_str(), positions.shape.as_slice()), ("<f4", &[768, 3][..]));
     assert_eq!((colors.descr.as_str(), colors.shape.as_slice()), ("|u1", &[768, 4][..]));

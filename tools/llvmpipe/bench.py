@@ -6,9 +6,9 @@ side on the same machine in the same minutes (this VM's speed drifts by up to 1.
 
 Needs Mesa's EGL and llvmpipe and `pip install PyOpenGL numpy` (see coverage.py). Each scene is
 drawn as trirast draws it: 1920x1080 (fill 3840x2160) RGBA8 colour and 32-bit float depth,
-LESS, cleared every frame; window scenes (soup, fill) with smooth colour; the bunny lit per
-vertex (the same Blinn-Phong head light and clay colour), back faces culled; the grid with
-its vertex colours, nothing culled; the dense mesh with one colour per triangle. 3D scenes
+LESS, cleared every frame, culling as the scene's JSON says; window scenes (soup, fill) with
+smooth colour; the bunny lit per vertex (the same Blinn-Phong head light and clay colour);
+the grid with its vertex colours; the dense mesh with one colour per triangle. 3D scenes
 write sRGB, as trirast's pipeline does. A frame is timed from the clear to `glFinish`, the
 geometry already in GPU buffers (uploaded once, as trirast's timings exclude loading)."""
 
@@ -158,12 +158,15 @@ def load_scene(directory, name):
     GL.glClipControl(GL.GL_LOWER_LEFT, GL.GL_ZERO_TO_ONE)
     GL.glEnable(GL.GL_DEPTH_TEST)
     GL.glDepthFunc(GL.GL_LESS)
-    if kind == "lit":
+    cull = scene["cull"]
+    if cull == "none":
+        GL.glDisable(GL.GL_CULL_FACE)
+    elif cull in ("back", "front") and kind != "window":
         GL.glEnable(GL.GL_CULL_FACE)
-        GL.glCullFace(GL.GL_BACK)
+        GL.glCullFace(GL.GL_BACK if cull == "back" else GL.GL_FRONT)
         GL.glFrontFace(GL.GL_CCW)
     else:
-        GL.glDisable(GL.GL_CULL_FACE)
+        raise SystemExit(f"{name}: cull {cull!r} is not supported here")
     if kind == "window":
         GL.glDisable(GL.GL_FRAMEBUFFER_SRGB)
     else:
