@@ -96,8 +96,11 @@ def attribute(location, data, normalized=False):
 
 def load_scene(directory, name):
     """Uploads a scene; returns (description, draw function, GL buffers)."""
-    with open(os.path.join(directory, f"{name}.json")) as f:
-        scene = json.load(f)
+    try:
+        with open(os.path.join(directory, f"{name}.json")) as f:
+            scene = json.load(f)
+    except OSError as e:
+        raise SystemExit(f"{e} (was the scene exported?)") from None
 
     def array(what):
         return np.load(os.path.join(directory, f"{name}_{what}.npy"))
@@ -193,6 +196,10 @@ def main():
     parser.add_argument("--frames", type=int, default=10)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
+    if args.frames < 1:
+        parser.error("--frames must be at least 1")
+    if not os.path.isdir(args.directory):
+        raise SystemExit(f"{args.directory}: no such directory (trirast bench --export DIR)")
     renderer = context()
     scenes = args.scenes or sorted(
         f[:-5] for f in os.listdir(args.directory) if f.endswith(".json")

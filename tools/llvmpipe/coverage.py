@@ -120,7 +120,12 @@ def trirast_ids(exe, triangles, width, height, samples, workdir):
     cmd = [exe, "render", obj, "--projection", "window", "--size", f"{width}x{height}",
            "--msaa", str(samples), "--per-sample", "--depth-test", "always", "--ids", ids,
            "-o", os.path.join(workdir, "colour.png")]
-    subprocess.run(cmd, check=True, capture_output=True)
+    try:
+        subprocess.run(cmd, check=True, capture_output=True)
+    except FileNotFoundError:
+        raise SystemExit(f"{exe}: not found (cargo build --release, or pass --trirast)") from None
+    except subprocess.CalledProcessError as e:
+        raise SystemExit(f"{' '.join(cmd)} failed:\n{e.stderr.decode()}") from None
     ids = np.load(ids)
     return ids.reshape(height, width, samples)
 

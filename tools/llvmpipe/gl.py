@@ -8,7 +8,10 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 os.environ.setdefault("EGL_PLATFORM", "surfaceless")
 os.environ.setdefault("GALLIUM_DRIVER", "llvmpipe")
 
-from OpenGL import EGL, GL  # noqa: E402  (the platform must be chosen first)
+try:
+    from OpenGL import EGL, GL  # noqa: E402  (the platform must be chosen first)
+except ImportError as e:
+    raise SystemExit(f"{e}: pip install PyOpenGL numpy") from None
 
 EGL_PLATFORM_SURFACELESS_MESA = 0x31DD
 
