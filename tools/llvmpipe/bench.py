@@ -17,9 +17,8 @@ import json
 import os
 import time
 
+from gl import GL, Framebuffer, context, program  # noqa: I001  (gl checks the imports)
 import numpy as np
-
-from gl import GL, Framebuffer, context, program
 
 HEADER = "#version 450\n"
 WINDOW_VERTEX = HEADER + """

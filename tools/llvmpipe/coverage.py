@@ -17,9 +17,8 @@ import subprocess
 import sys
 import tempfile
 
+from gl import GL, Framebuffer, context, program  # noqa: I001  (gl checks the imports)
 import numpy as np
-
-from gl import GL, Framebuffer, context, program
 
 DRAW_VERTEX = """#version 450
 layout(location = 0) in vec2 window;  // pixels, y down

@@ -1,29 +1,53 @@
 """An offscreen OpenGL 4.5 context on Mesa's llvmpipe (EGL, surfaceless), for the comparisons
-in this directory. llvmpipe's thread count is LP_NUM_THREADS, set before the context exists."""
+in this directory. llvmpipe's thread count is LP_NUM_THREADS, set before the context exists.
+
+Without llvmpipe (no Mesa, no PyOpenGL or numpy, no context) the scripts exit with status
+`UNAVAILABLE`, so that CI can tell "nothing to compare with" from a difference (status 1)."""
 
 import ctypes
+import importlib.util
 import os
+import sys
+
+UNAVAILABLE = 3
+
+
+def unavailable(why):
+    """Exits with `UNAVAILABLE`, saying why."""
+    print(f"llvmpipe unavailable: {why}", file=sys.stderr)
+    sys.exit(UNAVAILABLE)
+
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 os.environ.setdefault("EGL_PLATFORM", "surfaceless")
 os.environ.setdefault("GALLIUM_DRIVER", "llvmpipe")
 
+if importlib.util.find_spec("numpy") is None:
+    unavailable("no numpy: pip install PyOpenGL numpy")
 try:
     from OpenGL import EGL, GL  # noqa: E402  (the platform must be chosen first)
 except ImportError as e:
-    raise SystemExit(f"{e}: pip install PyOpenGL numpy") from None
+    unavailable(f"{e}: pip install PyOpenGL numpy")
 
 EGL_PLATFORM_SURFACELESS_MESA = 0x31DD
 
 
 def context():
-    """Makes an OpenGL core context current and returns GL_RENDERER (it must say llvmpipe)."""
+    """Makes an OpenGL core context current and returns GL_RENDERER and GL_VERSION (the
+    renderer must be llvmpipe)."""
+    try:
+        return _context()
+    except Exception as e:  # a missing libEGL shows as any of several PyOpenGL errors
+        unavailable(f"no EGL context ({type(e).__name__}: {e})")
+
+
+def _context():
     display = EGL.eglGetPlatformDisplayEXT(
         EGL_PLATFORM_SURFACELESS_MESA, EGL.EGL_DEFAULT_DISPLAY, None
     )
     major, minor = EGL.EGLint(), EGL.EGLint()
     if not EGL.eglInitialize(display, ctypes.pointer(major), ctypes.pointer(minor)):
-        raise SystemExit("eglInitialize failed: is Mesa (libegl-mesa0) installed?")
+        unavailable("eglInitialize failed: is Mesa (libegl-mesa0) installed?")
     EGL.eglBindAPI(EGL.EGL_OPENGL_API)
     config, count = EGL.EGLConfig(), EGL.EGLint()
     wanted = (EGL.EGLint * 3)(EGL.EGL_RENDERABLE_TYPE, EGL.EGL_OPENGL_BIT, EGL.EGL_NONE)
@@ -36,10 +60,10 @@ def context():
     )
     ctx = EGL.eglCreateContext(display, config, EGL.EGL_NO_CONTEXT, attributes)
     if not ctx or not EGL.eglMakeCurrent(display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE, ctx):
-        raise SystemExit("cannot create an OpenGL 4.5 core context")
+        unavailable("cannot create an OpenGL 4.5 core context")
     renderer = GL.glGetString(GL.GL_RENDERER).decode()
     if "llvmpipe" not in renderer:
-        raise SystemExit(f"GL_RENDERER is {renderer!r}, not llvmpipe")
+        unavailable(f"GL_RENDERER is {renderer!r}, not llvmpipe")
     return renderer + ", " + GL.glGetString(GL.GL_VERSION).decode()
 
 
