@@ -2,7 +2,7 @@
 side on the same machine in the same minutes (this VM's speed drifts by up to 1.6x over a day).
 
     trirast bench [SCENE...] --export DIR
-    LP_NUM_THREADS=2 python3 tools/llvmpipe/bench.py DIR [--frames 10] [--json]
+    LP_NUM_THREADS=2 python3 tools/llvmpipe/bench.py DIR [--frames 10] [--samples 4] [--json]
 
 Needs Mesa's EGL and llvmpipe and `pip install PyOpenGL numpy` (see coverage.py). Each scene is
 drawn as trirast draws it: 1920x1080 (fill 3840x2160) RGBA8 colour and 32-bit float depth,
@@ -193,6 +193,7 @@ def main():
     parser.add_argument("directory", help="what `trirast bench --export DIR` wrote")
     parser.add_argument("scenes", nargs="*", help="default: every scene in the directory")
     parser.add_argument("--frames", type=int, default=10)
+    parser.add_argument("--samples", type=int, default=1, help="MSAA samples (1 or 4)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     if args.frames < 1:
@@ -205,12 +206,14 @@ def main():
     )
     threads = os.environ.get("LP_NUM_THREADS", "all cores")
     if not args.json:
-        print(f"{renderer}, LP_NUM_THREADS={threads}")
+        print(f"{renderer}, LP_NUM_THREADS={threads}, {args.samples}x")
         print(f"{'scene':<6} {'triangles':>11} {'passed':>12} {'median ms':>10} {'min ms':>10}"
               f" {'Mtri/s':>9}")
     for name in scenes:
         scene, triangles, draw, release = load_scene(args.directory, name)
-        target = Framebuffer(scene["width"], scene["height"], GL.GL_SRGB8_ALPHA8, depth=True)
+        target = Framebuffer(
+            scene["width"], scene["height"], GL.GL_SRGB8_ALPHA8, depth=True, samples=args.samples
+        )
         query = int(np.atleast_1d(GL.glGenQueries(1))[0])
         times = []
         for frame in range(args.frames + 1):
@@ -234,6 +237,7 @@ def main():
         rate = triangles / median / 1e3
         if args.json:
             print(json.dumps({"scene": name, "renderer": renderer, "threads": threads,
+                              "samples": args.samples,
                               "triangles": triangles, "samples_passed": passed,
                               "median_ms": median, "min_ms": fastest, "mtri_per_s": rate}))
         else:
