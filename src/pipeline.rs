@@ -781,18 +781,26 @@ impl FrontEnd {
     /// Zero area, culling and "covers no sample", from the snapped corners alone: most
     /// triangles of a dense mesh stop here, before their edge functions are built.
     ///
-    /// A sample can be covered only if it lies in the snapped box, so "covers no sample" is
-    /// each sample's box test (at 1x the pixel centres'). Multisampled, this is narrower than
-    /// the coverage rectangle binning uses (the pixels within half a pixel of the box), which
-    /// let nearly every sub-pixel triangle through to setup and per-sample coverage.
+    /// Multisampled, the coverage rectangle (the pixels within half a pixel of the box) lets
+    /// nearly every sub-pixel triangle through, so a box under a pixel wide or high also takes
+    /// each sample's box test: a sample can be covered only if it lies in the box. (A box a
+    /// pixel wide and high holds a sample of every pattern position.)
     fn corner_tests(&self, xy: [[i64; 2]; 3]) -> Result<(), Skipped> {
         TriangleSetup::signed_area2(xy, self.cull)?;
         let extent = setup::extent(xy);
-        let clip = &self.coverage.clip;
-        let sample_in_box = (0..self.samples.count()).any(|s| {
-            setup::sample_bounds(extent, self.samples.offset(s)).intersect(clip).is_some()
-        });
-        if sample_in_box { Ok(()) } else { Err(Skipped::Empty) }
+        let bin::Coverage { clip, multisampled } = self.coverage;
+        if bin::extent_coverage_bounds(extent, multisampled, &clip).is_none() {
+            return Err(Skipped::Empty);
+        }
+        let [[x0, y0], [x1, y1]] = extent;
+        let sub_pixel = x1 - x0 < setup::PIXEL_STEP || y1 - y0 < setup::PIXEL_STEP;
+        if multisampled && sub_pixel {
+            let mut offsets = (0..self.samples.count()).map(|s| self.samples.offset(s));
+            if !offsets.any(|o| setup::sample_bounds(extent, o).intersect(&clip).is_some()) {
+                return Err(Skipped::Empty);
+            }
+        }
+        Ok(())
     }
 
     /// Setup and planes of a snapped triangle inside the clip volume that passed the corner
