@@ -253,7 +253,7 @@ fn draw(
                 let c = |shift: u32| ((h >> shift) & 0xFF) as f32 / 255.0;
                 Some(Vec4::new(c(0), c(8), c(16), 1.0))
             };
-            Pipeline::default().draw(target, &vs, &fs, positions, triangles)
+            Pipeline::default().with_cull(DENSE_CULL).draw(target, &vs, &fs, positions, triangles)
         }
         Prepared::Grid { positions, colors, vertices, triangles } => {
             let vs = |&i: &u32| (positions[i as usize], colors[i as usize]);
@@ -317,9 +317,11 @@ pub fn run(
 
 /// The grid culls nothing: every one of its triangles is drawn.
 const GRID_CULL: FaceCull = FaceCull::None;
+/// The dense sphere is closed: its back faces are culled.
+const DENSE_CULL: FaceCull = FaceCull::Back;
 
 /// A cull mode as `export` names it.
-fn face_cull(cull: FaceCull) -> &'static str {
+fn cull_name(cull: FaceCull) -> &'static str {
     match cull {
         FaceCull::None => "none",
         FaceCull::Back => "back",
@@ -327,9 +329,9 @@ fn face_cull(cull: FaceCull) -> &'static str {
     }
 }
 
-/// Writes `scene`'s input into `dir` as NumPy arrays beside a JSON file naming them (returned),
-/// so that another renderer can draw the same triangles: `tools/llvmpipe/bench.py` times
-/// Mesa's llvmpipe on them. Arrays are `NAME_positions.npy` and, per scene kind:
+/// Writes `scene`'s input into `dir` as NumPy arrays beside a JSON file describing the scene
+/// (`NAME.json`, returned), so that another renderer can draw the same triangles:
+/// `tools/llvmpipe/bench.py` times Mesa's llvmpipe on them. Arrays are `NAME_WHAT.npy`:
 /// - `window` (soup, fill): positions (3n, 3) in pixels and depth, colours (3n, 4) `u8`, three
 ///   rows per triangle;
 /// - `lit` (bunny): positions (v, 3), normals (v, 3), indices (n, 3) `u32`, with the
@@ -364,7 +366,7 @@ pub fn export(
         }
         Prepared::Model { mesh, camera, options } => {
             let view = model::ModelView::new(camera, width as f32 / height as f32);
-            let normals = mesh.normals.as_deref().unwrap_or_default();
+            let normals = mesh.normals.as_deref().expect("normals computed by `prepare`");
             let v = rows(mesh.positions.len());
             write_npy_shaped(&array("positions"), mesh.positions.as_flattened(), &[v, 3])?;
             write_npy_shaped(&array("normals"), normals.as_flattened(), &[v, 3])?;
@@ -372,14 +374,14 @@ pub fn export(
             write_npy_shaped(&array("indices"), indices, &[rows(mesh.triangles.len()), 3])?;
             let light = &options.light;
             format!(
-                "\"kind\":\"lit\",\"cull\":\"{}\",\"origin\":{},\"view\":{},\"view_proj\":{},\"albedo\":{:?},\
-                 \"light\":{{\"direction\":{},\"diffuse\":{:?},\"ambient\":{:?},\
+                "\"kind\":\"lit\",\"cull\":\"{}\",\"origin\":{},\"view\":{},\"view_proj\":{},\
+                 \"albedo\":{:?},\"light\":{{\"direction\":{},\"diffuse\":{:?},\"ambient\":{:?},\
                  \"specular\":{:?},\"shininess\":{:?}}}",
-                face_cull(options.cull),
+                cull_name(options.cull),
                 vec3(view.origin),
                 matrix(&view.view),
                 matrix(&view.view_proj),
-                model::CLAY.to_array(),
+                model::base_albedo(mesh).to_array(),
                 vec3(light.direction),
                 light.diffuse,
                 light.ambient,
@@ -398,7 +400,7 @@ pub fn export(
                 triangles.as_flattened(),
                 &[rows(triangles.len()), 3],
             )?;
-            format!("\"kind\":\"grid\",\"cull\":\"{}\"", face_cull(GRID_CULL))
+            format!("\"kind\":\"grid\",\"cull\":\"{}\"", cull_name(GRID_CULL))
         }
         Prepared::Dense { positions, triangles, view_proj } => {
             write_npy_shaped(
@@ -411,16 +413,34 @@ pub fn export(
                 triangles.as_flattened(),
                 &[rows(triangles.len()), 3],
             )?;
-            let cull = face_cull(FaceCull::default());
+            let cull = cull_name(DENSE_CULL);
             format!("\"kind\":\"dense\",\"cull\":\"{cull}\",\"view_proj\":{}", matrix(view_proj))
         }
     };
     let json = dir.join(format!("{name}.json"));
     let text = format!(
-        "{{\"scene\":\"{name}\",\"source\":{source:?},\"width\":{width},\"height\":{height},{extra}}}\n"
+        "{{\"scene\":\"{name}\",\"source\":{},\"width\":{width},\"height\":{height},{extra}}}\n",
+        json_string(&source)
     );
     std::fs::write(&json, text).map_err(|e| Error::io(&json, e))?;
     Ok(json)
+}
+
+/// `s` as a JSON string, quotes included.
+#[must_use]
+pub fn json_string(s: &str) -> String {
+    let mut out = String::with_capacity(s.len() + 2);
+    out.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            c if u32::from(c) < 0x20 => out.push_str(&format!("\\u{:04x}", u32::from(c))),
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
 }
 
 /// The point counts of the lectures' splatting figures.

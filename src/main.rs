@@ -918,9 +918,9 @@ fn bench(
                 pool.install(|| bench::run(scene, frames, threads, samples, dense_triangles))?;
             if json {
                 println!(
-                    "{{\"scene\":\"{}\",\"source\":{:?},\"triangles\":{},\"pixels\":{},\"fragments\":{},\"threads\":{},\"msaa\":{},\"simd\":\"{simd:?}\",\"median_ms\":{:.3},\"min_ms\":{:.3},\"mtri_per_s\":{:.2},\"gfrag_per_s\":{:.3},\"schedule\":{}}}",
+                    "{{\"scene\":\"{}\",\"source\":{},\"triangles\":{},\"pixels\":{},\"fragments\":{},\"threads\":{},\"msaa\":{},\"simd\":\"{simd:?}\",\"median_ms\":{:.3},\"min_ms\":{:.3},\"mtri_per_s\":{:.2},\"gfrag_per_s\":{:.3},\"schedule\":{}}}",
                     r.scene,
-                    r.source,
+                    bench::json_string(&r.source),
                     r.triangles,
                     r.pixels,
                     r.fragments,

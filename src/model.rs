@@ -228,9 +228,17 @@ struct Surface<'a> {
     face_normals: Vec<Vec3>,
 }
 
-/// The colour (linear RGBA) of a mesh with neither vertex colours nor materials: a light clay,
-/// not pure white, so that highlights stay visible.
-pub const CLAY: Vec4 = Vec4::new(0.62, 0.6, 0.56, 1.0);
+/// The colour (linear RGBA) [`render_mesh`] starts from where the mesh has no vertex colours:
+/// white (materials and textures multiply it), or for a mesh with neither colours nor
+/// materials a light clay, not pure white, so that highlights stay visible.
+#[must_use]
+pub fn base_albedo(mesh: &Mesh) -> Vec4 {
+    if mesh.colors.is_none() && mesh.materials.is_empty() {
+        Vec4::new(0.62, 0.6, 0.56, 1.0)
+    } else {
+        Vec4::ONE
+    }
+}
 
 /// The transforms [`render_mesh`] applies: a vertex `p` goes to view space as
 /// `view * (p - origin)` and to clip space as `view_proj * (p - origin)`.
@@ -388,8 +396,7 @@ pub fn render_mesh(
 
     let light = options.light;
     let light_direction = light.unit_direction();
-    let base_albedo =
-        if mesh.colors.is_none() && mesh.materials.is_empty() { CLAY } else { Vec4::ONE };
+    let base_albedo = base_albedo(mesh);
     let vertex = |&i: &u32| -> (Vec4, ModelVaryings) {
         let i = i as usize;
         let p = (Vec3::from(mesh.positions[i]) - origin).extend(1.0);

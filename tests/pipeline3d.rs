@@ -475,15 +475,16 @@ fn non_finite_vertices_drop_their_triangle_once() {
 /// The 3D pipeline covers exactly the samples the window-space path covers, given the same
 /// triangles in clip space with `w = 1` (target sides powers of two, vertices on the 1/256
 /// grid: the viewport maps them back exactly). Pixel-sized and sub-pixel triangles, at 1x, 4x
-/// and 8x, on both backends, for a small mesh and for one over 2^20 vertices (shaded per
-/// batch, corners in a window). The pipeline's front end drops triangles that cover no sample
-/// from their corners alone, before setup; the window path's setup is separate code, so a
-/// rejection too many shows as a missing id here (the two backends share the front end).
+/// and 8x, with and without culling, on the reference backend and on the tiled one binned and
+/// banded, for a small mesh and for one over 2^20 vertices (shaded per batch, corners in a
+/// window). The pipeline's front end drops triangles that cover no sample from their corners
+/// alone, before setup; the window path's setup is separate code, so a rejection too many
+/// shows as a missing id here (the two backends share the front end).
 #[test]
 fn pipeline_covers_the_samples_window_triangles_cover() {
-    use trirast::render::{Backend, RenderOptions};
+    use trirast::render::{Backend, RenderOptions, Schedule};
     use trirast::sample::SampleCount;
-    use trirast::{DepthTest, Vertex};
+    use trirast::{CullMode, DepthTest, Vertex};
     let (w, h) = (64u32, 32u32);
     let mut rng = SmallRng::seed_from_u64(31);
     let snap = |v: f32| (v * 256.0).round() / 256.0;
@@ -493,10 +494,8 @@ fn pipeline_covers_the_samples_window_triangles_cover() {
                 [rng.random_range(-2.0..w as f32 + 2.0), rng.random_range(-2.0..h as f32 + 2.0)];
             let size = if rng.random_bool(0.7) { 0.3 } else { 1.5 };
             std::array::from_fn(|_| {
-                [
-                    snap(c[0] + rng.random_range(-size..size)),
-                    snap(c[1] + rng.random_range(-size..size)),
-                ]
+                let jitter = [rng.random_range(-size..size), rng.random_range(-size..size)];
+                [snap(c[0] + jitter[0]), snap(c[1] + jitter[1])]
             })
         })
         .collect();
@@ -511,30 +510,40 @@ fn pipeline_covers_the_samples_window_triangles_cover() {
     large.resize((1 << 20) + 1000, Vec4::new(0.0, 0.0, 0.5, 1.0));
     let indices: Vec<[u32; 3]> =
         (0..window.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+    // Back faces are clockwise on the image (the viewport's y flip keeps windings).
+    let culls = [(FaceCull::None, CullMode::None), (FaceCull::Back, CullMode::Clockwise)];
+    let runs = [
+        (Backend::Reference, Schedule::Auto),
+        (Backend::Tiled, Schedule::Binned),
+        (Backend::Tiled, Schedule::Banded),
+    ];
     for samples in [SampleCount::X1, SampleCount::X4, SampleCount::X8] {
-        let mut want = Target::multisampled(w, h, samples).unwrap().with_ids();
-        let options = RenderOptions::default().with_depth_test(DepthTest::Always);
-        trirast::draw(&mut want, &triangles, &options).unwrap();
-        let want = want.ids.unwrap();
-        assert!(want.iter().filter(|&&i| i >= 0).count() > want.len() / 2, "a sparse test");
-        for (vertices, mesh) in [(&small, "small"), (&large, "large")] {
-            for backend in [Backend::Reference, Backend::Tiled] {
-                let mut target = Target::multisampled(w, h, samples).unwrap().with_ids();
-                Pipeline::default()
-                    .with_cull(FaceCull::None)
-                    .with_depth_test(DepthTest::Always)
-                    .with_backend(backend)
-                    .draw(
-                        &mut target,
-                        &|v: &Vec4| (*v, ()),
-                        &|_: &Fragment<()>| Some(Vec4::ONE),
-                        vertices,
-                        &indices,
-                    )
-                    .unwrap();
-                let got = target.ids.unwrap();
-                let differ = got.iter().zip(&want).filter(|(a, b)| a != b).count();
-                assert_eq!(differ, 0, "{samples:?}, {mesh} mesh, {backend:?}: samples differ");
+        for (face_cull, cull) in culls {
+            let mut want = Target::multisampled(w, h, samples).unwrap().with_ids();
+            let options =
+                RenderOptions::default().with_depth_test(DepthTest::Always).with_cull(cull);
+            trirast::draw(&mut want, &triangles, &options).unwrap();
+            let want = want.ids.unwrap();
+            let written = want.iter().filter(|&&i| i >= 0).count();
+            assert!(written > want.len() / 3, "{samples:?} {cull:?}: a sparse test");
+            for (vertices, mesh) in [(&small, "small"), (&large, "large")] {
+                for (backend, schedule) in runs {
+                    let mut target = Target::multisampled(w, h, samples).unwrap().with_ids();
+                    let vs = |v: &Vec4| (*v, ());
+                    let fs = |_: &Fragment<()>| Some(Vec4::ONE);
+                    Pipeline::default()
+                        .with_cull(face_cull)
+                        .with_depth_test(DepthTest::Always)
+                        .with_backend(backend)
+                        .with_schedule(schedule)
+                        .draw(&mut target, &vs, &fs, vertices, &indices)
+                        .unwrap();
+                    let got = target.ids.unwrap();
+                    let differ = got.iter().zip(&want).filter(|(a, b)| a != b).count();
+                    let what =
+                        format!("{samples:?}, {cull:?}, {mesh} mesh, {backend:?} {schedule:?}");
+                    assert_eq!(differ, 0, "{what}: samples differ");
+                }
             }
         }
     }
