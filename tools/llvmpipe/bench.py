@@ -47,8 +47,11 @@ void main() {
     vec3 view_pos = (view * p).xyz;
     vec3 n = normalize(normal_matrix * normal);
     vec3 to_eye = normalize(-view_pos);
-    float d = light.x * max(dot(n, light_direction), 0.0) + light.y;
-    float s = light.z * pow(max(dot(n, normalize(light_direction + to_eye)), 0.0), light.w);
+    float d = light.x * max(dot(n, light_direction), 0.0) + light.y;  // as Light::shade_towards
+    float n_l = dot(n, light_direction);
+    float s = n_l > 0.0
+        ? light.z * pow(max(dot(n, normalize(light_direction + to_eye)), 0.0), light.w)
+        : 0.0;
     v_color = vec4(albedo.rgb * d + s, albedo.a);
     gl_Position = view_proj * p;
 }
@@ -102,12 +105,18 @@ def load_scene(directory, name):
         raise SystemExit(f"{e} (was the scene exported?)") from None
 
     def array(what):
-        return np.load(os.path.join(directory, f"{name}_{what}.npy"))
+        path = os.path.join(directory, f"{name}_{what}.npy")
+        try:
+            return np.load(path)
+        except OSError as e:
+            raise SystemExit(f"{path}: {e} (was the scene exported?)") from None
 
     vao = GL.glGenVertexArrays(1)
     GL.glBindVertexArray(vao)
     buffers = []
-    kind = scene["kind"]
+    kind = scene.get("kind")
+    if kind not in ("window", "lit", "grid", "dense"):
+        raise SystemExit(f"{name}.json: not a scene `trirast bench --export` wrote")
     if kind == "window":
         prog = program(WINDOW_VERTEX, COLOR_FRAGMENT)
         GL.glUseProgram(prog)
@@ -129,7 +138,7 @@ def load_scene(directory, name):
             GL.glUniformMatrix4fv(uniform("view_proj"), 1, GL.GL_FALSE,
                                   np.array(scene["view_proj"], dtype=np.float32))
             upper = view.reshape(4, 4)[:3, :3]  # column-major: rows here are columns
-            normal_matrix = np.linalg.inv(upper).T.astype(np.float32)
+            normal_matrix = np.ascontiguousarray(np.linalg.inv(upper).T, dtype=np.float32)
             GL.glUniformMatrix3fv(uniform("normal_matrix"), 1, GL.GL_FALSE, normal_matrix)
             GL.glUniform4f(uniform("albedo"), *scene["albedo"])
             light = scene["light"]
@@ -148,7 +157,7 @@ def load_scene(directory, name):
                                   np.array(scene["view_proj"], dtype=np.float32))
             buffers.append(attribute(0, array("positions")))
         else:
-            raise SystemExit(f"{name}: unknown scene kind {kind!r}")
+            raise AssertionError(kind)
         element = GL.glGenBuffers(1)
         GL.glBindBuffer(GL.GL_ELEMENT_ARRAY_BUFFER, element)
         GL.glBufferData(GL.GL_ELEMENT_ARRAY_BUFFER, indices.nbytes, indices, GL.GL_STATIC_DRAW)
@@ -204,6 +213,8 @@ def main():
     scenes = args.scenes or sorted(
         f[:-5] for f in os.listdir(args.directory) if f.endswith(".json")
     )
+    if not scenes:
+        raise SystemExit(f"{args.directory}: no scenes (trirast bench --export DIR)")
     threads = os.environ.get("LP_NUM_THREADS", "all cores")
     if not args.json:
         print(f"{renderer}, LP_NUM_THREADS={threads}, {args.samples}x")

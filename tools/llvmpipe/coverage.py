@@ -2,9 +2,11 @@
 and sample for sample, which triangle each wrote last (triangle ids, no depth test).
 
     python3 tools/llvmpipe/coverage.py [--trirast target/release/trirast] [--cases 400]
+        [--samples 1,4]
 
-Needs Mesa's EGL and llvmpipe (Debian: libegl-mesa0 libgl1-mesa-dri) and `pip install PyOpenGL
-numpy`. Exits 1 if any case differs, saving its triangles to /tmp/llvmpipe_caseN.npy.
+Needs Mesa's EGL and llvmpipe (Debian: libegl1 libopengl0 libgl1-mesa-dri) and `pip install
+PyOpenGL numpy`. Exits 1 if any case differs (saving its triangles as llvmpipe_SxcaseN.npy in
+the temporary directory), 3 if there is no llvmpipe to compare with.
 
 Vertices are on the 1/512 pixel grid, so that half their coordinates fall midway between two
 snapped positions (round half to even decides) and many edges pass exactly through pixel
@@ -49,8 +51,9 @@ void main() { id = texelFetch(ids, origin + ivec2(gl_FragCoord.xy), sample_index
 """
 
 
-def llvmpipe_ids(triangles, width, height, samples):
-    """The last triangle covering each pixel centre or sample (-1: none), (H, W, samples)."""
+def llvmpipe_ids(programs, triangles, width, height, samples):
+    """The last triangle covering each pixel centre or sample (-1: none), (H, W, samples).
+    `programs` are the drawing and sample-reading ones (`make_programs`)."""
     # GL clips to the viewport (llvmpipe uses no guard band here), and the clipped vertices,
     # rounded to the grid, move the edges a little. So llvmpipe draws on a target four times
     # as wide and high (still powers of two; `random_triangles` stays inside it), and the
@@ -59,7 +62,7 @@ def llvmpipe_ids(triangles, width, height, samples):
     full = (4 * width, 4 * height)
     target = Framebuffer(*full, GL.GL_R32I, samples=samples)
     GL.glClearBufferiv(GL.GL_COLOR, 0, np.array([-1, 0, 0, 0], dtype=np.int32))
-    draw = program(DRAW_VERTEX, DRAW_FRAGMENT)
+    draw, read = programs
     GL.glUseProgram(draw)
     GL.glUniform2f(GL.glGetUniformLocation(draw, "size"), *full)
     vao = GL.glGenVertexArrays(1)
@@ -78,7 +81,6 @@ def llvmpipe_ids(triangles, width, height, samples):
         GL.glReadPixels(*origin, width, height, GL.GL_RED_INTEGER, GL.GL_INT, out[0])
     else:
         single = Framebuffer(width, height, GL.GL_R32I)
-        read = program(SAMPLE_VERTEX, SAMPLE_FRAGMENT)
         GL.glUseProgram(read)
         GL.glBindTexture(GL.GL_TEXTURE_2D_MULTISAMPLE, target.texture)
         GL.glUniform2i(GL.glGetUniformLocation(read, "origin"), *origin)
@@ -86,13 +88,23 @@ def llvmpipe_ids(triangles, width, height, samples):
             GL.glUniform1i(GL.glGetUniformLocation(read, "sample_index"), s)
             GL.glDrawArrays(GL.GL_TRIANGLES, 0, 3)
             GL.glReadPixels(0, 0, width, height, GL.GL_RED_INTEGER, GL.GL_INT, out[s])
-        GL.glDeleteProgram(read)
         single.delete()
     GL.glDeleteBuffers(1, [vbo])
     GL.glDeleteVertexArrays(1, [vao])
-    GL.glDeleteProgram(draw)
     target.delete()
     return out.transpose(1, 2, 0)
+
+
+def make_programs():
+    """The programs `llvmpipe_ids` draws and reads samples with, compiled once."""
+    return program(DRAW_VERTEX, DRAW_FRAGMENT), program(SAMPLE_VERTEX, SAMPLE_FRAGMENT)
+
+
+# trirast's sample patterns (src/sample.rs: the D3D standard ones), 1/16 pixel, y down.
+TRIRAST_PATTERNS = {
+    4: [(-2, -6), (6, -2), (-6, 2), (2, 6)],
+    8: [(1, -3), (-1, 3), (5, 1), (-3, -5), (-5, 5), (-7, -1), (3, 7), (7, -7)],
+}
 
 
 def sample_positions(samples):
@@ -190,26 +202,39 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--trirast", default="target/release/trirast")
     parser.add_argument("--cases", type=int, default=400, help="per sample count")
-    parser.add_argument("--samples", default="1,4,8", help="sample counts to compare")
+    parser.add_argument("--samples", default="1,4", help="sample counts to compare (1, 4, 8)")
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
+    try:
+        counts = [int(n) for n in args.samples.split(",")]
+    except ValueError:
+        counts = []
+    if not counts or any(n not in (1, *TRIRAST_PATTERNS) for n in counts):
+        parser.error("--samples takes a comma-separated list of 1, 4 and 8")
     print(context())
+    programs = make_programs()
     rng = np.random.default_rng(args.seed)
     width, height = 256, 128
     failed = 0
     with tempfile.TemporaryDirectory() as workdir:
-        for samples in map(int, args.samples.split(",")):
+        for samples in counts:
             most = GL.glGetIntegerv(GL.GL_MAX_INTEGER_SAMPLES)
             if samples > most:
                 print(f"{samples}x: skipped, this llvmpipe has at most {most} integer samples")
                 continue
             if samples > 1:
-                print(f"{samples}x sample positions (1/16 px):", sample_positions(samples))
+                positions = sample_positions(samples)
+                print(f"{samples}x sample positions (1/16 px):", positions)
+                if positions != TRIRAST_PATTERNS[samples]:
+                    print(f"{samples}x: llvmpipe samples elsewhere than trirast "
+                          f"{TRIRAST_PATTERNS[samples]}: not comparable")
+                    failed += 1
+                    continue
             mismatched = 0
             for case in range(args.cases):
                 triangles = case_triangles(rng, case, width, height)
                 ours = trirast_ids(args.trirast, triangles, width, height, samples, workdir)
-                theirs = llvmpipe_ids(triangles, width, height, samples)
+                theirs = llvmpipe_ids(programs, triangles, width, height, samples)
                 differ = np.argwhere(ours != theirs)
                 if len(differ):
                     mismatched += 1
@@ -217,8 +242,10 @@ def main():
                     print(f"{samples}x case {case}: {len(differ)} samples differ, first pixel "
                           f"({x}, {y}) sample {s}: trirast {ours[y, x, s]}, "
                           f"llvmpipe {theirs[y, x, s]}")
-                    path = os.path.join(tempfile.gettempdir(), f"llvmpipe_case{case}.npy")
+                    name = f"llvmpipe_{samples}xcase{case}.npy"
+                    path = os.path.join(tempfile.gettempdir(), name)
                     np.save(path, triangles)
+                    print(f"  triangles saved to {path}")
             print(f"{samples}x: {args.cases - mismatched} of {args.cases} cases identical")
             failed += mismatched
     sys.exit(1 if failed else 0)

@@ -18,16 +18,19 @@ def unavailable(why):
     sys.exit(UNAVAILABLE)
 
 
-os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+# EGL without a window, and Mesa's software renderer even where a GPU's driver would be picked.
+os.environ["PYOPENGL_PLATFORM"] = "egl"
 os.environ.setdefault("EGL_PLATFORM", "surfaceless")
+os.environ.setdefault("LIBGL_ALWAYS_SOFTWARE", "1")
 os.environ.setdefault("GALLIUM_DRIVER", "llvmpipe")
 
 if importlib.util.find_spec("numpy") is None:
     unavailable("no numpy: pip install PyOpenGL numpy")
 try:
     from OpenGL import EGL, GL  # noqa: E402  (the platform must be chosen first)
-except ImportError as e:
-    unavailable(f"{e}: pip install PyOpenGL numpy")
+except Exception as e:  # ImportError, or PyOpenGL's errors when libEGL or libOpenGL is missing
+    hint = "pip install PyOpenGL; apt-get install libegl1 libopengl0 libgl1-mesa-dri"
+    unavailable(f"{type(e).__name__}: {e} ({hint})")
 
 EGL_PLATFORM_SURFACELESS_MESA = 0x31DD
 
@@ -70,6 +73,7 @@ def _context():
 def program(vertex, fragment):
     """Compiles and links a vertex + fragment shader pair."""
     prog = GL.glCreateProgram()
+    shaders = []
     for kind, source in ((GL.GL_VERTEX_SHADER, vertex), (GL.GL_FRAGMENT_SHADER, fragment)):
         shader = GL.glCreateShader(kind)
         GL.glShaderSource(shader, source)
@@ -77,9 +81,13 @@ def program(vertex, fragment):
         if not GL.glGetShaderiv(shader, GL.GL_COMPILE_STATUS):
             raise SystemExit(GL.glGetShaderInfoLog(shader).decode())
         GL.glAttachShader(prog, shader)
+        shaders.append(shader)
     GL.glLinkProgram(prog)
     if not GL.glGetProgramiv(prog, GL.GL_LINK_STATUS):
         raise SystemExit(GL.glGetProgramInfoLog(prog).decode())
+    for shader in shaders:  # the program keeps what it needs
+        GL.glDetachShader(prog, shader)
+        GL.glDeleteShader(shader)
     return prog
 
 
