@@ -17,7 +17,7 @@ import json
 import os
 import time
 
-from gl import GL, Framebuffer, context, program  # noqa: I001  (gl checks the imports)
+from gl import GL, Framebuffer, attribute, context, program  # noqa: I001  (gl checks imports)
 import numpy as np
 
 HEADER = "#version 450\n"
@@ -82,18 +82,6 @@ void main() {
     color = vec4(uvec3(h, h >> 8, h >> 16) & 0xFFu, 255.0) / 255.0;
 }
 """
-
-
-def attribute(location, data, normalized=False):
-    """A vertex buffer holding `data` (rows of components) bound to `location`."""
-    buffer = GL.glGenBuffers(1)
-    GL.glBindBuffer(GL.GL_ARRAY_BUFFER, buffer)
-    data = np.ascontiguousarray(data)
-    GL.glBufferData(GL.GL_ARRAY_BUFFER, data.nbytes, data, GL.GL_STATIC_DRAW)
-    kind = {np.dtype(np.float32): GL.GL_FLOAT, np.dtype(np.uint8): GL.GL_UNSIGNED_BYTE}
-    GL.glEnableVertexAttribArray(location)
-    GL.glVertexAttribPointer(location, data.shape[1], kind[data.dtype], normalized, 0, None)
-    return buffer
 
 
 def load_scene(directory, name):

@@ -19,7 +19,7 @@ import subprocess
 import sys
 import tempfile
 
-from gl import GL, Framebuffer, context, program  # noqa: I001  (gl checks the imports)
+from gl import GL, Framebuffer, attribute, context, program  # noqa: I001  (gl checks imports)
 import numpy as np
 
 DRAW_VERTEX = """#version 450
@@ -67,12 +67,8 @@ def llvmpipe_ids(programs, triangles, width, height, samples):
     GL.glUniform2f(GL.glGetUniformLocation(draw, "size"), *full)
     vao = GL.glGenVertexArrays(1)
     GL.glBindVertexArray(vao)
-    vbo = GL.glGenBuffers(1)
-    GL.glBindBuffer(GL.GL_ARRAY_BUFFER, vbo)
-    data = np.ascontiguousarray(np.asarray(triangles) + origin, dtype=np.float32).reshape(-1, 2)
-    GL.glBufferData(GL.GL_ARRAY_BUFFER, data.nbytes, data, GL.GL_STATIC_DRAW)
-    GL.glEnableVertexAttribArray(0)
-    GL.glVertexAttribPointer(0, 2, GL.GL_FLOAT, GL.GL_FALSE, 0, None)
+    data = (np.asarray(triangles) + origin).astype(np.float32).reshape(-1, 2)
+    vbo = attribute(0, data)
     GL.glDisable(GL.GL_DEPTH_TEST)
     GL.glDisable(GL.GL_CULL_FACE)
     GL.glDrawArrays(GL.GL_TRIANGLES, 0, len(data))

@@ -31,6 +31,7 @@ try:
 except Exception as e:  # ImportError, or PyOpenGL's errors when libEGL or libOpenGL is missing
     hint = "pip install PyOpenGL; apt-get install libegl1 libopengl0 libgl1-mesa-dri"
     unavailable(f"{type(e).__name__}: {e} ({hint})")
+import numpy  # noqa: E402  (found above)
 
 EGL_PLATFORM_SURFACELESS_MESA = 0x31DD
 
@@ -68,6 +69,18 @@ def _context():
     if "llvmpipe" not in renderer:
         unavailable(f"GL_RENDERER is {renderer!r}, not llvmpipe")
     return renderer + ", " + GL.glGetString(GL.GL_VERSION).decode()
+
+
+def attribute(location, data, normalized=False):
+    """A vertex buffer holding `data` (rows of components) bound to `location`."""
+    buffer = GL.glGenBuffers(1)
+    GL.glBindBuffer(GL.GL_ARRAY_BUFFER, buffer)
+    data = numpy.ascontiguousarray(data)
+    GL.glBufferData(GL.GL_ARRAY_BUFFER, data.nbytes, data, GL.GL_STATIC_DRAW)
+    kind = {numpy.dtype(numpy.float32): GL.GL_FLOAT, numpy.dtype(numpy.uint8): GL.GL_UNSIGNED_BYTE}
+    GL.glEnableVertexAttribArray(location)
+    GL.glVertexAttribPointer(location, data.shape[1], kind[data.dtype], normalized, 0, None)
+    return buffer
 
 
 def program(vertex, fragment):
