@@ -593,8 +593,7 @@ where
         let mut w = [[0.0f32; LANES]; 3];
         let numerators = passed.e1.iter().zip(&passed.e2).take(passed.len);
         for (l, (e1, e2)) in numerators.enumerate() {
-            [w[0][l], w[1][l], w[2][l]] =
-                perspective_weights(e1 * t.inv_area2, e2 * t.inv_area2, q);
+            [w[0][l], w[1][l], w[2][l]] = divided_weights(e1 * t.inv_area2, e2 * t.inv_area2, q);
         }
         for (l, out) in out.iter_mut().enumerate().take(passed.len) {
             let weights = [w[0][l], w[1][l], w[2][l]];
@@ -921,9 +920,13 @@ fn each_ref<V, R: Borrow<ShadedVertex<V>>>(v: &[R; 3]) -> [&ShadedVertex<V>; 3] 
 /// a frame of a flat grid), differing from what the division would give by rounding only.
 #[inline]
 fn perspective_weights(l1: f64, l2: f64, q: [f64; 3]) -> [f32; 3] {
-    if is_affine(q) {
-        return affine_weights(l1, l2);
-    }
+    if is_affine(q) { affine_weights(l1, l2) } else { divided_weights(l1, l2, q) }
+}
+
+/// [`perspective_weights`] for `1/w` that are not [`is_affine`]: `l_i q_i / sum(l_j q_j)`,
+/// thirds for a degenerate sum.
+#[inline]
+fn divided_weights(l1: f64, l2: f64, q: [f64; 3]) -> [f32; 3] {
     let l0 = 1.0 - l1 - l2;
     let w = [l0 * q[0], l1 * q[1], l2 * q[2]];
     let sum = w[0] + w[1] + w[2];
