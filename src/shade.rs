@@ -19,7 +19,9 @@ use crate::fixed;
 use crate::raster::{self, Algorithm, Span};
 use crate::sample::MAX_SAMPLES;
 use crate::setup::{PIXEL_STEP, PixelRect, TriangleSetup, Vertex};
-use crate::simd::{self, KernelTarget, NarrowJob, SampleSpanJob, SimdLevel, SpanColor, SpanJob};
+use crate::simd::{
+    self, KernelTarget, NarrowJob, NarrowSamplesJob, SampleSpanJob, SimdLevel, SpanColor, SpanJob,
+};
 use crate::target::TargetBand;
 
 /// How a triangle's colour varies across it.
@@ -546,10 +548,21 @@ pub fn shade_triangle(
         let Some(r) = boxes.reduce(|a, b| a.union(&b)) else { return 0 };
         let columns = r.x1 - r.x0 + 1;
         if columns <= raster::edge::NARROW {
+            let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
+            if let Some((level, color)) = kernel.filter(|_| target.overdraw.is_none()) {
+                return narrow_samples_kernel(
+                    target,
+                    setup,
+                    &r,
+                    depth,
+                    (depth_test, id),
+                    level,
+                    color,
+                );
+            }
             // Each sample's row coverage as a bit mask without branches (as at 1x), then the
             // pixels with any covered sample, left to right, with their sample masks: no
             // spans, no lists of them.
-            let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
             let mut rows = [[0i64; 3]; MAX_SAMPLES];
             for (s, row) in rows.iter_mut().enumerate().take(n) {
                 let [ox, oy] = samples.offset(s);
@@ -576,6 +589,56 @@ pub fn shade_triangle(
     }
 
     sample_spans(target, algorithm, clip, kernel, pixels)
+}
+
+/// A narrow triangle's box `r` on a multisampled target through the narrow sample kernel
+/// (flat or smooth colour, no overdraw buffer): what the pixel loop of [`shade_triangle`]
+/// computes, eight samples at a time.
+fn narrow_samples_kernel(
+    target: &mut TargetBand<'_>,
+    setup: &TriangleSetup,
+    r: &PixelRect,
+    depth: &PlaneEquation,
+    (depth_test, id): (DepthTest, i32),
+    level: SimdLevel,
+    color: &SpanColor,
+) -> u64 {
+    let samples = target.samples();
+    let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
+    let edges = setup.edge_values(x, y);
+    let (e1, e2) = setup.barycentric_numerators(x, y);
+    let (step_x, step_y) = setup.pixel_steps();
+    let mut offsets = [[0i64; 3]; MAX_SAMPLES];
+    for (s, o) in offsets.iter_mut().enumerate().take(samples.count()) {
+        let [ox, oy] = samples.offset(s);
+        let at = setup.edge_values(x + ox, y + oy);
+        *o = std::array::from_fn(|k| at[k] - edges[k]);
+    }
+    let job = NarrowSamplesJob {
+        narrow: NarrowJob {
+            edges,
+            step_x,
+            step_y,
+            bias: [edges[1] - e1, edges[2] - e2],
+            columns: (r.x1 - r.x0 + 1) as usize,
+            rows: (r.y1 - r.y0 + 1) as usize,
+            first: target.index(r.x0, r.y0),
+            stride: target.stride(),
+            target: KernelTarget {
+                depth_plane: depth.coefficients(),
+                color,
+                depth_test,
+                id,
+                depth: target.depth,
+                color_out: target.color,
+                ids: target.ids.as_deref_mut(),
+                overdraw: None,
+            },
+        },
+        samples: samples.count(),
+        offsets,
+    };
+    simd::shade_narrow_samples(level, job)
 }
 
 /// [`shade_triangle`] on a multisampled target, from each sample's spans: pixel by pixel over

@@ -12,7 +12,9 @@
 
 use std::arch::x86_64::*;
 
-use super::{KernelTarget, NarrowJob, SampleSpanJob, SpanColor, SpanJob, WindowGroup};
+use super::{
+    KernelTarget, NarrowJob, NarrowSamplesJob, SampleSpanJob, SpanColor, SpanJob, WindowGroup,
+};
 use crate::fixed;
 use crate::setup::{CullMode, Vertex};
 use crate::shade::DepthTest;
@@ -329,6 +331,96 @@ unsafe fn sample_groups(job: &mut SampleSpanJob<'_>, rgba: impl Fn(__m512d, __m5
         f2 = _mm512_add_pd(f2, step2);
         k += 8;
     }
+}
+
+/// [`super::shade_narrow_samples`] in AVX-512: each row of the box in groups of eight samples
+/// (lane `l`: sample `l % n` of the group's pixel `l / n`, contiguous in the buffers), their
+/// coverage the sign bits of `e0 | e1 | e2` stepped exactly in `f64` as in [`narrow_rows`],
+/// then [`sample_groups`]' depth per sample and colour per pixel centre.
+///
+/// # Safety
+/// The CPU must support AVX-512 F, VL and DQ.
+#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+pub(super) unsafe fn shade_narrow_samples(job: &mut NarrowSamplesJob<'_>) -> u64 {
+    // A partly covered pixel's centre may lie outside the triangle, where a `SmoothRgb`'s
+    // planes may leave [0, 255]: clamp them, as the scalar `SpanColor::at` does.
+    if let SpanColor::SmoothRgb(p, alpha) = *job.narrow.target.color {
+        // SAFETY: the CPU supports AVX-512 F, VL and DQ (this function's contract).
+        return unsafe {
+            narrow_sample_groups(job, move |f1, f2| smooth::<true>(&p, Some(alpha), f1, f2))
+        };
+    }
+    // SAFETY: as above.
+    with_rgba!(*job.narrow.target.color, __m512d, _mm256_set1_epi32, smooth, rgba => unsafe {
+        narrow_sample_groups(job, rgba)
+    })
+}
+
+/// [`shade_narrow_samples`] for one colour kind.
+///
+/// # Safety
+/// The CPU must support AVX-512 F, VL and DQ.
+#[inline]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+unsafe fn narrow_sample_groups(
+    job: &mut NarrowSamplesJob<'_>,
+    rgba: impl Fn(__m512d, __m512d) -> __m256i,
+) -> u64 {
+    // The box lies in the buffers, `samples` elements per pixel (checked).
+    job.check();
+    let (n, offsets) = (job.samples, job.offsets);
+    let job = &mut job.narrow;
+    let pixels_per_group = 8 / n;
+    let lane =
+        |f: &dyn Fn(usize) -> f64| _mm512_setr_pd(f(0), f(1), f(2), f(3), f(4), f(5), f(6), f(7));
+    let pixel = lane(&|l| (l / n) as f64);
+    // Each lane's edge values less the group's first pixel centre's: its pixel's columns
+    // and its sample's offset.
+    let at_lane: [__m512d; 3] = std::array::from_fn(|k| {
+        let sample = lane(&|l| offsets[l % n][k] as f64);
+        _mm512_add_pd(_mm512_mul_pd(pixel, _mm512_set1_pd(job.step_x[k] as f64)), sample)
+    });
+    // The numerators at each lane's pixel centre less the group's first one's.
+    let centre = [1, 2].map(|k| _mm512_mul_pd(pixel, _mm512_set1_pd(job.step_x[k] as f64)));
+    let group_step = job.step_x.map(|s| (pixels_per_group as i64 * s) as f64);
+    let bias = job.bias.map(|b| b as f64);
+    let mut row = job.edges.map(|e| e as f64);
+    let mut covered = 0u64;
+    for r in 0..job.rows {
+        let mut first = row;
+        for c in (0..job.columns).step_by(pixels_per_group) {
+            let lanes = if c + pixels_per_group <= job.columns {
+                0xFF
+            } else {
+                ((1u32 << ((job.columns - c) * n)) - 1) as __mmask8
+            };
+            let e: [__m512d; 3] =
+                std::array::from_fn(|k| _mm512_add_pd(_mm512_set1_pd(first[k]), at_lane[k]));
+            let any = _mm512_or_si512(
+                _mm512_or_si512(_mm512_castpd_si512(e[0]), _mm512_castpd_si512(e[1])),
+                _mm512_castpd_si512(e[2]),
+            );
+            let cover = !_mm512_movepi64_mask(any) & lanes;
+            if cover != 0 {
+                covered += u64::from(cover.count_ones());
+                let z = [
+                    _mm512_sub_pd(e[1], _mm512_set1_pd(bias[0])),
+                    _mm512_sub_pd(e[2], _mm512_set1_pd(bias[1])),
+                ];
+                let f1 = _mm512_add_pd(_mm512_set1_pd(first[1] - bias[0]), centre[0]);
+                let f2 = _mm512_add_pd(_mm512_set1_pd(first[2] - bias[1]), centre[1]);
+                let at = n * (job.first + r * job.stride + c);
+                // SAFETY: the group's first sample is in the box, so in the buffers, and so
+                // are its `lanes` (the box's pixels), a superset of `cover` (checked above).
+                unsafe {
+                    group::<true, false>(&mut job.target, [at, at], f1, f2, cover, Some(z), &rgba)
+                };
+            }
+            first = std::array::from_fn(|k| first[k] + group_step[k]);
+        }
+        row = std::array::from_fn(|k| row[k] + job.step_y[k] as f64);
+    }
+    covered
 }
 
 /// Eight lanes of one `f32` field of each triangle.

@@ -288,6 +288,34 @@ impl KernelTarget<'_> {
         }
     }
 
+    /// One pixel of a multisampled target, whose samples start at `p`, with covered samples
+    /// `mask` and barycentric numerators `centre` at its centre: each covered sample's depth
+    /// (at the centre's numerators plus its `offsets`) tested, and if any passes, the colour
+    /// at the centre written to the passing samples, as [`crate::shade::shade_triangle`] does.
+    #[inline]
+    fn samples(&mut self, p: usize, mask: u32, centre: (i64, i64), offsets: &[[i64; 2]]) {
+        let (c1, c2) = centre;
+        let mut z = [0.0f32; MAX_SAMPLES];
+        let mut passed = 0u32;
+        for (s, [o1, o2]) in offsets.iter().enumerate().filter(|(s, _)| mask & (1 << s) != 0) {
+            z[s] = self.depth_at((c1 + o1) as f64, (c2 + o2) as f64);
+            if self.depth_test.passes(z[s], self.depth[p + s]) {
+                passed |= 1 << s;
+            }
+        }
+        if passed == 0 {
+            return;
+        }
+        let color = self.color.at(c1 as f64, c2 as f64);
+        for s in (0..offsets.len()).filter(|s| passed & (1 << s) != 0) {
+            self.depth[p + s] = z[s];
+            self.color_out[p + s] = color;
+            if let Some(ids) = self.ids.as_deref_mut() {
+                ids[p + s] = self.id;
+            }
+        }
+    }
+
     /// The depth at barycentric numerators `(f1, f2)`, as stored ([`crate::shade::depth_at`]).
     #[inline(always)]
     fn depth_at(&self, f1: f64, f2: f64) -> f32 {
@@ -407,25 +435,9 @@ fn samples_scalar(job: &mut SampleSpanJob<'_>) {
     let span = &mut job.span;
     let t = &mut span.target;
     let (mut e1, mut e2) = (span.e1, span.e2);
+    let every = (1u32 << job.samples) - 1;
     for p in (0..len).step_by(job.samples) {
-        let mut z = [0.0f32; MAX_SAMPLES];
-        let mut passed = 0u32;
-        for (s, [o1, o2]) in job.offsets.iter().enumerate().take(job.samples) {
-            z[s] = t.depth_at((e1 + o1) as f64, (e2 + o2) as f64);
-            if t.depth_test.passes(z[s], t.depth[p + s]) {
-                passed |= 1 << s;
-            }
-        }
-        if passed != 0 {
-            let color = t.color.at(e1 as f64, e2 as f64);
-            for s in (0..job.samples).filter(|s| passed & (1 << s) != 0) {
-                t.depth[p + s] = z[s];
-                t.color_out[p + s] = color;
-                if let Some(ids) = t.ids.as_deref_mut() {
-                    ids[p + s] = t.id;
-                }
-            }
-        }
+        t.samples(p, every, (e1, e2), &job.offsets[..job.samples]);
         e1 += span.step1;
         e2 += span.step2;
     }
@@ -523,6 +535,93 @@ pub fn shade_narrow_scalar(mut job: NarrowJob<'_>) -> u64 {
                 let (f1, f2) = ((e[1] - job.bias[0]) as f64, (e[2] - job.bias[1]) as f64);
                 job.target.pixel(job.first + r * job.stride + c, f1, f2);
             }
+            e = std::array::from_fn(|k| e[k] + job.step_x[k]);
+        }
+        row = std::array::from_fn(|k| row[k] + job.step_y[k]);
+    }
+    covered
+}
+
+/// A small triangle on a multisampled target shaded whole, coverage included, as
+/// [`NarrowJob`] at 1x: each sample's edge values are its pixel centre's plus a constant
+/// offset, so the coverage of every sample of the box is a sign test, and the covered samples
+/// take [`SampleSpanJob`]'s arithmetic (depth at the sample, colour at the pixel centre).
+/// Most triangles of a scene of small triangles at 4x are such boxes, and pixel by pixel each
+/// partly covered pixel was a loop over its samples.
+#[derive(Debug)]
+pub struct NarrowSamplesJob<'a> {
+    /// The box and the triangle's edge values at its pixel centres, as at 1x; `first` and
+    /// `stride` count pixels, and the buffers hold `samples` elements per pixel (a pixel's
+    /// samples side by side). There must be no overdraw buffer (it counts per pixel).
+    pub narrow: NarrowJob<'a>,
+    /// Samples per pixel: 4 or 8.
+    pub samples: usize,
+    /// Each sample's edge values less its pixel centre's (exact integers, the edge functions
+    /// being linear); those of edges 1 and 2 are its barycentric numerators' offsets.
+    pub offsets: [[i64; 3]; MAX_SAMPLES],
+}
+
+impl NarrowSamplesJob<'_> {
+    /// Panics unless the job is one the kernels take; returns the buffers' length (samples).
+    fn check(&self) -> usize {
+        let (job, n) = (&self.narrow, self.samples);
+        assert!(n == 4 || n == 8, "4 or 8 samples per pixel");
+        assert!(job.target.overdraw.is_none(), "no overdraw buffer");
+        assert!((1..=NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not a narrow box");
+        let len = job.target.checked_len();
+        // Checked arithmetic: the kernels' offsets stay in the buffers only if this holds.
+        assert!(job.end(job.columns).checked_mul(n).is_some_and(|e| e <= len), "box outside");
+        len
+    }
+}
+
+/// Shades a small triangle on a multisampled target at `level` (which must be available;
+/// otherwise the scalar kernel runs); returns the number of covered samples. AVX-512 takes
+/// eight samples per step (two pixels at 4x, one at 8x); AVX2 has no kernel of its own and
+/// runs the scalar one.
+///
+/// # Panics
+/// Unless `samples` is 4 or 8, the box is not empty and at most [`NARROW_COLUMNS`] wide, the
+/// buffers hold it, and there is no overdraw buffer.
+pub fn shade_narrow_samples(level: SimdLevel, mut job: NarrowSamplesJob<'_>) -> u64 {
+    match level {
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx512 if SimdLevel::Avx512.is_available() => {
+            // SAFETY: AVX-512 support was just checked at run time.
+            unsafe { avx512::shade_narrow_samples(&mut job) }
+        }
+        _ => narrow_samples_scalar(&mut job),
+    }
+}
+
+/// [`shade_narrow_samples`] pixel by pixel, sample by sample: the arithmetic of
+/// [`crate::shade::shade_triangle`]'s multisampled pixels.
+///
+/// # Panics
+/// As [`shade_narrow_samples`].
+pub fn shade_narrow_samples_scalar(mut job: NarrowSamplesJob<'_>) -> u64 {
+    narrow_samples_scalar(&mut job)
+}
+
+/// [`shade_narrow_samples_scalar`] on a borrowed job.
+fn narrow_samples_scalar(job: &mut NarrowSamplesJob<'_>) -> u64 {
+    job.check();
+    let (n, offsets) = (job.samples, job.offsets);
+    let numerators = offsets.map(|[_, o1, o2]| [o1, o2]);
+    let job = &mut job.narrow;
+    let t = &mut job.target;
+    let mut covered = 0;
+    let mut row = job.edges;
+    for r in 0..job.rows {
+        let mut e = row;
+        for c in 0..job.columns {
+            let mask = (0..n).fold(0u32, |m, s| {
+                let o = offsets[s];
+                m | u32::from(((e[0] + o[0]) | (e[1] + o[1]) | (e[2] + o[2])) >= 0) << s
+            });
+            covered += u64::from(mask.count_ones());
+            let centre = (e[1] - job.bias[0], e[2] - job.bias[1]);
+            t.samples(n * (job.first + r * job.stride + c), mask, centre, &numerators[..n]);
             e = std::array::from_fn(|k| e[k] + job.step_x[k]);
         }
         row = std::array::from_fn(|k| row[k] + job.step_y[k]);
@@ -1293,6 +1392,85 @@ mod tests {
         }
     }
 
+    /// The narrow sample kernels against the scalar one on random boxes (1 to 8 columns, 1 to
+    /// 5 rows) of random edge functions and sample offsets (any coverage pattern), 4x and 8x,
+    /// biases 0 and -1, every depth test and colour kind (and opaque colours whose planes
+    /// leave [0, 255] outside the triangle, where partly covered pixels' centres may lie),
+    /// with and without ids, boxes that end at the buffers' end.
+    #[test]
+    fn narrow_sample_kernels_match_scalar_bit_for_bit() {
+        let mut rng = SmallRng::seed_from_u64(21);
+        for round in 0..20_000 {
+            let samples = if round % 2 == 0 { 4 } else { 8 };
+            let columns = rng.random_range(1..=NARROW_COLUMNS);
+            let rows = rng.random_range(1..=5usize);
+            let stride = rng.random_range(columns..columns + 6);
+            let pixels = (rows - 1) * stride + columns + rng.random_range(0..3);
+            let first = rng.random_range(0..=pixels - (rows - 1) * stride - columns);
+            let small = round % 4 != 3;
+            let mut value = |bits: u32, small_bits: u32| {
+                let b = if small { small_bits } else { bits };
+                rng.random_range(-(1i64 << b)..(1 << b))
+            };
+            let edges = [0; 3].map(|_| value(40, 11));
+            let step_x = [0; 3].map(|_| value(32, 10));
+            let step_y = [0; 3].map(|_| value(32, 10));
+            let offsets: [[i64; 3]; MAX_SAMPLES] =
+                std::array::from_fn(|_| [0; 3].map(|_| value(30, 9)));
+            let bias = [-(rng.random::<bool>() as i64), -(rng.random::<bool>() as i64)];
+            let depth_plane = random_plane(&mut rng, 1.0);
+            let color = if round % 5 == 0 {
+                let plane = |rng: &mut SmallRng| {
+                    let g = |rng: &mut SmallRng| rng.random_range(-1.0..1.0) / 4096.0;
+                    [rng.random_range(-300.0..600.0), g(rng), g(rng)]
+                };
+                SpanColor::SmoothRgb([0; 3].map(|_| plane(&mut rng)), rng.random())
+            } else {
+                random_color(&mut rng, round)
+            };
+            let depth_test = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always][round % 3];
+            let with_ids = (round / 3) % 3 != 0;
+            let buffers = random_buffers(&mut rng, pixels * samples);
+            let run = |level: SimdLevel| {
+                let (mut d, mut c, mut i, _) = buffers.clone();
+                let job = NarrowSamplesJob {
+                    narrow: NarrowJob {
+                        edges,
+                        step_x,
+                        step_y,
+                        bias,
+                        columns,
+                        rows,
+                        first,
+                        stride,
+                        target: KernelTarget {
+                            depth_plane,
+                            color: &color,
+                            depth_test,
+                            id: 5,
+                            depth: &mut d,
+                            color_out: &mut c,
+                            ids: with_ids.then_some(&mut i),
+                            overdraw: None,
+                        },
+                    },
+                    samples,
+                    offsets,
+                };
+                let covered = if level == SimdLevel::Scalar {
+                    shade_narrow_samples_scalar(job)
+                } else {
+                    shade_narrow_samples(level, job)
+                };
+                (covered, d.iter().map(|z| z.to_bits()).collect::<Vec<_>>(), c, i)
+            };
+            let reference = run(SimdLevel::Scalar);
+            for level in SimdLevel::available() {
+                assert_eq!(run(level), reference, "{level:?}, round {round}");
+            }
+        }
+    }
+
     /// Sample span jobs the kernels do not take (an overdraw buffer, a sample count other
     /// than 4 or 8, buffers holding part of a pixel) panic at every level.
     #[test]
@@ -1326,6 +1504,65 @@ mod tests {
                 };
                 let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(shade));
                 assert!(outcome.is_err(), "{level:?}: {samples} samples, {len}, {overdraw}");
+            }
+        }
+    }
+
+    /// Narrow sample jobs the kernels do not take (an overdraw buffer, a sample count other
+    /// than 4 or 8, an empty or too wide box, a box reaching past the buffers, a stride so
+    /// large its offsets overflow) panic at every level, before touching the buffers.
+    #[test]
+    fn narrow_sample_jobs_outside_the_contract_panic() {
+        let ok = (4, 2, 2, 3, false);
+        let cases = [
+            (4, 2, 2, 3, true),
+            (2, 2, 2, 3, false),
+            (4, 0, 2, 3, false),
+            (4, NARROW_COLUMNS + 1, 1, 9, false),
+            (4, 3, 2, 4, false),
+            (8, 2, 2, 3, false),
+            (4, 1, 3, usize::MAX / 2, false),
+        ];
+        for level in SimdLevel::available() {
+            for case @ (samples, columns, rows, stride, overdraw) in [ok].into_iter().chain(cases) {
+                // Six pixels of four samples.
+                let len = 24;
+                let shade = || {
+                    let color = SpanColor::Flat([1, 2, 3, 4]);
+                    let (mut d, mut c, mut o) = (vec![1.0; len], vec![[0; 4]; len], vec![0; len]);
+                    let job = NarrowSamplesJob {
+                        narrow: NarrowJob {
+                            edges: [0; 3],
+                            step_x: [0; 3],
+                            step_y: [0; 3],
+                            bias: [0; 2],
+                            columns,
+                            rows,
+                            first: 0,
+                            stride,
+                            target: KernelTarget {
+                                depth_plane: [0.5, 0.0, 0.0],
+                                color: &color,
+                                depth_test: DepthTest::Less,
+                                id: 0,
+                                depth: &mut d,
+                                color_out: &mut c,
+                                ids: None,
+                                overdraw: overdraw.then_some(&mut o),
+                            },
+                        },
+                        samples,
+                        offsets: [[0; 3]; MAX_SAMPLES],
+                    };
+                    shade_narrow_samples(level, job)
+                };
+                let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(shade));
+                if case == ok {
+                    // The box of 2 x 2 pixels, every sample covered.
+                    assert_eq!(outcome.ok(), Some(16), "{level:?}");
+                } else {
+                    assert!(outcome.is_err(), "{level:?}: {case:?}");
+                }
             }
         }
     }
