@@ -1,6 +1,6 @@
 //! Micro-benchmarks of the pipeline stages: triangle setup, binning, the span and narrow
-//! triangle kernels, and the 3D front end's window corners and corner tests, at every SIMD
-//! level this CPU has. `cargo bench --bench stages`.
+//! triangle kernels (1x, 4x, 8x), and the 3D front end's window corners and corner tests, at
+//! every SIMD level this CPU has. `cargo bench --bench stages`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec4;
@@ -11,9 +11,11 @@ use trirast::bin::Bins;
 use trirast::clip::ClipVolume;
 use trirast::fixed;
 use trirast::pipeline::Viewport;
+use trirast::sample::SampleCount;
 use trirast::shade::DepthTest;
 use trirast::simd::{
-    self, Corner, KernelTarget, NarrowJob, SampleSpanJob, SimdLevel, SpanColor, SpanJob,
+    self, Corner, KernelTarget, NarrowJob, NarrowSamplesJob, SampleSpanJob, SimdLevel, SpanColor,
+    SpanJob,
 };
 use trirast::{CullMode, PixelRect, TriangleSetup, Vertex};
 
@@ -169,6 +171,35 @@ fn narrow(c: &mut Criterion) {
                     )
                 })
             });
+            // The same box at 4x and 8x, every sample of its pixels tested.
+            for samples in [SampleCount::X4, SampleCount::X8] {
+                let n = samples.count();
+                let offsets = std::array::from_fn(|k| {
+                    let [ox, oy] = if k < n { samples.offset(k) } else { [0, 0] };
+                    s.edges.map(|e| e.eval(x + ox, y + oy) - e.eval(x, y))
+                });
+                let mut depth = vec![1.0f32; 64 * 8 * n];
+                let mut color = vec![[0u8; 4]; 64 * 8 * n];
+                g.bench_function(format!("{level:?}, {name} box smooth at {n}x"), |b| {
+                    b.iter(|| {
+                        let narrow = NarrowJob {
+                            edges,
+                            step_x: s.edges.map(|e| e.a * 256),
+                            step_y: s.edges.map(|e| e.b * 256),
+                            bias: [edges[1] - e1, edges[2] - e2],
+                            columns: (s.bounds.x1 - s.bounds.x0 + 1) as usize,
+                            rows: (s.bounds.y1 - s.bounds.y0 + 1) as usize,
+                            first: 0,
+                            stride: 64,
+                            target: smooth_target(&mut depth, &mut color),
+                        };
+                        simd::shade_narrow_samples(
+                            level,
+                            NarrowSamplesJob { narrow, samples: n, offsets },
+                        )
+                    })
+                });
+            }
         }
     }
     g.finish();
