@@ -336,7 +336,9 @@ unsafe fn sample_groups(job: &mut SampleSpanJob<'_>, rgba: impl Fn(__m512d, __m5
 /// [`super::shade_narrow_samples`] in AVX-512: each row of the box in groups of eight samples
 /// (lane `l`: sample `l % n` of the group's pixel `l / n`, contiguous in the buffers), their
 /// coverage the sign bits of `e0 | e1 | e2` stepped exactly in `f64` as in [`narrow_rows`],
-/// then [`sample_groups`]' depth per sample and colour per pixel centre.
+/// then [`sample_groups`]' depth per sample and colour per pixel centre. No branch on
+/// coverage (a group with none stops at its depth test): testing for it first was 2%
+/// slower on the soup at 4x.
 ///
 /// # Safety
 /// The CPU must support AVX-512 F, VL and DQ.
@@ -401,21 +403,19 @@ unsafe fn narrow_sample_groups(
                 _mm512_castpd_si512(e[2]),
             );
             let cover = !_mm512_movepi64_mask(any) & lanes;
-            if cover != 0 {
-                covered += u64::from(cover.count_ones());
-                let z = [
-                    _mm512_sub_pd(e[1], _mm512_set1_pd(bias[0])),
-                    _mm512_sub_pd(e[2], _mm512_set1_pd(bias[1])),
-                ];
-                let f1 = _mm512_add_pd(_mm512_set1_pd(first[1] - bias[0]), centre[0]);
-                let f2 = _mm512_add_pd(_mm512_set1_pd(first[2] - bias[1]), centre[1]);
-                let at = n * (job.first + r * job.stride + c);
-                // SAFETY: the group's first sample is in the box, so in the buffers, and so
-                // are its `lanes` (the box's pixels), a superset of `cover` (checked above).
-                unsafe {
-                    group::<true, false>(&mut job.target, [at, at], f1, f2, cover, Some(z), &rgba)
-                };
-            }
+            covered += u64::from(cover.count_ones());
+            let z = [
+                _mm512_sub_pd(e[1], _mm512_set1_pd(bias[0])),
+                _mm512_sub_pd(e[2], _mm512_set1_pd(bias[1])),
+            ];
+            let f1 = _mm512_add_pd(_mm512_set1_pd(first[1] - bias[0]), centre[0]);
+            let f2 = _mm512_add_pd(_mm512_set1_pd(first[2] - bias[1]), centre[1]);
+            let at = n * (job.first + r * job.stride + c);
+            // SAFETY: the group's first sample is in the box, so in the buffers, and so
+            // are its `lanes` (the box's pixels), a superset of `cover` (checked above).
+            unsafe {
+                group::<true, false>(&mut job.target, [at, at], f1, f2, cover, Some(z), &rgba)
+            };
             first = std::array::from_fn(|k| first[k] + group_step[k]);
         }
         row = std::array::from_fn(|k| row[k] + job.step_y[k] as f64);

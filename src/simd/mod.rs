@@ -577,8 +577,7 @@ impl NarrowSamplesJob<'_> {
 
 /// Shades a small triangle on a multisampled target at `level` (which must be available;
 /// otherwise the scalar kernel runs); returns the number of covered samples. AVX-512 takes
-/// eight samples per step (two pixels at 4x, one at 8x); AVX2 has no kernel of its own and
-/// runs the scalar one.
+/// eight samples per step (two pixels at 4x, one at 8x), AVX2 four (one pixel at 4x).
 ///
 /// # Panics
 /// Unless `samples` is 4 or 8, the box is not empty and at most [`NARROW_COLUMNS`] wide, the
@@ -589,6 +588,11 @@ pub fn shade_narrow_samples(level: SimdLevel, mut job: NarrowSamplesJob<'_>) -> 
         SimdLevel::Avx512 if SimdLevel::Avx512.is_available() => {
             // SAFETY: AVX-512 support was just checked at run time.
             unsafe { avx512::shade_narrow_samples(&mut job) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx2 if SimdLevel::Avx2.is_available() => {
+            // SAFETY: AVX2 support was just checked at run time.
+            unsafe { avx2::shade_narrow_samples(&mut job) }
         }
         _ => narrow_samples_scalar(&mut job),
     }
