@@ -245,6 +245,7 @@ fn front_end(c: &mut Criterion) {
                         0,
                         CullMode::Clockwise,
                         &clip,
+                        SampleCount::X1,
                     );
                     kept += (t.inside & !(t.degenerate | t.culled | t.empty)).count_ones();
                 }

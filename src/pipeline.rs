@@ -654,10 +654,9 @@ impl FrontEnd {
 
     /// [`FrontEnd::prepare`] for triangles `range` of `batch` (whose first has id
     /// `first_id`); vertex `i`'s corner is `corners[i - base]`, and `vertex(i)` gives it as
-    /// setup needs it. Triangles inside the clip volume take the corner tests, at 1x eight at
-    /// a time ([`simd::corner_tests_indexed`]), multisampled one at a time
-    /// ([`FrontEnd::corner_tests`]): in a dense mesh nearly all stop there, counted, before
-    /// their vertices are read; those that pass go straight to setup (as `setup_inside` would
+    /// setup needs it. Triangles inside the clip volume take the corner tests eight at a time
+    /// ([`simd::corner_tests_indexed`]; multisampled, each sample position's box test): in a
+    /// dense mesh nearly all stop there, counted, before their vertices are read; those that pass go straight to setup (as `setup_inside` would
     /// after the same tests), and those needing clipping through `prepare`.
     fn prepare_range<V: Varyings, R: Borrow<ShadedVertex<V>>>(
         &self,
@@ -669,25 +668,6 @@ impl FrontEnd {
         sink: &mut Sink<'_, TriangleData<V>>,
     ) {
         let vertices = |k: usize| batch[k].map(&vertex);
-        if self.coverage.multisampled {
-            // Sample boxes differ from the centre boxes the SIMD corner tests use, so the same
-            // tests one triangle at a time: still from the corners alone, so that a triangle
-            // they reject never has its vertices read (a large mesh's are shaded per corner:
-            // `trirast bench dense --dense-triangles 10000000 --msaa 4` took 517 ms a frame).
-            for k in range {
-                let xy = batch[k].map(|i| corners[(i - base) as usize]);
-                if xy.contains(&OUTSIDE) {
-                    self.prepare(each_ref(&vertices(k)), first_id + k, |p| sink.take(p));
-                    continue;
-                }
-                let passed = self.corner_tests(setup::widen(xy)).and_then(|()| {
-                    let owned = vertices(k);
-                    self.setup_passed(each_ref(&owned), first_id + k)
-                });
-                sink.take(passed);
-            }
-            return;
-        }
         for start in range.clone().step_by(8) {
             let len = (range.end - start).min(8);
             let t = if let Ok(eight) = <&[[u32; 3]; 8]>::try_from(&batch[start..start + len]) {
@@ -698,13 +678,15 @@ impl FrontEnd {
                     base,
                     self.cull,
                     &self.coverage.clip,
+                    self.samples,
                 )
             } else {
                 let mut group = CornerGroup::default();
                 for j in 0..len {
                     group.set(j, batch[start + j].map(|i| corners[(i - base) as usize]));
                 }
-                simd::corner_tests(level, &group, self.cull, &self.coverage.clip)
+                let clip = &self.coverage.clip;
+                simd::corner_tests(level, &group, self.cull, clip, self.samples)
             };
             let count = |bits: u8| bits.count_ones() as usize;
             sink.skip_many(Skipped::Rejected(Rejection::Degenerate), count(t.degenerate));
@@ -800,11 +782,8 @@ impl FrontEnd {
         }
         let [[x0, y0], [x1, y1]] = extent;
         let sub_pixel = x1 - x0 < setup::PIXEL_STEP || y1 - y0 < setup::PIXEL_STEP;
-        if multisampled && sub_pixel {
-            let mut offsets = (0..self.samples.count()).map(|s| self.samples.offset(s));
-            if !offsets.any(|o| setup::sample_bounds(extent, o).intersect(&clip).is_some()) {
-                return Err(Skipped::Empty);
-            }
+        if multisampled && sub_pixel && setup::holds_no_sample(extent, self.samples, &clip) {
+            return Err(Skipped::Empty);
         }
         Ok(())
     }

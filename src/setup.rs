@@ -6,6 +6,7 @@
 //! `edge.eval(P) >= 0` for all three edges. Nothing downstream knows about windings or ties.
 
 use crate::fixed::{self, ONE};
+use crate::sample::SampleCount;
 
 /// A vertex in window space: `x`, `y` in pixels (origin at the top-left corner of the image,
 /// y down), `z` in [0, 1], and `inv_w = 1/w` for perspective-correct varyings (1 when the
@@ -356,6 +357,14 @@ pub fn sample_bounds(extent: [[i64; 2]; 2], offset: [i64; 2]) -> PixelRect {
         x1: fixed::last_centre_at_or_before(x1 - ox) as i32,
         y1: fixed::last_centre_at_or_before(y1 - oy) as i32,
     }
+}
+
+/// Whether no sample position of `samples` lies in the snapped box `extent` at a pixel of
+/// `clip`: then a triangle with that box covers no sample (each sample's pixels are those
+/// of [`sample_bounds`] at its offset). At 1x, "no pixel centre of `clip` in the box".
+#[must_use]
+pub fn holds_no_sample(extent: [[i64; 2]; 2], samples: SampleCount, clip: &PixelRect) -> bool {
+    (0..samples.count()).all(|s| sample_bounds(extent, samples.offset(s)).intersect(clip).is_none())
 }
 
 /// Fixed-point units per pixel, as `i64`, for stepping edge functions by whole pixels.

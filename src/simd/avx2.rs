@@ -10,6 +10,7 @@ use super::{
 };
 use crate::clip::MIN_W;
 use crate::fixed;
+use crate::sample::SampleCount;
 use crate::setup::{CullMode, PixelRect, Vertex};
 use crate::shade::DepthTest;
 
@@ -25,13 +26,14 @@ pub(super) unsafe fn corner_tests(
     group: &CornerGroup,
     cull: CullMode,
     clip: &PixelRect,
+    samples: SampleCount,
 ) -> CornerTests {
     // Element by element: the rows were just written by 4-byte stores, which a 32-byte
     // load cannot take from the store buffer (it would wait for them to reach the cache).
     let row = |r: &[i32; 8]| _mm256_setr_epi32(r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]);
     let x = [row(&group.x[0]), row(&group.x[1]), row(&group.x[2])];
     let y = [row(&group.y[0]), row(&group.y[1]), row(&group.y[2])];
-    tests(x, y, cull, clip)
+    tests(x, y, cull, clip, samples)
 }
 
 /// [`super::corner_tests_indexed`]: each corner read from the window as one 8-byte
@@ -47,6 +49,7 @@ pub(super) unsafe fn corner_tests_indexed(
     base: u32,
     cull: CullMode,
     clip: &PixelRect,
+    samples: SampleCount,
 ) -> CornerTests {
     // A corner's 8 bytes as the low half of a vector; slice indexing checks the index.
     let corner = |k: usize, v: usize| -> __m128i {
@@ -72,13 +75,19 @@ pub(super) unsafe fn corner_tests_indexed(
         x[v] = _mm256_permute4x64_epi64::<0b11_01_10_00>(xs);
         y[v] = _mm256_permute4x64_epi64::<0b11_01_10_00>(ys);
     }
-    tests(x, y, cull, clip)
+    tests(x, y, cull, clip, samples)
 }
 
 /// The corner tests on eight triangles' corners in rows (`x[v]`: corner `v`'s x).
 #[inline]
 #[target_feature(enable = "avx2")]
-fn tests(x: [__m256i; 3], y: [__m256i; 3], cull: CullMode, clip: &PixelRect) -> CornerTests {
+fn tests(
+    x: [__m256i; 3],
+    y: [__m256i; 3],
+    cull: CullMode,
+    clip: &PixelRect,
+    samples: SampleCount,
+) -> CornerTests {
     let ([x0, x1, x2], [y0, y1, y2]) = (x, y);
     // Lanes with a corner equal to OUTSIDE take no tests.
     let (ox, oy) = (_mm256_set1_epi32(super::OUTSIDE[0]), _mm256_set1_epi32(super::OUTSIDE[1]));
@@ -104,16 +113,28 @@ fn tests(x: [__m256i; 3], y: [__m256i; 3], cull: CullMode, clip: &PixelRect) -> 
         positive |= bits(_mm256_cmpgt_epi64(area, z));
         negative |= bits(_mm256_cmpgt_epi64(z, area));
     }
-    // The box's first and last pixel centres, clipped.
+    // For each sample position, the first and last pixels whose sample at that position
+    // lies in the box, clipped: empty for every position, the box holds no sample. (Offsets
+    // are below 128 and the corners below 2^23 in magnitude: no overflow.)
     let min3 = |a, b, c| _mm256_min_epi32(_mm256_min_epi32(a, b), c);
     let max3 = |a, b, c| _mm256_max_epi32(_mm256_max_epi32(a, b), c);
-    let first = |v| _mm256_srai_epi32::<8>(_mm256_add_epi32(v, _mm256_set1_epi32(127)));
-    let last = |v| _mm256_srai_epi32::<8>(_mm256_sub_epi32(v, _mm256_set1_epi32(128)));
-    let px0 = _mm256_max_epi32(first(min3(x0, x1, x2)), _mm256_set1_epi32(clip.x0));
-    let px1 = _mm256_min_epi32(last(max3(x0, x1, x2)), _mm256_set1_epi32(clip.x1));
-    let py0 = _mm256_max_epi32(first(min3(y0, y1, y2)), _mm256_set1_epi32(clip.y0));
-    let py1 = _mm256_min_epi32(last(max3(y0, y1, y2)), _mm256_set1_epi32(clip.y1));
-    let empty = _mm256_or_si256(_mm256_cmpgt_epi32(px0, px1), _mm256_cmpgt_epi32(py0, py1));
+    let first = |v, o: i32| _mm256_srai_epi32::<8>(_mm256_add_epi32(v, _mm256_set1_epi32(127 - o)));
+    let last = |v, o: i32| _mm256_srai_epi32::<8>(_mm256_sub_epi32(v, _mm256_set1_epi32(128 + o)));
+    let (lo, hi) = ([min3(x0, x1, x2), min3(y0, y1, y2)], [max3(x0, x1, x2), max3(y0, y1, y2)]);
+    let none_at = |ox: i32, oy: i32| {
+        let px0 = _mm256_max_epi32(first(lo[0], ox), _mm256_set1_epi32(clip.x0));
+        let px1 = _mm256_min_epi32(last(hi[0], ox), _mm256_set1_epi32(clip.x1));
+        let py0 = _mm256_max_epi32(first(lo[1], oy), _mm256_set1_epi32(clip.y0));
+        let py1 = _mm256_min_epi32(last(hi[1], oy), _mm256_set1_epi32(clip.y1));
+        _mm256_or_si256(_mm256_cmpgt_epi32(px0, px1), _mm256_cmpgt_epi32(py0, py1))
+    };
+    // At 1x, the centre's test alone, with its offsets known (the dense scene's front end).
+    let empty = match samples {
+        SampleCount::X1 => none_at(0, 0),
+        _ => samples.pattern().iter().fold(_mm256_set1_epi32(-1), |empty, &[ox, oy]| {
+            _mm256_and_si256(empty, none_at(16 * ox, 16 * oy))
+        }),
+    };
     let empty = _mm256_movemask_ps(_mm256_castsi256_ps(empty)) as u8;
     let degenerate = zero & lanes;
     let culled = match cull {

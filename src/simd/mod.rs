@@ -22,10 +22,9 @@
 
 use glam::Vec4;
 
-use crate::bin::extent_coverage_bounds;
 use crate::clip::ClipVolume;
 use crate::pipeline::Viewport;
-use crate::sample::MAX_SAMPLES;
+use crate::sample::{MAX_SAMPLES, SampleCount};
 use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
 use crate::shade::{DepthTest, PlaneEquation, quantize_channel};
 
@@ -888,14 +887,15 @@ pub struct CornerTests {
     pub degenerate: u8,
     /// Nonzero area, removed by the cull mode.
     pub culled: u8,
-    /// Kept by both tests above, but its box holds no pixel centre of the clip rectangle.
+    /// Kept by both tests above, but its box holds no sample of the clip rectangle's pixels
+    /// ([`setup::holds_no_sample`]).
     pub empty: u8,
 }
 
 /// The front end's first tests for eight triangles whose corners are all inside the clip
 /// volume, from their snapped corners alone: zero area and culling
-/// ([`TriangleSetup::signed_area2`]), then no pixel centre in the box
-/// ([`crate::bin::extent_coverage_bounds`], one sample per pixel), in that precedence.
+/// ([`TriangleSetup::signed_area2`]), then no sample of `samples` in the box
+/// ([`setup::holds_no_sample`]: one box test per sample position), in that precedence.
 /// Triangles with a corner [`OUTSIDE`] are not `inside` and report nothing else. In a dense
 /// mesh nearly every triangle stops here; AVX2 decides eight at once.
 #[must_use]
@@ -904,14 +904,15 @@ pub fn corner_tests(
     group: &CornerGroup,
     cull: CullMode,
     clip: &PixelRect,
+    samples: SampleCount,
 ) -> CornerTests {
     match level {
         #[cfg(target_arch = "x86_64")]
         _ if level.has_avx2() => {
             // SAFETY: AVX2 support was just checked at run time.
-            unsafe { avx2::corner_tests(group, cull, clip) }
+            unsafe { avx2::corner_tests(group, cull, clip, samples) }
         }
-        _ => corner_tests_scalar(group, cull, clip),
+        _ => corner_tests_scalar(group, cull, clip, samples),
     }
 }
 
@@ -929,22 +930,28 @@ pub fn corner_tests_indexed(
     base: u32,
     cull: CullMode,
     clip: &PixelRect,
+    samples: SampleCount,
 ) -> CornerTests {
     #[cfg(target_arch = "x86_64")]
     if level.has_avx2() {
         // SAFETY: AVX2 support was just checked at run time.
-        return unsafe { avx2::corner_tests_indexed(tris, window, base, cull, clip) };
+        return unsafe { avx2::corner_tests_indexed(tris, window, base, cull, clip, samples) };
     }
     let mut group = CornerGroup::default();
     for (k, tri) in tris.iter().enumerate() {
         group.set(k, tri.map(|i| window[i.wrapping_sub(base) as usize]));
     }
-    corner_tests(level, &group, cull, clip)
+    corner_tests(level, &group, cull, clip, samples)
 }
 
 /// [`corner_tests`] lane by lane, through the front end's own functions.
 #[must_use]
-pub fn corner_tests_scalar(group: &CornerGroup, cull: CullMode, clip: &PixelRect) -> CornerTests {
+pub fn corner_tests_scalar(
+    group: &CornerGroup,
+    cull: CullMode,
+    clip: &PixelRect,
+    samples: SampleCount,
+) -> CornerTests {
     let mut t = CornerTests::default();
     for k in 0..8 {
         let tri = group.get(k);
@@ -957,7 +964,7 @@ pub fn corner_tests_scalar(group: &CornerGroup, cull: CullMode, clip: &PixelRect
             Err(Rejection::Degenerate) => t.degenerate |= 1 << k,
             Err(_) => t.culled |= 1 << k,
             Ok(_) => {
-                if extent_coverage_bounds(setup::extent(corners), false, clip).is_none() {
+                if setup::holds_no_sample(setup::extent(corners), samples, clip) {
                     t.empty |= 1 << k;
                 }
             }
@@ -1084,14 +1091,16 @@ mod tests {
                 x1: cx + rng.random_range(-1..40),
                 y1: cy + rng.random_range(-1..40),
             };
-            let expect = corner_tests_scalar(&group, cull, &clip);
+            let samples = [SampleCount::X1, SampleCount::X4, SampleCount::X8][(round / 3) % 3];
+            let expect = corner_tests_scalar(&group, cull, &clip, samples);
             let lanes = expect.inside;
             seen[0] += expect.degenerate.count_ones();
             seen[1] += expect.culled.count_ones();
             seen[2] += expect.empty.count_ones();
             seen[3] += (lanes & !(expect.degenerate | expect.culled | expect.empty)).count_ones();
             for level in SimdLevel::available() {
-                assert_eq!(corner_tests(level, &group, cull, &clip), expect, "{level:?} {group:?}");
+                let got = corner_tests(level, &group, cull, &clip, samples);
+                assert_eq!(got, expect, "{level:?} {samples:?} {group:?}");
             }
             seen[4] += (!lanes).count_ones();
         }
@@ -1128,10 +1137,11 @@ mod tests {
             for (k, t) in tris.iter().enumerate() {
                 group.set(k, t.map(|i| window[(i - base) as usize]));
             }
-            let expect = corner_tests_scalar(&group, cull, &clip);
+            let samples = [SampleCount::X1, SampleCount::X4, SampleCount::X8][(round / 3) % 3];
+            let expect = corner_tests_scalar(&group, cull, &clip, samples);
             for level in SimdLevel::available() {
-                let got = corner_tests_indexed(level, &tris, &window, base, cull, &clip);
-                assert_eq!(got, expect, "{level:?}, round {round}");
+                let got = corner_tests_indexed(level, &tris, &window, base, cull, &clip, samples);
+                assert_eq!(got, expect, "{level:?}, {samples:?}, round {round}");
             }
         }
         let window = vec![[0, 0]; 5];
@@ -1139,7 +1149,16 @@ mod tests {
         tris[6][1] = 5;
         for level in SimdLevel::available() {
             let r = std::panic::catch_unwind(|| {
-                corner_tests_indexed(level, &tris, &window, 0, CullMode::None, &PixelRect::EMPTY)
+                let clip = PixelRect::EMPTY;
+                corner_tests_indexed(
+                    level,
+                    &tris,
+                    &window,
+                    0,
+                    CullMode::None,
+                    &clip,
+                    SampleCount::X1,
+                )
             });
             assert!(r.is_err(), "{level:?} read past the window");
         }
