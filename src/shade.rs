@@ -570,17 +570,20 @@ pub fn shade_triangle(
             }
             let (step_x, step_y) = setup.pixel_steps();
             for py in r.y0..=r.y1 {
-                let mut masks = [0u32; MAX_SAMPLES];
-                let mut any = 0;
-                for (mask, row) in masks.iter_mut().zip(rows.iter_mut()).take(n) {
-                    *mask = raster::edge::row_coverage_within(*row, step_x, columns as usize);
-                    any |= *mask;
+                // Sample s's row mask in byte s (at most 8 columns and 8 samples), then each
+                // pixel's sample mask in byte c: in registers (an array of masks, read back
+                // bit by bit, was stored narrow and loaded wide, which store forwarding fails).
+                let mut by_sample = 0u64;
+                for (s, row) in rows.iter_mut().enumerate().take(n) {
+                    let mask = raster::edge::row_coverage_within(*row, step_x, columns as usize);
+                    by_sample |= u64::from(mask) << (8 * s);
                     *row = [row[0] + step_y[0], row[1] + step_y[1], row[2] + step_y[2]];
                 }
-                while any != 0 {
-                    let c = any.trailing_zeros();
-                    any &= any - 1;
-                    let mask = (0..n).fold(0, |m, s| m | ((masks[s] >> c) & 1) << s);
+                let mut by_pixel = raster::edge::transpose_bits(by_sample);
+                while by_pixel != 0 {
+                    let c = by_pixel.trailing_zeros() / 8;
+                    let mask = (by_pixel >> (8 * c)) as u32 & 0xFF;
+                    by_pixel &= !(0xFF << (8 * c));
                     pixels.pixel(target, r.x0 + c as i32, py, mask);
                 }
             }
