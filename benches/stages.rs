@@ -182,8 +182,8 @@ fn narrow(c: &mut Criterion) {
                 let mut depth = vec![1.0f32; 8 * 8 * n];
                 let mut color = vec![[0u8; 4]; 8 * 8 * n];
                 g.bench_function(format!("{level:?}, {name} box smooth at {n}x"), |b| {
-                    // A fresh buffer each time (the fill is timed too): the AVX-512 kernel
-                    // stops at the depth test of a group with nothing visible.
+                    // A fresh buffer each time (the fill is timed too), so that every
+                    // covered sample is visible and written, as a first layer is.
                     b.iter(|| {
                         depth.fill(1.0);
                         let narrow = NarrowJob {

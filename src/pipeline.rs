@@ -659,8 +659,9 @@ impl FrontEnd {
     /// `first_id`); vertex `i`'s corner is `corners[i - base]`, and `vertex(i)` gives it as
     /// setup needs it. Triangles inside the clip volume take the corner tests eight at a time
     /// ([`simd::corner_tests_indexed`]; multisampled, each sample position's box test): in a
-    /// dense mesh nearly all stop there, counted, before their vertices are read; those that pass go straight to setup (as `setup_inside` would
-    /// after the same tests), and those needing clipping through `prepare`.
+    /// dense mesh nearly all stop there, counted, before their vertices are read; those that
+    /// pass go straight to setup (as `setup_inside` would after the same tests), and those
+    /// needing clipping through `prepare`.
     fn prepare_range<V: Varyings, R: Borrow<ShadedVertex<V>>>(
         &self,
         batch: &[[u32; 3]],

@@ -17,7 +17,7 @@
 
 use crate::fixed;
 use crate::raster::{self, Algorithm, Span};
-use crate::sample::MAX_SAMPLES;
+use crate::sample::{MAX_SAMPLES, SampleCount};
 use crate::setup::{PIXEL_STEP, PixelRect, TriangleSetup, Vertex};
 use crate::simd::{
     self, KernelTarget, NarrowJob, NarrowSamplesJob, SampleSpanJob, SimdLevel, SpanColor, SpanJob,
@@ -285,7 +285,7 @@ impl From<SpanColor> for TriangleColor {
 impl TriangleColor {
     /// The colour as a SIMD span kernel takes it; `None` for perspective shading, which has
     /// no kernel. For the triangle's covered pixels only: an opaque triangle's colour is a
-    /// [`SpanColor::SmoothRgb`], which does not clamp.
+    /// [`SpanColor::SmoothRgb`], which only the narrow sample kernels clamp.
     #[inline]
     #[must_use]
     pub fn span_color(&self) -> Option<&SpanColor> {
@@ -513,8 +513,9 @@ fn plane_bounds(
 /// fragments that pass are handed to the stage [`LANES`] at a time, so their writes may wait
 /// until then (at the latest, until the call returns). Returns
 /// the number of covered samples. A `kernel` (flat or smooth colour without normals)
-/// replaces `fragment` by SIMD span kernels computing the same values: at 1x for spans and
-/// narrow triangles, multisampled for pixels whose samples are all covered.
+/// replaces `fragment` by SIMD kernels computing the same values: for narrow triangles
+/// (whole, coverage included), at 1x for spans, multisampled for runs of pixels whose samples
+/// are all covered.
 #[allow(clippy::too_many_arguments)]
 pub fn shade_triangle(
     target: &mut TargetBand<'_>,
@@ -534,14 +535,6 @@ pub fn shade_triangle(
             target, setup, algorithm, clip, depth, depth_test, id, kernel, fragment,
         );
     }
-    // Each sample's numerators less its pixel centre's.
-    let mut offsets = [[0i64; 2]; MAX_SAMPLES];
-    for (s, o) in offsets.iter_mut().enumerate().take(n) {
-        *o = setup.numerator_offset(samples.offset(s));
-    }
-    let mut pixels =
-        SamplePixels { setup, n, offsets, depth, depth_test, id, fragment, covered: 0 };
-
     if algorithm == Algorithm::EdgeMasks {
         // The pixels any sample of which may be covered: the union of the sample boxes.
         let boxes = (0..n).filter_map(|s| setup.sample_bounds(samples.offset(s)).intersect(clip));
@@ -550,16 +543,14 @@ pub fn shade_triangle(
         if columns <= raster::edge::NARROW {
             let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
             if let Some((level, color)) = kernel.filter(|_| target.overdraw.is_none()) {
-                return narrow_samples_kernel(
-                    target,
-                    setup,
-                    &r,
-                    depth,
-                    (depth_test, id),
+                let offsets = sample_edge_offsets(setup, samples, x, y);
+                let narrow = narrow_job(target, setup, &r, depth, (depth_test, id), color);
+                return simd::shade_narrow_samples(
                     level,
-                    color,
+                    NarrowSamplesJob { narrow, samples: n, offsets },
                 );
             }
+            let mut pixels = SamplePixels::new(setup, samples, depth, (depth_test, id), fragment);
             // Each sample's row coverage as a bit mask without branches (as at 1x), then the
             // pixels with any covered sample, left to right, with their sample masks: no
             // spans, no lists of them.
@@ -590,58 +581,64 @@ pub fn shade_triangle(
             return pixels.covered;
         }
     }
-
+    let pixels = SamplePixels::new(setup, samples, depth, (depth_test, id), fragment);
     sample_spans(target, algorithm, clip, kernel, pixels)
 }
 
-/// A narrow triangle's box `r` on a multisampled target through the narrow sample kernel
-/// (flat or smooth colour, no overdraw buffer): what the pixel loop of [`shade_triangle`]
-/// computes, eight samples at a time.
-fn narrow_samples_kernel(
-    target: &mut TargetBand<'_>,
+/// The narrow kernels' job for box `r` of a triangle (at most [`simd::NARROW_COLUMNS`]
+/// wide): the edge values at the centre of its first pixel, their steps, the fill-rule
+/// biases, and the band's buffers.
+#[inline(always)]
+fn narrow_job<'a>(
+    target: &'a mut TargetBand<'_>,
     setup: &TriangleSetup,
     r: &PixelRect,
     depth: &PlaneEquation,
     (depth_test, id): (DepthTest, i32),
-    level: SimdLevel,
-    color: &SpanColor,
-) -> u64 {
-    let samples = target.samples();
+    color: &'a SpanColor,
+) -> NarrowJob<'a> {
     let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
     let edges = setup.edge_values(x, y);
     let (e1, e2) = setup.barycentric_numerators(x, y);
     let (step_x, step_y) = setup.pixel_steps();
+    NarrowJob {
+        edges,
+        step_x,
+        step_y,
+        bias: [edges[1] - e1, edges[2] - e2],
+        columns: (r.x1 - r.x0 + 1) as usize,
+        rows: (r.y1 - r.y0 + 1) as usize,
+        first: target.index(r.x0, r.y0),
+        stride: target.stride(),
+        target: KernelTarget {
+            depth_plane: depth.coefficients(),
+            color,
+            depth_test,
+            id,
+            depth: target.depth,
+            color_out: target.color,
+            ids: target.ids.as_deref_mut(),
+            overdraw: target.overdraw.as_deref_mut(),
+        },
+    }
+}
+
+/// Each sample's edge values less its pixel centre's, from the pixel centre `(x, y)` (any:
+/// the edge functions are linear, so the differences are the same everywhere).
+fn sample_edge_offsets(
+    setup: &TriangleSetup,
+    samples: SampleCount,
+    x: i64,
+    y: i64,
+) -> [[i64; 3]; MAX_SAMPLES] {
+    let centre = setup.edge_values(x, y);
     let mut offsets = [[0i64; 3]; MAX_SAMPLES];
     for (s, o) in offsets.iter_mut().enumerate().take(samples.count()) {
         let [ox, oy] = samples.offset(s);
         let at = setup.edge_values(x + ox, y + oy);
-        *o = std::array::from_fn(|k| at[k] - edges[k]);
+        *o = std::array::from_fn(|k| at[k] - centre[k]);
     }
-    let job = NarrowSamplesJob {
-        narrow: NarrowJob {
-            edges,
-            step_x,
-            step_y,
-            bias: [edges[1] - e1, edges[2] - e2],
-            columns: (r.x1 - r.x0 + 1) as usize,
-            rows: (r.y1 - r.y0 + 1) as usize,
-            first: target.index(r.x0, r.y0),
-            stride: target.stride(),
-            target: KernelTarget {
-                depth_plane: depth.coefficients(),
-                color,
-                depth_test,
-                id,
-                depth: target.depth,
-                color_out: target.color,
-                ids: target.ids.as_deref_mut(),
-                overdraw: None,
-            },
-        },
-        samples: samples.count(),
-        offsets,
-    };
-    simd::shade_narrow_samples(level, job)
+    offsets
 }
 
 /// [`shade_triangle`] on a multisampled target, from each sample's spans: pixel by pixel over
@@ -756,7 +753,23 @@ struct SamplePixels<'a, S> {
     covered: u64,
 }
 
-impl<S: FragmentStage> SamplePixels<'_, S> {
+impl<'a, S: FragmentStage> SamplePixels<'a, S> {
+    /// The loop's state for a triangle, no sample covered yet.
+    fn new(
+        setup: &'a TriangleSetup,
+        samples: SampleCount,
+        depth: &'a PlaneEquation,
+        (depth_test, id): (DepthTest, i32),
+        fragment: S,
+    ) -> Self {
+        let n = samples.count();
+        let mut offsets = [[0i64; 2]; MAX_SAMPLES];
+        for (s, o) in offsets.iter_mut().enumerate().take(n) {
+            *o = setup.numerator_offset(samples.offset(s));
+        }
+        Self { setup, n, offsets, depth, depth_test, id, fragment, covered: 0 }
+    }
+
     /// Pixel `(px, py)` with covered samples `mask`.
     #[inline(always)]
     fn pixel(&mut self, target: &mut TargetBand<'_>, px: i32, py: i32, mask: u32) {
@@ -822,34 +835,15 @@ fn shade_single_sample(
         let Some(r) = setup.bounds.intersect(clip) else { return 0 };
         let columns = (r.x1 - r.x0 + 1) as usize;
         if columns <= simd::NARROW_COLUMNS {
+            if let Some((level, color)) = kernel {
+                let job = narrow_job(target, setup, &r, depth, (depth_test, id), color);
+                return simd::shade_narrow(level, job);
+            }
             let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
             let edges = setup.edge_values(x, y);
             let (e1, e2) = setup.barycentric_numerators(x, y);
             let (step_x, step_y) = setup.pixel_steps();
             let bias = [edges[1] - e1, edges[2] - e2];
-            if let Some((level, color)) = kernel {
-                let job = NarrowJob {
-                    edges,
-                    step_x,
-                    step_y,
-                    bias,
-                    columns,
-                    rows: (r.y1 - r.y0 + 1) as usize,
-                    first: target.index(r.x0, r.y0),
-                    stride: target.stride(),
-                    target: KernelTarget {
-                        depth_plane: depth.coefficients(),
-                        color,
-                        depth_test,
-                        id,
-                        depth: target.depth,
-                        color_out: target.color,
-                        ids: target.ids.as_deref_mut(),
-                        overdraw: target.overdraw.as_deref_mut(),
-                    },
-                };
-                return simd::shade_narrow(level, job);
-            }
             // Row coverage as a bit mask without branches (as `rasterize_narrow`), then the
             // covered pixels, left to right.
             let mut covered = 0u64;
@@ -1145,5 +1139,82 @@ mod tests {
         for c in values {
             assert_eq!(quantize_channel(c), expect(c), "{c}");
         }
+    }
+
+    /// Small triangles (boxes up to 8 pixels wide) on 4x and 8x targets with random buffers,
+    /// shaded through a span kernel's colour at every SIMD level, leave the buffers and the
+    /// count of the per-pixel loop given a fragment stage computing the same colour: the
+    /// narrow sample kernels against the loop they replace. Flat and smooth colours, opaque
+    /// ones (whose planes the kernels clamp where partly covered pixels' centres lie outside
+    /// the triangle), every depth test, with and without ids.
+    #[test]
+    fn narrow_sample_kernels_match_the_pixel_loop() {
+        let mut rng = SmallRng::seed_from_u64(2111);
+        let (w, h) = (20u32, 16u32);
+        let mut kernel_runs = 0;
+        for round in 0..3000 {
+            let samples = [SampleCount::X4, SampleCount::X8][round % 2];
+            let shading = [Shading::Flat, Shading::Smooth][(round / 2) % 2];
+            let opaque = round % 3 != 0;
+            let (cx, cy) = (rng.random_range(0.0..w as f32), rng.random_range(0.0..h as f32));
+            let size = [1.5, 3.0, 4.5][round % 3];
+            let v: [Vertex; 3] = std::array::from_fn(|_| Vertex {
+                x: cx + rng.random_range(-size..size),
+                y: cy + rng.random_range(-size..size),
+                z: rng.random_range(0.0..1.0),
+                inv_w: 1.0,
+                color: [
+                    rng.random(),
+                    rng.random(),
+                    rng.random(),
+                    if opaque { 255 } else { rng.random() },
+                ],
+            });
+            let Ok(setup) = TriangleSetup::new(&v, crate::CullMode::None) else { continue };
+            let shader = TriangleShader::new(&v, &setup, shading);
+            let Some(color) = shader.span_color() else { continue };
+            let depth_test = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always][round % 3];
+            let mut start = crate::Target::multisampled(w, h, samples).unwrap();
+            if round % 4 != 0 {
+                start = start.with_ids();
+            }
+            for z in &mut start.depth {
+                *z = [0.0, 1.0, rng.random_range(0.0..1.0)][rng.random_range(0..3)];
+            }
+            for c in &mut start.color {
+                *c = [rng.random(); 4];
+            }
+            let clip = start.rect();
+            let run = |level: Option<SimdLevel>| {
+                let mut target = start.clone();
+                let fragment = |_, _, e1, e2, _| {
+                    Some(FragmentOutput { color: shader.color_at(e1, e2), normal: None })
+                };
+                let covered = shade_triangle(
+                    &mut target.band(),
+                    &setup,
+                    Algorithm::EdgeMasks,
+                    &clip,
+                    &shader.depth,
+                    depth_test,
+                    7,
+                    level.map(|l| (l, color)),
+                    fragment,
+                );
+                (covered, target.depth.iter().map(|z| z.to_bits()).collect::<Vec<_>>(), target)
+            };
+            let (covered, depth, target) = run(None);
+            let box_width = setup.bounds.x1 - setup.bounds.x0 + 1;
+            kernel_runs += usize::from(covered > 0 && box_width < 8);
+            for level in SimdLevel::available() {
+                let (k_covered, k_depth, k_target) = run(Some(level));
+                let what = format!("{level:?}, round {round}");
+                assert_eq!(k_covered, covered, "{what}");
+                assert_eq!(k_depth, depth, "{what}");
+                assert_eq!(k_target.color, target.color, "{what}");
+                assert_eq!(k_target.ids, target.ids, "{what}");
+            }
+        }
+        assert!(kernel_runs > 1000, "{kernel_runs} narrow triangles covered a sample");
     }
 }

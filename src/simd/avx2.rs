@@ -526,15 +526,10 @@ unsafe fn sample_groups(job: &mut SampleSpanJob<'_>, rgba: impl Fn(__m256d, __m2
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn shade_narrow_samples(job: &mut NarrowSamplesJob<'_>) -> u64 {
     // A partly covered pixel's centre may lie outside the triangle, where a `SmoothRgb`'s
-    // planes may leave [0, 255]: clamp them, as the scalar `SpanColor::at` does.
-    if let SpanColor::SmoothRgb(p, alpha) = *job.narrow.target.color {
-        // SAFETY: the CPU supports AVX2 (this function's contract).
-        return unsafe {
-            narrow_sample_groups(job, move |f1, f2| smooth::<true>(&p, Some(alpha), f1, f2))
-        };
-    }
-    // SAFETY: as above.
-    with_rgba!(*job.narrow.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
+    // planes may leave [0, 255]: clamped, as the scalar `SpanColor::at` does.
+    // SAFETY: the CPU supports this kernel's features (this function's contract).
+    let color = *job.narrow.target.color;
+    with_rgba!(clamped color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
         narrow_sample_groups(job, rgba)
     })
 }

@@ -212,7 +212,8 @@ pub enum SpanColor {
     /// give or take rounding (below 1e-12), so it lies in (-0.5, 255.5), where rounding alone
     /// gives what clamping and rounding give. Planes that leave that range at a covered pixel
     /// are outside this variant's contract (the kernels' lanes outside the triangle, masked
-    /// off, may hold anything).
+    /// off, may hold anything). The narrow sample kernels, which evaluate colour at the
+    /// centres of partly covered pixels (possibly outside the triangle), clamp it.
     SmoothRgb([[f64; 3]; 3], u8),
 }
 
@@ -292,7 +293,7 @@ impl KernelTarget<'_> {
     /// (at the centre's numerators plus its `offsets`) tested, and if any passes, the colour
     /// at the centre written to the passing samples, as [`crate::shade::shade_triangle`] does.
     #[inline]
-    fn samples(&mut self, p: usize, mask: u32, centre: (i64, i64), offsets: &[[i64; 2]]) {
+    fn pixel_samples(&mut self, p: usize, mask: u32, centre: (i64, i64), offsets: &[[i64; 2]]) {
         let (c1, c2) = centre;
         let mut z = [0.0f32; MAX_SAMPLES];
         let mut passed = 0u32;
@@ -436,7 +437,7 @@ fn samples_scalar(job: &mut SampleSpanJob<'_>) {
     let (mut e1, mut e2) = (span.e1, span.e2);
     let every = (1u32 << job.samples) - 1;
     for p in (0..len).step_by(job.samples) {
-        t.samples(p, every, (e1, e2), &job.offsets[..job.samples]);
+        t.pixel_samples(p, every, (e1, e2), &job.offsets[..job.samples]);
         e1 += span.step1;
         e2 += span.step2;
     }
@@ -556,7 +557,10 @@ pub struct NarrowSamplesJob<'a> {
     /// Samples per pixel: 4 or 8.
     pub samples: usize,
     /// Each sample's edge values less its pixel centre's (exact integers, the edge functions
-    /// being linear); those of edges 1 and 2 are its barycentric numerators' offsets.
+    /// being linear); those of edges 1 and 2 are its barycentric numerators' offsets. As
+    /// setup gives them, edge values over the box stay below 2^49 in magnitude, exact in the
+    /// kernels' `f64` lanes; jobs far outside that give unspecified values within the box
+    /// (and may panic on overflow in debug builds), never a write outside it.
     pub offsets: [[i64; 3]; MAX_SAMPLES],
 }
 
@@ -624,7 +628,7 @@ fn narrow_samples_scalar(job: &mut NarrowSamplesJob<'_>) -> u64 {
             });
             covered += u64::from(mask.count_ones());
             let centre = (e[1] - job.bias[0], e[2] - job.bias[1]);
-            t.samples(n * (job.first + r * job.stride + c), mask, centre, &numerators[..n]);
+            t.pixel_samples(n * (job.first + r * job.stride + c), mask, centre, &numerators[..n]);
             e = std::array::from_fn(|k| e[k] + job.step_x[k]);
         }
         row = std::array::from_fn(|k| row[k] + job.step_y[k]);
@@ -977,10 +981,14 @@ pub fn corner_tests_scalar(
 /// numerators `(f1, f2)` (of type `$lanes`) as a closure, one per colour kind: each kind's
 /// loop is compiled on its own, without a match per group (and with groups small enough to
 /// inline). `$flat` broadcasts a colour's bits; `$smooth::<CLAMP>(planes, alpha, f1, f2)`
-/// evaluates planes (red, green, blue, and alpha when `alpha` is `None`).
+/// evaluates planes (red, green, blue, and alpha when `alpha` is `None`). A
+/// [`SpanColor::SmoothRgb`] is not clamped unless the call starts with `clamped`: kernels
+/// that evaluate colour where the triangle may not cover (partly covered pixels' centres)
+/// must ask for it.
 #[cfg(target_arch = "x86_64")]
 macro_rules! with_rgba {
-    ($color:expr, $lanes:ty, $flat:expr, $smooth:ident, $rgba:ident => $body:expr) => {
+    (@ $clamp_rgb:literal, $color:expr, $lanes:ty, $flat:expr, $smooth:ident, $rgba:ident =>
+        $body:expr) => {
         match $color {
             SpanColor::Flat(c) => {
                 let flat = $flat(i32::from_le_bytes(c));
@@ -992,10 +1000,16 @@ macro_rules! with_rgba {
                 $body
             }
             SpanColor::SmoothRgb(p, alpha) => {
-                let $rgba = move |f1, f2| $smooth::<false>(&p, Some(alpha), f1, f2);
+                let $rgba = move |f1, f2| $smooth::<$clamp_rgb>(&p, Some(alpha), f1, f2);
                 $body
             }
         }
+    };
+    (clamped $color:expr, $lanes:ty, $flat:expr, $smooth:ident, $rgba:ident => $body:expr) => {
+        with_rgba!(@ true, $color, $lanes, $flat, $smooth, $rgba => $body)
+    };
+    ($color:expr, $lanes:ty, $flat:expr, $smooth:ident, $rgba:ident => $body:expr) => {
+        with_rgba!(@ false, $color, $lanes, $flat, $smooth, $rgba => $body)
     };
 }
 
@@ -1532,8 +1546,9 @@ mod tests {
     }
 
     /// Narrow sample jobs the kernels do not take (an overdraw buffer, a sample count other
-    /// than 4 or 8, an empty or too wide box, a box reaching past the buffers, a stride so
-    /// large its offsets overflow) panic at every level, before touching the buffers.
+    /// than 4 or 8, a box with no column or row or too wide, a box reaching past the buffers,
+    /// a stride so large its offsets overflow) panic at every level, before touching the
+    /// buffers.
     #[test]
     fn narrow_sample_jobs_outside_the_contract_panic() {
         let ok = (4, 2, 2, 3, false);
@@ -1541,6 +1556,7 @@ mod tests {
             (4, 2, 2, 3, true),
             (2, 2, 2, 3, false),
             (4, 0, 2, 3, false),
+            (4, 2, 0, 3, false),
             (4, NARROW_COLUMNS + 1, 1, 9, false),
             (4, 3, 2, 4, false),
             (8, 2, 2, 3, false),
