@@ -76,6 +76,30 @@ fn smooth_target<'a>(depth: &'a mut [f32], color: &'a mut [[u8; 4]]) -> KernelTa
     }
 }
 
+/// The narrow kernels' job for triangle `s`'s box, on buffers whose rows are `stride` pixels
+/// apart.
+fn narrow_job<'a>(
+    s: &TriangleSetup,
+    stride: usize,
+    depth: &'a mut [f32],
+    color: &'a mut [[u8; 4]],
+) -> NarrowJob<'a> {
+    let (x, y) = (fixed::pixel_centre(s.bounds.x0), fixed::pixel_centre(s.bounds.y0));
+    let edges = s.edges.map(|e| e.eval(x, y));
+    let (e1, e2) = s.barycentric_numerators(x, y);
+    NarrowJob {
+        edges,
+        step_x: s.edges.map(|e| e.a * 256),
+        step_y: s.edges.map(|e| e.b * 256),
+        bias: [edges[1] - e1, edges[2] - e2],
+        columns: (s.bounds.x1 - s.bounds.x0 + 1) as usize,
+        rows: (s.bounds.y1 - s.bounds.y0 + 1) as usize,
+        first: 0,
+        stride,
+        target: smooth_target(depth, color),
+    }
+}
+
 fn kernels(c: &mut Criterion) {
     let mut g = c.benchmark_group("span kernel");
     let n = 64;
@@ -145,8 +169,6 @@ fn narrow(c: &mut Criterion) {
         }
         let s = TriangleSetup::new(&tri, CullMode::None).expect("a triangle");
         let (x, y) = (fixed::pixel_centre(s.bounds.x0), fixed::pixel_centre(s.bounds.y0));
-        let edges = s.edges.map(|e| e.eval(x, y));
-        let (e1, e2) = s.barycentric_numerators(x, y);
         for level in SimdLevel::available() {
             let mut depth = vec![1.0f32; 64 * 8];
             let mut color = vec![[0u8; 4]; 64 * 8];
@@ -154,22 +176,7 @@ fn narrow(c: &mut Criterion) {
                 // The SIMD kernels have no branches on depth, so a buffer already written
                 // costs them what a fresh one does (the scalar one, after the first iteration,
                 // times hidden pixels: no colour written).
-                b.iter(|| {
-                    simd::shade_narrow(
-                        level,
-                        NarrowJob {
-                            edges,
-                            step_x: s.edges.map(|e| e.a * 256),
-                            step_y: s.edges.map(|e| e.b * 256),
-                            bias: [edges[1] - e1, edges[2] - e2],
-                            columns: (s.bounds.x1 - s.bounds.x0 + 1) as usize,
-                            rows: (s.bounds.y1 - s.bounds.y0 + 1) as usize,
-                            first: 0,
-                            stride: 64,
-                            target: smooth_target(&mut depth, &mut color),
-                        },
-                    )
-                })
+                b.iter(|| simd::shade_narrow(level, narrow_job(&s, 64, &mut depth, &mut color)))
             });
             // The same box at 4x and 8x, every sample of its pixels tested.
             for samples in [SampleCount::X4, SampleCount::X8] {
@@ -186,17 +193,7 @@ fn narrow(c: &mut Criterion) {
                     // covered sample is visible and written, as a first layer is.
                     b.iter(|| {
                         depth.fill(1.0);
-                        let narrow = NarrowJob {
-                            edges,
-                            step_x: s.edges.map(|e| e.a * 256),
-                            step_y: s.edges.map(|e| e.b * 256),
-                            bias: [edges[1] - e1, edges[2] - e2],
-                            columns: (s.bounds.x1 - s.bounds.x0 + 1) as usize,
-                            rows: (s.bounds.y1 - s.bounds.y0 + 1) as usize,
-                            first: 0,
-                            stride: 8,
-                            target: smooth_target(&mut depth, &mut color),
-                        };
+                        let narrow = narrow_job(&s, 8, &mut depth, &mut color);
                         simd::shade_narrow_samples(
                             level,
                             NarrowSamplesJob { narrow, samples: n, offsets },

@@ -322,6 +322,14 @@ impl KernelTarget<'_> {
         crate::shade::depth_at(&PlaneEquation::from_coefficients(self.depth_plane), f1, f2)
     }
 
+    /// [`KernelTarget::checked_len`] of buffers of `samples` elements per pixel: panics
+    /// unless `samples` is 4 or 8 and there is no overdraw buffer (it counts per pixel).
+    fn checked_samples(&self, samples: usize) -> usize {
+        assert!(samples == 4 || samples == 8, "4 or 8 samples per pixel");
+        assert!(self.overdraw.is_none(), "no overdraw buffer");
+        self.checked_len()
+    }
+
     /// Panics unless every buffer holds as many elements as `depth`; returns that number.
     fn checked_len(&self) -> usize {
         let n = self.depth.len();
@@ -388,10 +396,7 @@ impl SampleSpanJob<'_> {
     /// Panics unless the job is one the kernels take; returns the span's buffer elements
     /// (samples).
     fn check(&self) -> usize {
-        let n = self.samples;
-        assert!(n == 4 || n == 8, "4 or 8 samples per pixel");
-        assert!(self.span.target.overdraw.is_none(), "no overdraw buffer");
-        let len = self.span.target.checked_len();
+        let (n, len) = (self.samples, self.span.target.checked_samples(self.samples));
         assert!(len.is_multiple_of(n), "whole pixels");
         len
     }
@@ -565,16 +570,13 @@ pub struct NarrowSamplesJob<'a> {
 }
 
 impl NarrowSamplesJob<'_> {
-    /// Panics unless the job is one the kernels take; returns the buffers' length (samples).
-    fn check(&self) -> usize {
+    /// Panics unless the job is one the kernels take.
+    fn check(&self) {
         let (job, n) = (&self.narrow, self.samples);
-        assert!(n == 4 || n == 8, "4 or 8 samples per pixel");
-        assert!(job.target.overdraw.is_none(), "no overdraw buffer");
+        let len = job.target.checked_samples(n);
         assert!((1..=NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not a narrow box");
-        let len = job.target.checked_len();
         // Checked arithmetic: the kernels' offsets stay in the buffers only if this holds.
         assert!(job.end(job.columns).checked_mul(n).is_some_and(|e| e <= len), "box outside");
-        len
     }
 }
 
