@@ -229,8 +229,12 @@ fn front_end(c: &mut Criterion) {
     // Triangles of neighbouring vertices, as in a mesh stored with locality.
     let tris: Vec<[u32; 3]> = (0..1024u32).map(|i| [i, (i + 1) % 1024, (i + 33) % 1024]).collect();
     let clip = PixelRect::of_target(1920, 1080);
-    for level in SimdLevel::available() {
-        g.bench_function(format!("{level:?}, corner tests of 1024 triangles"), |b| {
+    for (level, samples) in SimdLevel::available()
+        .into_iter()
+        .flat_map(|l| [SampleCount::X1, SampleCount::X4].map(|s| (l, s)))
+    {
+        let name = format!("{level:?}, corner tests of 1024 triangles at {}x", samples.count());
+        g.bench_function(name, |b| {
             b.iter(|| {
                 let mut kept = 0u32;
                 for eight in tris.chunks_exact(8) {
@@ -242,7 +246,7 @@ fn front_end(c: &mut Criterion) {
                         0,
                         CullMode::Clockwise,
                         &clip,
-                        SampleCount::X1,
+                        samples,
                     );
                     kept += (t.inside & !(t.degenerate | t.culled | t.empty)).count_ones();
                 }

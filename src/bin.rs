@@ -663,9 +663,9 @@ where
                 crate::simd::prefetch(prepared.get(ahead));
             }
             // Or, where the tile was not, each triangle's first rows (its record, prefetched
-            // earlier, is in the cache by then).
-            let near = list.get(j + 2).filter(|_| !whole_tile);
-            if let Some(r) = near.and_then(|&k| prepared.get(k).setup.bounds.intersect(tile)) {
+            // earlier, is in the cache by then; the first two are not prefetched).
+            let near = list.get(j + 2).filter(|_| !whole_tile).map(|&k| prepared.get(k));
+            if let Some(r) = near.and_then(|p| coverage_bounds(&p.setup, true, tile)) {
                 band.prefetch(&PixelRect { y1: r.y1.min(r.y0 + 7), ..r });
             }
             let p = prepared.get(i);

@@ -768,25 +768,13 @@ impl FrontEnd {
     }
 
     /// Zero area, culling and "covers no sample", from the snapped corners alone: most
-    /// triangles of a dense mesh stop here, before their edge functions are built.
-    ///
-    /// Multisampled, the coverage rectangle (the pixels within half a pixel of the box) lets
-    /// nearly every sub-pixel triangle through, so a box under a pixel wide or high also takes
-    /// each sample's box test: a sample can be covered only if it lies in the box and its
-    /// pixel in the clip. A larger box holds a sample of every pattern position, so it skips
-    /// that test; near the clip's edges this lets through a few triangles whose samples in the
-    /// box are all outside it, which setup then finds empty.
+    /// triangles of a dense mesh stop here, before their edge functions are built. The tests
+    /// of [`simd::corner_tests`], one triangle at a time (the reference backend's).
     fn corner_tests(&self, xy: [[i64; 2]; 3]) -> Result<(), Skipped> {
         TriangleSetup::signed_area2(xy, self.cull)?;
-        let extent = setup::extent(xy);
         let bin::Coverage { clip, multisampled } = self.coverage;
         debug_assert_eq!(multisampled, self.samples.count() > 1, "coverage for other samples");
-        if bin::extent_coverage_bounds(extent, multisampled, &clip).is_none() {
-            return Err(Skipped::Empty);
-        }
-        let [[x0, y0], [x1, y1]] = extent;
-        let sub_pixel = x1 - x0 < setup::PIXEL_STEP || y1 - y0 < setup::PIXEL_STEP;
-        if multisampled && sub_pixel && setup::holds_no_sample(extent, self.samples, &clip) {
+        if setup::holds_no_sample(setup::extent(xy), self.samples, &clip) {
             return Err(Skipped::Empty);
         }
         Ok(())

@@ -1204,8 +1204,10 @@ mod tests {
                 (covered, target.depth.iter().map(|z| z.to_bits()).collect::<Vec<_>>(), target)
             };
             let (covered, depth, target) = run(None);
-            let box_width = setup.bounds.x1 - setup.bounds.x0 + 1;
-            kernel_runs += usize::from(covered > 0 && box_width < 8);
+            // The box the narrow path takes: the union of the sample boxes.
+            let boxes = (0..samples.count()).map(|s| setup.sample_bounds(samples.offset(s)));
+            let r = boxes.reduce(|a, b| a.union(&b)).unwrap();
+            kernel_runs += usize::from(covered > 0 && r.x1 - r.x0 < 8);
             for level in SimdLevel::available() {
                 let (k_covered, k_depth, k_target) = run(Some(level));
                 let what = format!("{level:?}, round {round}");

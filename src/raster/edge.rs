@@ -88,8 +88,9 @@ pub fn row_coverage_within(e: [i64; 3], step_x: [i64; 3], columns: usize) -> u32
 
 /// The 8 x 8 bit matrix `m` transposed: bit `8 i + j` of the result is bit `8 j + i` of `m`.
 /// With one sample's row mask ([`row_coverage_within`]) per byte, the result holds one
-/// pixel's sample mask per byte: in registers, three rounds of swapping blocks (2 x 2, then
-/// 4 x 4, then 8 x 8 bits) instead of a gather of bits from an array of masks per pixel.
+/// pixel's sample mask per byte: in registers, three rounds of swapping the off-diagonal
+/// sub-blocks of every 2 x 2, then 4 x 4, then 8 x 8 block, instead of a gather of bits from
+/// an array of masks per pixel.
 #[inline(always)]
 #[must_use]
 pub fn transpose_bits(mut m: u64) -> u64 {

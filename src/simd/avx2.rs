@@ -115,7 +115,8 @@ fn tests(
     }
     // For each sample position, the first and last pixels whose sample at that position
     // lies in the box, clipped: empty for every position, the box holds no sample. (Offsets
-    // are below 128 and the corners below 2^23 in magnitude: no overflow.)
+    // are below 128 and the corners at most 2^23 in magnitude: no overflow; lanes with an
+    // `OUTSIDE` corner wrap, and are masked off.)
     let min3 = |a, b, c| _mm256_min_epi32(_mm256_min_epi32(a, b), c);
     let max3 = |a, b, c| _mm256_max_epi32(_mm256_max_epi32(a, b), c);
     let first = |v, o: i32| _mm256_srai_epi32::<8>(_mm256_add_epi32(v, _mm256_set1_epi32(127 - o)));
@@ -527,8 +528,8 @@ unsafe fn sample_groups(job: &mut SampleSpanJob<'_>, rgba: impl Fn(__m256d, __m2
 pub(super) unsafe fn shade_narrow_samples(job: &mut NarrowSamplesJob<'_>) -> u64 {
     // A partly covered pixel's centre may lie outside the triangle, where a `SmoothRgb`'s
     // planes may leave [0, 255]: clamped, as the scalar `SpanColor::at` does.
-    // SAFETY: the CPU supports this kernel's features (this function's contract).
     let color = *job.narrow.target.color;
+    // SAFETY: the CPU supports this kernel's features (this function's contract).
     with_rgba!(clamped color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
         narrow_sample_groups(job, rgba)
     })

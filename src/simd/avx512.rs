@@ -347,8 +347,8 @@ unsafe fn sample_groups(job: &mut SampleSpanJob<'_>, rgba: impl Fn(__m512d, __m5
 pub(super) unsafe fn shade_narrow_samples(job: &mut NarrowSamplesJob<'_>) -> u64 {
     // A partly covered pixel's centre may lie outside the triangle, where a `SmoothRgb`'s
     // planes may leave [0, 255]: clamped, as the scalar `SpanColor::at` does.
-    // SAFETY: the CPU supports this kernel's features (this function's contract).
     let color = *job.narrow.target.color;
+    // SAFETY: the CPU supports this kernel's features (this function's contract).
     with_rgba!(clamped color, __m512d, _mm256_set1_epi32, smooth, rgba => unsafe {
         narrow_sample_groups(job, rgba)
     })

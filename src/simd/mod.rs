@@ -1073,19 +1073,28 @@ mod tests {
     fn corner_tests_match_the_front_end() {
         let mut rng = SmallRng::seed_from_u64(11);
         let limit = (1 << 23) - 1;
-        // Lanes found degenerate, culled, empty, kept, and with a corner outside.
-        let mut seen = [0u32; 5];
+        // Lanes found degenerate, culled, empty, kept, with a corner outside, and decided
+        // otherwise by sample positions than by the centre.
+        let mut seen = [0u32; 6];
         for round in 0..40_000 {
             let mut group = CornerGroup::default();
             for k in 0..8 {
                 let mut tri = [[0i32; 2]; 3];
-                let kind = rng.random_range(0..4);
+                let kind = rng.random_range(0..5);
                 let base = [rng.random_range(-3000..3000), rng.random_range(-3000..3000)];
                 for (v, p) in tri.iter_mut().enumerate() {
                     *p = match kind {
                         // Within a few pixels, often on a centre or a centre +- 1.
                         0 => base.map(|b| {
                             256 * (b / 256) + 128 + rng.random_range(-3..4) * [1, 64, 255][v]
+                        }),
+                        // Under a pixel, on or beside sample positions (multiples of 16 from
+                        // a centre, +- 1): where each position's box test decides.
+                        4 => base.map(|b| {
+                            256 * (b / 256)
+                                + 128
+                                + 16 * rng.random_range(-8..8)
+                                + rng.random_range(-1..2)
                         }),
                         1 => base.map(|b| b + rng.random_range(-600..600)),
                         2 => [rng.random_range(-limit..=limit), rng.random_range(-limit..=limit)],
@@ -1109,6 +1118,9 @@ mod tests {
             };
             let samples = [SampleCount::X1, SampleCount::X4, SampleCount::X8][(round / 3) % 3];
             let expect = corner_tests_scalar(&group, cull, &clip, samples);
+            // Lanes the sample positions decide otherwise than the centre alone.
+            let centre = corner_tests_scalar(&group, cull, &clip, SampleCount::X1);
+            seen[5] += (expect.empty ^ centre.empty).count_ones();
             let lanes = expect.inside;
             seen[0] += expect.degenerate.count_ones();
             seen[1] += expect.culled.count_ones();
