@@ -372,40 +372,6 @@ pub const PIXEL_STEP: i64 = ONE as i64;
 
 #[cfg(test)]
 mod tests {
-    /// `holds_no_sample` against every sample of every pixel of the clip: small boxes on and
-    /// beside sample positions, at 1x, 4x and 8x.
-    #[test]
-    fn holds_no_sample_matches_the_samples_in_the_box() {
-        use crate::sample::SampleCount;
-        let clip = PixelRect { x0: 2, y0: 1, x1: 6, y1: 5 };
-        let mut state = 7u64;
-        let mut next = |n: i64| {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (state >> 33) as i64 % n
-        };
-        for round in 0..20_000 {
-            let samples = [SampleCount::X1, SampleCount::X4, SampleCount::X8][round % 3];
-            let corner = |next: &mut dyn FnMut(i64) -> i64| {
-                256 * next(9) + 128 + 16 * (next(16) - 8) + next(3) - 1
-            };
-            let (x0, y0) = (corner(&mut next), corner(&mut next));
-            let extent = [[x0, y0], [x0 + next(300), y0 + next(300)]];
-            let inside = |x: i64, y: i64| {
-                (extent[0][0]..=extent[1][0]).contains(&x)
-                    && (extent[0][1]..=extent[1][1]).contains(&y)
-            };
-            let any = (clip.y0..=clip.y1).any(|py| {
-                (clip.x0..=clip.x1).any(|px| {
-                    (0..samples.count()).any(|s| {
-                        let [ox, oy] = samples.offset(s);
-                        inside(256 * i64::from(px) + 128 + ox, 256 * i64::from(py) + 128 + oy)
-                    })
-                })
-            });
-            assert_eq!(holds_no_sample(extent, samples, &clip), !any, "{extent:?} {samples:?}");
-        }
-    }
-
     use super::*;
 
     fn tri(p: [[f32; 2]; 3]) -> [Vertex; 3] {
@@ -453,5 +419,40 @@ mod tests {
         assert_eq!(s.barycentric_numerators(x1, y1), (s.area2, 0));
         let [x2, y2] = s.xy[2].map(i64::from);
         assert_eq!(s.barycentric_numerators(x2, y2), (0, s.area2));
+    }
+
+    /// `holds_no_sample` against every sample of every pixel of the clip: small boxes on and
+    /// beside sample positions, at 1x, 4x and 8x.
+    #[test]
+    fn holds_no_sample_matches_the_samples_in_the_box() {
+        use rand::rngs::SmallRng;
+        use rand::{Rng, SeedableRng};
+        let mut rng = SmallRng::seed_from_u64(33);
+        let clip = PixelRect { x0: 2, y0: 1, x1: 6, y1: 5 };
+        for round in 0..20_000 {
+            let samples = [SampleCount::X1, SampleCount::X4, SampleCount::X8][round % 3];
+            // On, or one unit beside, sample positions of pixels around the clip.
+            let mut corner = || {
+                256 * rng.random_range(0..9)
+                    + 128
+                    + 16 * rng.random_range(-8..8)
+                    + rng.random_range(-1..2)
+            };
+            let (x0, y0) = (corner(), corner());
+            let extent = [[x0, y0], [x0 + rng.random_range(0..300), y0 + rng.random_range(0..300)]];
+            let inside = |x: i64, y: i64| {
+                (extent[0][0]..=extent[1][0]).contains(&x)
+                    && (extent[0][1]..=extent[1][1]).contains(&y)
+            };
+            let any = (clip.y0..=clip.y1).any(|py| {
+                (clip.x0..=clip.x1).any(|px| {
+                    (0..samples.count()).any(|s| {
+                        let [ox, oy] = samples.offset(s);
+                        inside(256 * i64::from(px) + 128 + ox, 256 * i64::from(py) + 128 + oy)
+                    })
+                })
+            });
+            assert_eq!(holds_no_sample(extent, samples, &clip), !any, "{extent:?} {samples:?}");
+        }
     }
 }
