@@ -521,14 +521,13 @@ impl Bins {
     }
 
     /// Runs `draw(band, tile, list)` for every tile with a non-empty bin, `tile` clipped to
-    /// `clip` and, where `whole_tile(samples, list.len())`, its buffer rows prefetched, rows
-    /// of tiles in parallel (each a disjoint [`TargetBand`]); returns the sum of what `draw`
-    /// returns. The back end of both triangles and splats.
+    /// `clip`, rows of tiles in parallel (each a disjoint [`TargetBand`]); returns the sum of
+    /// what `draw` returns. `draw` prefetches what it will touch ([`TargetBand::prefetch`]).
+    /// The back end of both triangles and splats.
     pub fn draw(
         &self,
         target: &mut Target,
         clip: &PixelRect,
-        whole_tile: impl Fn(SampleCount, usize) -> bool + Sync,
         draw: impl Fn(&mut TargetBand<'_>, &PixelRect, &[u32]) -> u64 + Sync,
     ) -> u64 {
         let width = target.width();
@@ -548,9 +547,6 @@ impl Bins {
                     let Some(tile) = tile.intersect(clip).filter(|_| !list.is_empty()) else {
                         continue;
                     };
-                    if whole_tile(band.samples(), list.len()) {
-                        band.prefetch(&tile);
-                    }
                     sum += draw(&mut band, &tile, list);
                 }
                 sum
@@ -654,10 +650,13 @@ where
             (&computed.0, computed.1)
         }
     };
-    let shaded = bins.draw(target, clip, prefetch_whole_tile, |band, tile, list| {
+    let shaded = bins.draw(target, clip, |band, tile, list| {
         let mut covered = 0;
         let mut tile_depth = TileDepth::new(depth_test, samples);
         let whole_tile = prefetch_whole_tile(samples, list.len());
+        if whole_tile {
+            band.prefetch(tile);
+        }
         for (j, &i) in list.iter().enumerate() {
             if let Some(&ahead) = list.get(j + PREFETCH_AHEAD) {
                 crate::simd::prefetch(prepared.get(ahead));

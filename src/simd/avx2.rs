@@ -374,7 +374,7 @@ unsafe fn narrow_groups(
     rgba: impl Fn(__m256d, __m256d) -> __m128i,
 ) -> u64 {
     let n = job.target.checked_len();
-    assert!((1..=super::NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not narrow");
+    job.assert_narrow();
     assert!(job.group_end() <= n, "the box's groups must lie in the buffers");
     let groups = job.columns.div_ceil(4);
     let lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);

@@ -180,7 +180,7 @@ pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
 #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
 unsafe fn narrow_rows(job: &mut NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) -> __m256i) -> u64 {
     let n = job.target.checked_len();
-    assert!((1..=super::NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not narrow");
+    job.assert_narrow();
     // Checked arithmetic: the offsets below stay in the buffers only if this holds.
     assert!(job.end(job.columns) <= n, "the box must lie in the buffers");
     // Boxes up to four pixels wide (most small triangles) take two rows per group: lanes 0-3

@@ -494,6 +494,12 @@ impl NarrowJob<'_> {
             .unwrap_or(usize::MAX)
     }
 
+    /// Panics unless the box is one the narrow kernels take: 1 to [`NARROW_COLUMNS`] columns,
+    /// at least one row.
+    fn assert_narrow(&self) {
+        assert!((1..=NARROW_COLUMNS).contains(&self.columns) && self.rows > 0, "not a narrow box");
+    }
+
     /// One past the last buffer element a kernel reads in four-pixel groups.
     fn group_end(&self) -> usize {
         self.end(4 * self.columns.div_ceil(4))
@@ -529,7 +535,7 @@ pub fn shade_narrow(level: SimdLevel, mut job: NarrowJob<'_>) -> u64 {
 /// # Panics
 /// As [`shade_narrow`].
 pub fn shade_narrow_scalar(mut job: NarrowJob<'_>) -> u64 {
-    assert!((1..=NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not a narrow box");
+    job.assert_narrow();
     let mut covered = 0;
     let mut row = job.edges;
     for r in 0..job.rows {
@@ -574,7 +580,7 @@ impl NarrowSamplesJob<'_> {
     fn check(&self) {
         let (job, n) = (&self.narrow, self.samples);
         let len = job.target.checked_samples(n);
-        assert!((1..=NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "not a narrow box");
+        job.assert_narrow();
         // Checked arithmetic: the kernels' offsets stay in the buffers only if this holds.
         assert!(job.end(job.columns).checked_mul(n).is_some_and(|e| e <= len), "box outside");
     }

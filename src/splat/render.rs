@@ -511,9 +511,9 @@ fn draw_splats(target: &mut Target, parts: &[Part], grid: &TileGrid, shape: Spla
             .enumerate()
             .map(|(k, &(p, r))| (k as u32, parts[p as usize].runs[r as usize].tile)),
     );
-    // Bins of runs of splats, short however many splats they hold: always whole tiles.
-    let whole_tile = |_, _| true;
-    bins.draw(target, &PixelRect::of_target(width, height), whole_tile, |band, tile, list| {
+    bins.draw(target, &PixelRect::of_target(width, height), |band, tile, list| {
+        // Bins of runs of splats, short however many splats they hold: always whole tiles.
+        band.prefetch(tile);
         let mut sum = 0;
         let plain = plain(band);
         for &k in list {
