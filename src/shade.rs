@@ -541,9 +541,8 @@ pub fn shade_triangle(
         let Some(r) = boxes.reduce(|a, b| a.union(&b)) else { return 0 };
         let columns = r.x1 - r.x0 + 1;
         if columns <= raster::edge::NARROW {
-            let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
             if let Some((level, color)) = kernel.filter(|_| target.overdraw.is_none()) {
-                let offsets = sample_edge_offsets(setup, samples, x, y);
+                let offsets = sample_edge_offsets(setup, samples);
                 let narrow = narrow_job(target, setup, &r, depth, (depth_test, id), color);
                 return simd::shade_narrow_samples(
                     level,
@@ -551,6 +550,7 @@ pub fn shade_triangle(
                 );
             }
             let mut pixels = SamplePixels::new(setup, samples, depth, (depth_test, id), fragment);
+            let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
             // Each sample's row coverage as a bit mask without branches (as at 1x), then the
             // pixels with any covered sample, left to right, with their sample masks: no
             // spans, no lists of them.
@@ -623,20 +623,13 @@ fn narrow_job<'a>(
     }
 }
 
-/// Each sample's edge values less its pixel centre's, from the pixel centre `(x, y)` (any:
-/// the edge functions are linear, so the differences are the same everywhere).
-fn sample_edge_offsets(
-    setup: &TriangleSetup,
-    samples: SampleCount,
-    x: i64,
-    y: i64,
-) -> [[i64; 3]; MAX_SAMPLES] {
-    let centre = setup.edge_values(x, y);
+/// Each sample's edge values less its pixel centre's: `a ox + b oy` per edge, the same at
+/// every pixel (the edge functions are linear).
+fn sample_edge_offsets(setup: &TriangleSetup, samples: SampleCount) -> [[i64; 3]; MAX_SAMPLES] {
     let mut offsets = [[0i64; 3]; MAX_SAMPLES];
     for (s, o) in offsets.iter_mut().enumerate().take(samples.count()) {
         let [ox, oy] = samples.offset(s);
-        let at = setup.edge_values(x + ox, y + oy);
-        *o = std::array::from_fn(|k| at[k] - centre[k]);
+        *o = setup.edges.map(|e| e.a * ox + e.b * oy);
     }
     offsets
 }
