@@ -11,10 +11,9 @@
 //! - threads take whole rows of tiles ([`Target::bands`]: disjoint slices), so no two threads
 //!   write one pixel and no locks are needed.
 //!
-//! Memory is bounded: callers feed triangles in batches of at most [`BATCH`] (larger ones on
-//! multisampled targets, [`MULTISAMPLED_BATCH`], and for meshes shaded batch by batch); a
-//! batch is set up while the one before is binned and rendered ([`pipelined`]), and its
-//! buffers are reused two batches later (the lectures' "flush"), so bin memory never grows
+//! Memory is bounded: callers feed triangles in batches of at most [`BATCH`]; a batch is set
+//! up while the one before is binned and rendered ([`pipelined`]), and its buffers are
+//! reused two batches later (the lectures' "flush"), so bin memory never grows
 //! with the scene, and no triangle is ever dropped.
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -34,29 +33,23 @@ use crate::target::{Target, TargetBand};
 pub const TILE: u32 = 128;
 
 /// Triangles per batch: bounds the memory of set-up triangles and bins (two batches are in
-/// flight, [`pipelined`]: about 40 MB of records). Small enough that a batch's records (~300
-/// bytes each) are still in the cache when its tiles read them, in bin order, scattered over the batch:
-/// a million small random triangles took 262 ms on one thread with batches of 512k, 208 ms
-/// with 64k, 221 ms with 16k (each batch visits every tile it touches once more). Meshes
-/// whose vertices are shaded batch by batch (the pipeline's `LARGE_MESH_BATCH`) and
-/// multisampled targets ([`MULTISAMPLED_BATCH`]) take larger batches.
-pub const BATCH: usize = 1 << 16;
-
-/// Triangles per batch on a multisampled target. Each batch visits every tile it touches once
-/// more, prefetching its buffer rows, and a multisampled tile holds four or eight times the
-/// memory: with [`BATCH`], the benchmark scenes at 4x took 6-70% longer than with these.
-pub const MULTISAMPLED_BATCH: usize = 1 << 19;
-
-/// Triangles per batch for a target with `samples` per pixel.
-#[must_use]
-pub fn batch_len(samples: SampleCount) -> usize {
-    if samples.count() > 1 { MULTISAMPLED_BATCH } else { BATCH }
-}
+/// flight, [`pipelined`]: records of ~250 bytes, about 250 MB for both when every triangle
+/// makes one). Each batch visits every tile it touches once more, prefetching its buffer rows
+/// and writing them back, so larger batches move fewer tiles through the caches, while the
+/// records, read back tile by tile in bin order, scattered over the batch, fall out of the
+/// cache either way. A million small random triangles at 1x on the AMD VM, two threads:
+/// 104-144 ms with batches of 64k (the slower figure when the shared L3 cache was busy:
+/// such batches relied on their records staying there), 87-111 ms with 128k, 75 ms with 512k,
+/// 74 ms with one batch of a million (one thread: 197 -> 145 ms). The Intel VM of earlier
+/// sessions had favoured 64k at 1x (262 -> 208 ms on one thread); multisampled targets, whose
+/// tiles hold four or eight times the bytes, and meshes shaded batch by batch (the dense scene
+/// 0.62 s against 0.67 with 64k) took 512k there already.
+pub const BATCH: usize = 1 << 19;
 
 /// The length of the batches [`pipelined`] cuts `items` items into: as many batches as
 /// batches of `max` would make, of equal length (the last one shorter by less than one item
-/// per batch). A mesh just over one batch (the bunny's 69k triangles) is cut in halves, not
-/// into 64k and 5k, so the batch prepared before any is drawn, alone, is half the mesh rather
+/// per batch). A mesh just over one batch (600k triangles) is cut in halves, not into 512k
+/// and 88k, so the batch prepared before any is drawn, alone, is half the mesh rather
 /// than nearly all of it. A `max` of 0 counts as 1, and the result is never 0 (callers cut
 /// slices with it). Applied to its own result it gives it back (tested), so a caller may pass
 /// either to [`pipelined`].

@@ -194,11 +194,10 @@ impl Pipeline {
         // Small meshes: every vertex shaded once, up front. Large ones: per batch of
         // triangles (below), so memory stays bounded whatever the mesh size.
         let whole = vertices.len() <= VERTEX_CACHE;
-        let batch_len = if whole { bin::batch_len(target.samples()) } else { LARGE_MESH_BATCH };
         let level = SimdLevel::detect();
         // The batches `bin::pipelined` will cut.
         let index_ranges: Vec<(u32, u32)> = triangles
-            .chunks(bin::even_batch_len(triangles.len(), batch_len))
+            .chunks(bin::even_batch_len(triangles.len(), bin::BATCH))
             .map(|b| index_range(level, b))
             .collect();
         let largest = index_ranges.iter().map(|r| r.1).max().unwrap_or(0);
@@ -403,11 +402,10 @@ impl Pipeline {
                             }
                         });
                     counts = counts.merged(&batch_counts);
-                    // Binned here, except the first batch (see `PreparedBatch::bin`), a large
-                    // mesh's batches (its front end, the corner tests, is the busier side)
-                    // and a multisampled target's (eight times larger: two batches' bins at
-                    // once would be too).
-                    if b > 0 && whole && !front.coverage.multisampled {
+                    // Binned here, except the first batch (see `PreparedBatch::bin`) and a
+                    // large mesh's batches (its front end, the corner tests, is the busier
+                    // side).
+                    if b > 0 && whole {
                         out.bin(bin_target);
                     }
                 };
@@ -421,7 +419,7 @@ impl Pipeline {
                         fragment_shader.may_discard(),
                     );
                 };
-                bin::pipelined(triangles, batch_len, prepared, prepare, draw);
+                bin::pipelined(triangles, bin::BATCH, prepared, prepare, draw);
                 stats = stats.merged(&counts);
                 stats.fragments += fragments;
             }
@@ -434,13 +432,6 @@ impl Pipeline {
 /// Vertices shaded at a time into a batch's window of corners: their positions (16 KB) stay
 /// in the L1 cache for [`simd::window_corners`].
 const CORNER_BLOCK: usize = 1024;
-
-/// Triangles per batch of a mesh over [`VERTEX_CACHE`] vertices, whose vertices are shaded
-/// batch by batch: most of such a mesh's triangles stop at the corner tests and make no
-/// record, so the small batches that keep records in cache for the back end
-/// ([`bin::BATCH`]) would only multiply the per-batch passes and joins (the dense scene: 0.62
-/// -> 0.67 s with [`bin::BATCH`]).
-const LARGE_MESH_BATCH: usize = 1 << 19;
 
 /// Meshes with at most this many vertices have them all shaded before any triangle; larger
 /// ones are shaded batch by batch, bounding memory.

@@ -303,7 +303,6 @@ fn draw_tiled<C: WindowColor>(
         return stats;
     }
     let mut pair: bin::PreparedPair<C> = target.take_scratch();
-    let batch_len = bin::batch_len(target.samples());
     let mut fragments = 0;
     let bin_target = bin::BinTarget::of(target, options.depth_test);
     let prepare = |b, first: usize, batch: &[_], prepared: &mut bin::PreparedBatch<_>| {
@@ -311,10 +310,8 @@ fn draw_tiled<C: WindowColor>(
             set_up_window(batch, first, range, options, level, sink);
         });
         stats = stats.merged(&counts);
-        // Binned here, except the first batch (see `PreparedBatch::bin`) and on
-        // multisampled targets, whose batches are eight times larger (two batches' bins
-        // at once would be too).
-        if b > 0 && clip.is_some() && !multisampled {
+        // Binned here, except the first batch (see `PreparedBatch::bin`).
+        if b > 0 && clip.is_some() {
             prepared.bin(bin_target);
         }
     };
@@ -324,7 +321,7 @@ fn draw_tiled<C: WindowColor>(
             fragments += bin::draw_binned(target, prepared, test, kernel, window_fragment, false);
         }
     };
-    bin::pipelined(triangles, batch_len, &mut pair, prepare, draw);
+    bin::pipelined(triangles, bin::BATCH, &mut pair, prepare, draw);
     stats.fragments += fragments;
     target.keep_scratch(pair);
     stats

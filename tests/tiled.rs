@@ -665,7 +665,7 @@ fn piled_triangles(seed: u64, n: usize, w: f32, h: f32, size: f32) -> Vec<[Verte
 }
 
 /// Draw calls longer than a batch: batches are set up while the one before is drawn, and
-/// must still be drawn in submission order. Three and a half batches of small triangles piled
+/// must still be drawn in submission order. Two and a half batches of small triangles piled
 /// on a small target (every pixel is written by triangles of every batch), one in 500 large
 /// (so hierarchical depth, on without an overdraw buffer, meets them in every batch), with
 /// the `Always` test (the last writer wins) and with `Less` against ties, in window space and
@@ -675,7 +675,8 @@ fn piled_triangles(seed: u64, n: usize, w: f32, h: f32, size: f32) -> Vec<[Verte
 fn batches_are_drawn_in_submission_order() {
     use trirast::bin::BATCH;
     let (w, h) = (160.0, 100.0);
-    let tris = piled_triangles(77, 3 * BATCH + BATCH / 2, w, h, 6.0);
+    // Three batches: the third refills the first one's buffers.
+    let tris = piled_triangles(77, 2 * BATCH + BATCH / 2, w, h, 6.0);
     for (depth_test, overdraw) in
         [(DepthTest::Always, true), (DepthTest::Less, true), (DepthTest::Less, false)]
     {
@@ -696,22 +697,27 @@ fn batches_are_drawn_in_submission_order() {
             assert_same(&reference, &tiled, &what);
         }
     }
-    // The same triangles as a mesh in clip space, ids by triangle.
-    let (vertices, triangles) = clip_space_mesh(&tris, w, h);
+    // Through the 3D pipeline, as a mesh in clip space small enough to have its vertices
+    // shaded up front (the large-mesh path is `multisampled_batches_are_drawn_in_submission_
+    // order`'s): the first 2^18 triangles' vertices, each used by every triangle of the draw
+    // call that repeats its triangle (with the same depth: `Less` keeps the first, so the ids
+    // tell the order).
+    let distinct = 1 << 18;
+    let (vertices, once) = clip_space_mesh(&tris[..distinct], w, h);
+    let triangles: Vec<[u32; 3]> = (0..tris.len()).map(|t| once[t * 7 % distinct]).collect();
     let fs = |f: &Fragment<f32>| Some(Vec4::new(f.varyings, f.varyings, 0.5, 1.0));
     assert_pipeline_matches_reference(&vertices, &triangles, &fs);
 }
 
-/// Multisampled draw calls longer than a (multisampled, eight times larger) batch: one and a
-/// half batches of small triangles piled on a small 4x target, one in 500 large, with `Always`
+/// Multisampled draw calls longer than a batch: one and a half batches of small triangles piled on a small 4x target, one in 500 large, with `Always`
 /// and an overdraw buffer and with `Less` and hierarchical depth, in window space and through
 /// the 3D pipeline (whose 2.4 M vertices take the large-mesh path, shaded batch by batch): the
 /// tiled backend on 1 and 2 threads writes what the reference writes, every sample.
 #[test]
 fn multisampled_batches_are_drawn_in_submission_order() {
-    use trirast::bin::MULTISAMPLED_BATCH;
+    use trirast::bin::BATCH;
     let (w, h) = (160.0, 100.0);
-    let tris = piled_triangles(78, MULTISAMPLED_BATCH + MULTISAMPLED_BATCH / 2, w, h, 3.0);
+    let tris = piled_triangles(78, BATCH + BATCH / 2, w, h, 3.0);
     let fresh = |overdraw: bool| {
         let target = Target::multisampled(w as u32, h as u32, SampleCount::X4).unwrap().with_ids();
         if overdraw { target.with_overdraw() } else { target }
