@@ -85,12 +85,12 @@ fn narrow_job<'a>(
     color: &'a mut [[u8; 4]],
 ) -> NarrowJob<'a> {
     let (x, y) = (fixed::pixel_centre(s.bounds.x0), fixed::pixel_centre(s.bounds.y0));
-    let edges = s.edges.map(|e| e.eval(x, y));
+    let edges = s.edges().map(|e| e.eval(x, y));
     let (e1, e2) = s.barycentric_numerators(x, y);
     NarrowJob {
         edges,
-        step_x: s.edges.map(|e| e.a * 256),
-        step_y: s.edges.map(|e| e.b * 256),
+        step_x: s.edges().map(|e| e.a * 256),
+        step_y: s.edges().map(|e| e.b * 256),
         bias: [edges[1] - e1, edges[2] - e2],
         columns: (s.bounds.x1 - s.bounds.x0 + 1) as usize,
         rows: (s.bounds.y1 - s.bounds.y0 + 1) as usize,
@@ -183,7 +183,7 @@ fn narrow(c: &mut Criterion) {
                 let n = samples.count();
                 let offsets = std::array::from_fn(|k| {
                     let [ox, oy] = if k < n { samples.offset(k) } else { [0, 0] };
-                    s.edges.map(|e| e.eval(x + ox, y + oy) - e.eval(x, y))
+                    s.edges().map(|e| e.eval(x + ox, y + oy) - e.eval(x, y))
                 });
                 // Rows of 8 pixels, so that the fill below stays small.
                 let mut depth = vec![1.0f32; 8 * 8 * n];

@@ -33,8 +33,8 @@ use crate::target::{Target, TargetBand};
 pub const TILE: u32 = 128;
 
 /// Triangles per batch: bounds the memory of set-up triangles and bins (two batches are in
-/// flight, [`pipelined`]: records of ~250 bytes, about 250 MB for both when every triangle
-/// makes one). Each batch visits every tile it touches once more, prefetching its buffer rows
+/// flight, [`pipelined`]: a window triangle's record is 192 bytes, about 200 MB for both
+/// batches when every triangle makes one). Each batch visits every tile it touches once more, prefetching its buffer rows
 /// and writing them back, so larger batches move fewer tiles through the caches, while the
 /// records, read back tile by tile in bin order, scattered over the batch, fall out of the
 /// cache either way. A million small random triangles at 1x on the AMD VM, two threads:
@@ -120,13 +120,13 @@ pub(crate) const CHUNK: usize = 256;
 const PIECE_BITS: u32 = 12;
 
 /// A batch of prepared triangles, kept as the per-chunk buffers the parallel front end wrote
-/// (never joined: joining copied every ~300-byte record once more). Piece `k` of chunk `c`
+/// (never joined: joining copied every record, ~200 bytes, once more). Piece `k` of chunk `c`
 /// has index `c << 12 | k`, so indices grow in submission order. The buffers are reused from
 /// batch to batch, so their pages are faulted in once per draw call, not once per batch.
 ///
 /// Beside each chunk's records, the pieces' coverage rectangles ([`coverage_bounds`], with the
 /// clip and sample count the batch was prepared for): binning reads those 16 bytes per
-/// triangle instead of each ~300-byte record, which by then has left the cache.
+/// triangle instead of each ~200-byte record, which by then has left the cache.
 ///
 /// A batch may also hold its bins ([`PreparedBatch::bin`]), which [`draw_binned`] uses when
 /// they were made for the target it draws into.
@@ -181,7 +181,7 @@ impl Coverage {
 
 /// Where the front end puts the pieces of one triangle: prepared ones into the chunk's buffer,
 /// skipped ones into the counts. Passing a sink down (rather than returning pieces) builds
-/// each ~200-300-byte record once, in place, instead of moving it through `Result`s and
+/// each ~200-byte record once, in place, instead of moving it through `Result`s and
 /// iterators, which cost a full copy per triangle even for the many that are skipped.
 #[derive(Debug)]
 pub struct Sink<'a, T> {

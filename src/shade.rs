@@ -18,7 +18,7 @@
 use crate::fixed;
 use crate::raster::{self, Algorithm, Span};
 use crate::sample::{MAX_SAMPLES, SampleCount};
-use crate::setup::{PIXEL_STEP, PixelRect, TriangleSetup, Vertex};
+use crate::setup::{PixelRect, TriangleSetup, Vertex};
 use crate::simd::{
     self, KernelTarget, NarrowJob, NarrowSamplesJob, SampleSpanJob, SimdLevel, SpanColor, SpanJob,
 };
@@ -627,9 +627,10 @@ fn narrow_job<'a>(
 /// every pixel (the edge functions are linear).
 fn sample_edge_offsets(setup: &TriangleSetup, samples: SampleCount) -> [[i64; 3]; MAX_SAMPLES] {
     let mut offsets = [[0i64; 3]; MAX_SAMPLES];
+    let edges = setup.edges();
     for (s, o) in offsets.iter_mut().enumerate().take(samples.count()) {
         let [ox, oy] = samples.offset(s);
-        *o = setup.edges.map(|e| e.a * ox + e.b * oy);
+        *o = edges.map(|e| e.a * ox + e.b * oy);
     }
     offsets
 }
@@ -663,6 +664,7 @@ fn sample_spans<S: FragmentStage>(
     let (depth, depth_test, id, offsets) =
         (pixels.depth, pixels.depth_test, pixels.id, pixels.offsets);
     let mut kernel_covered = 0u64;
+    let (steps, _) = setup.pixel_steps();
     let mut cursor = vec![0usize; n];
     let mut row = [None::<Span>; MAX_SAMPLES];
     for y in y0..=y1 {
@@ -705,8 +707,8 @@ fn sample_spans<S: FragmentStage>(
                     span: SpanJob {
                         e1,
                         e2,
-                        step1: setup.edges[1].a * PIXEL_STEP,
-                        step2: setup.edges[2].a * PIXEL_STEP,
+                        step1: steps[1],
+                        step2: steps[2],
                         // No overdraw buffer here (it counts per pixel).
                         target: kernel_target(target, range, (depth, color, depth_test, id), false),
                     },
@@ -860,7 +862,8 @@ fn shade_single_sample(
         }
     }
     let mut covered = 0u64;
-    let step = [setup.edges[1].a * PIXEL_STEP, setup.edges[2].a * PIXEL_STEP];
+    let (right, _) = setup.pixel_steps();
+    let step = [right[1], right[2]];
     let shade_span = |span: Span| {
         covered += span.len() as u64;
         let row = target.index(0, span.y);

@@ -42,8 +42,8 @@ pub struct Target {
 }
 
 /// Memory a draw call leaves for the next one on the same target: the tiled backend's
-/// per-batch buffers (two batches of set-up triangles: up to about 300 MB when a draw call has a
-/// million triangles that all make records; [`Target::release_scratch`] frees them). Writing a frame's
+/// per-batch buffers (two batches of set-up triangles: about 200 MB when a draw call has a
+/// million window triangles that all make records; [`Target::release_scratch`] frees them). Writing a frame's
 /// records into freshly allocated memory faulted in (and zeroed) every page of it again each
 /// frame: a tenth of the time of a million small triangles. Type-erased because each pipeline
 /// keeps records of its own payload type; a draw that finds another type starts afresh.

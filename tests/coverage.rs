@@ -285,7 +285,7 @@ fn symmetry_under_translation_and_rotation() {
         let on_edge = (0..size).any(|py| {
             (0..size).any(|px| {
                 let (x, y) = (centre(px), centre(py));
-                s.edges.iter().any(|e| e.eval(x, y) - trirast::FillRule::bias(e.a, e.b) == 0)
+                s.edges().iter().any(|e| e.eval(x, y) - trirast::FillRule::bias(e.a, e.b) == 0)
             })
         });
         if on_edge {

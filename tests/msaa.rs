@@ -176,7 +176,7 @@ fn four_x_coverage_is_rotation_symmetric() {
             (0..size).any(|px| {
                 (0..4).any(|k| {
                     let [x, y] = sample_point(px, py, samples, k);
-                    s.edges.iter().any(|e| e.eval(x, y) - trirast::FillRule::bias(e.a, e.b) == 0)
+                    s.edges().iter().any(|e| e.eval(x, y) - trirast::FillRule::bias(e.a, e.b) == 0)
                 })
             })
         });

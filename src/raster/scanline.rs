@@ -37,7 +37,8 @@ pub fn rasterize(
     order.sort_by_key(|&i| tri.xy[i][1]);
     let [top, mid, bot] = order;
     // The edge joining vertices i and j is the one opposite the third vertex.
-    let edge = |i: usize, j: usize| &tri.edges[3 - i - j];
+    let edges = tri.edges();
+    let edge = |i: usize, j: usize| &edges[3 - i - j];
     let long = edge(top, bot);
     let upper = edge(top, mid);
     let lower = edge(mid, bot);

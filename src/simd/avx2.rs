@@ -694,24 +694,6 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
             CullMode::Clockwise => cw,
             CullMode::CounterClockwise => _mm256_cmp_pd::<_CMP_LT_OQ>(signed, zero),
         };
-        // Counter-clockwise lanes negate their edges (`0 - v`, never `-0.0`).
-        let signed_edge = |v: __m256d| _mm256_blendv_pd(sub(zero, v), v, cw);
-        let one = _mm256_set1_pd(1.0);
-        let edge = |a: usize, b: usize| {
-            let ea = signed_edge(sub(ys[a], ys[b]));
-            let eb = signed_edge(sub(xs[b], xs[a]));
-            let c = sub(zero, _mm256_add_pd(mul(ea, xs[a]), mul(eb, ys[a])));
-            // The fill rule: an edge owns its samples iff `a > 0 || (a == 0 && b > 0)`.
-            let owned = _mm256_or_pd(
-                _mm256_cmp_pd::<_CMP_GT_OQ>(ea, zero),
-                _mm256_and_pd(
-                    _mm256_cmp_pd::<_CMP_EQ_OQ>(ea, zero),
-                    _mm256_cmp_pd::<_CMP_GT_OQ>(eb, zero),
-                ),
-            );
-            [ea, eb, _mm256_blendv_pd(sub(c, one), c, owned)]
-        };
-        let edges = [edge(1, 2), edge(2, 0), edge(0, 1)];
         let area2 = _mm256_andnot_pd(_mm256_set1_pd(-0.0), signed);
         let min = |v: [__m256d; 3]| _mm256_min_pd(_mm256_min_pd(v[0], v[1]), v[2]);
         let max = |v: [__m256d; 3]| _mm256_max_pd(_mm256_max_pd(v[0], v[1]), v[2]);
@@ -723,7 +705,7 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
             |v| _mm256_floor_pd(mul(_mm256_add_pd(v, _mm256_set1_pd(255.0 - half_px)), scale));
         let last = |v| _mm256_floor_pd(mul(sub(v, _mm256_set1_pd(half_px)), scale));
         let bounds = [first(min(xs)), first(min(ys)), last(max(xs)), last(max(ys))];
-        let inv_area2 = _mm256_div_pd(one, area2);
+        let inv_area2 = _mm256_div_pd(_mm256_set1_pd(1.0), area2);
         let plane = |v: [__m256d; 3]| {
             [v[0], mul(sub(v[1], v[0]), inv_area2), mul(sub(v[2], v[0]), inv_area2)]
         };
@@ -746,9 +728,6 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
             for v in 0..3 {
                 store_i32(&mut out.x[v], xs[v]);
                 store_i32(&mut out.y[v], ys[v]);
-                for (dst, e) in out.edges[v].iter_mut().zip(edges[v]) {
-                    _mm256_storeu_si256(dst.as_mut_ptr().add(at).cast(), exact_i64(e));
-                }
             }
             _mm256_storeu_si256(out.area2.as_mut_ptr().add(at).cast(), exact_i64(area2));
             for (dst, b) in out.bounds.iter_mut().zip(bounds) {

@@ -479,21 +479,6 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
         CullMode::Clockwise => clockwise,
         CullMode::CounterClockwise => _mm512_cmplt_epi64_mask(signed, zero),
     };
-    // Counter-clockwise lanes negate their edges, so that the inside is positive.
-    let flip = !clockwise;
-    let one = _mm512_set1_epi64(1);
-    let edge = |a: usize, b: usize| {
-        let ea = sub(ys[a], ys[b]);
-        let eb = sub(xs[b], xs[a]);
-        let (ea, eb) =
-            (_mm512_mask_sub_epi64(ea, flip, zero, ea), _mm512_mask_sub_epi64(eb, flip, zero, eb));
-        let c = sub(zero, _mm512_add_epi64(mul(ea, xs[a]), mul(eb, ys[a])));
-        // The fill rule: an edge owns its samples iff `a > 0 || (a == 0 && b > 0)`.
-        let owned = _mm512_cmpgt_epi64_mask(ea, zero)
-            | (_mm512_cmpeq_epi64_mask(ea, zero) & _mm512_cmpgt_epi64_mask(eb, zero));
-        [ea, eb, _mm512_mask_sub_epi64(c, !owned, c, one)]
-    };
-    let edges = [edge(1, 2), edge(2, 0), edge(0, 1)];
     let area2 = _mm512_abs_epi64(signed);
     let min = |v: [__m512i; 3]| _mm512_min_epi64(_mm512_min_epi64(v[0], v[1]), v[2]);
     let max = |v: [__m512i; 3]| _mm512_max_epi64(_mm512_max_epi64(v[0], v[1]), v[2]);
@@ -529,9 +514,6 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
         for v in 0..3 {
             _mm256_storeu_si256(out.x[v].as_mut_ptr().cast(), _mm512_cvtepi64_epi32(xs[v]));
             _mm256_storeu_si256(out.y[v].as_mut_ptr().cast(), _mm512_cvtepi64_epi32(ys[v]));
-            for (dst, e) in out.edges[v].iter_mut().zip(edges[v]) {
-                _mm512_storeu_si512(dst.as_mut_ptr().cast(), e);
-            }
         }
         _mm512_storeu_si512(out.area2.as_mut_ptr().cast(), area2);
         for (dst, b) in out.bounds.iter_mut().zip(bounds) {

@@ -673,8 +673,6 @@ pub struct WindowGroup {
     pub x: [[i32; 8]; 3],
     /// Snapped vertex y, `[vertex][lane]`.
     pub y: [[i32; 8]; 3],
-    /// Edge functions, `[edge][a, b, c][lane]`.
-    pub edges: [[[i64; 8]; 3]; 3],
     /// Twice the area.
     pub area2: [i64; 8],
     /// Bit `k`: lane `k` is clockwise.
@@ -699,18 +697,12 @@ impl WindowGroup {
         if let Some(why) = self.rejected[k] {
             return Err(why);
         }
-        let e = |i: usize| setup::EdgeFunction {
-            a: self.edges[i][0][k],
-            b: self.edges[i][1][k],
-            c: self.edges[i][2][k],
-        };
         let setup = TriangleSetup {
             xy: [
                 [self.x[0][k], self.y[0][k]],
                 [self.x[1][k], self.y[1][k]],
                 [self.x[2][k], self.y[2][k]],
             ],
-            edges: [e(0), e(1), e(2)],
             area2: self.area2[k],
             clockwise: self.clockwise >> k & 1 != 0,
             bounds: PixelRect {
