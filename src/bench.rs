@@ -79,6 +79,11 @@ pub struct BenchResult {
     /// How the tiled backend spread the frames over threads (what [`Schedule::Auto`] chose,
     /// or `TRIRAST_SCHEDULE` forced).
     pub schedule: Option<Schedule>,
+    /// The process's peak resident memory while the scene was built and drawn, in bytes:
+    /// the scene's own data, the target's buffers and the renderer's (the memory
+    /// bound for the dense mesh is stated in these terms). `None` where the system does not
+    /// tell (it is read from Linux's `/proc`).
+    pub peak_memory: Option<u64>,
 }
 
 impl BenchResult {
@@ -291,6 +296,7 @@ pub fn run(
     msaa: SampleCount,
     dense_triangles: usize,
 ) -> Result<BenchResult, Error> {
+    peak_memory::reset();
     let (prepared, width, height, source) = prepare(scene, dense_triangles)?;
     let textures = match &prepared {
         Prepared::Model { mesh, .. } => MaterialTextures::load(mesh),
@@ -312,7 +318,26 @@ pub fn run(
         median_ms: times[times.len() / 2],
         min_ms: times[0],
         schedule: target.last_schedule(),
+        peak_memory: peak_memory::read(),
     })
+}
+
+/// The process's peak resident set, from Linux's `/proc/self`: reset before a scene, read
+/// after it. Elsewhere (or where `/proc` is not readable) there is no figure.
+mod peak_memory {
+    /// Lowers the recorded peak to the current resident set (`clear_refs` value 5). A
+    /// failure leaves the peak of the whole run so far, which still bounds the scene's.
+    pub(super) fn reset() {
+        let _ = std::fs::write("/proc/self/clear_refs", "5");
+    }
+
+    /// The peak resident set since the last [`reset`], in bytes (`VmHWM`).
+    pub(super) fn read() -> Option<u64> {
+        let status = std::fs::read_to_string("/proc/self/status").ok()?;
+        let line = status.lines().find_map(|l| l.strip_prefix("VmHWM:"))?;
+        let kb: u64 = line.trim().strip_suffix("kB")?.trim().parse().ok()?;
+        Some(kb * 1024)
+    }
 }
 
 /// The grid culls nothing: every one of its triangles is drawn.

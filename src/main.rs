@@ -870,6 +870,11 @@ fn export(scenes: &[SceneArg], dense_triangles: usize, dir: &Path) -> Result<(),
     Ok(())
 }
 
+/// Bytes as megabytes (10^6), as the bench tables print memory.
+fn megabytes(bytes: u64) -> f64 {
+    bytes as f64 / 1e6
+}
+
 fn bench(
     scenes: &[SceneArg],
     threads: Option<usize>,
@@ -894,7 +899,7 @@ fn bench(
              TRIRAST_SCHEDULE=binned|banded forces a schedule)"
         );
         println!(
-            "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10} {:>10} {:>9} {:>9}  schedule",
+            "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10} {:>10} {:>9} {:>9} {:>8}  schedule",
             "scene",
             "triangles",
             "pixels",
@@ -904,7 +909,8 @@ fn bench(
             "median ms",
             "min ms",
             "Mtri/s",
-            "Gfrag/s"
+            "Gfrag/s",
+            "peak MB"
         );
     }
     for scene in scenes {
@@ -918,7 +924,7 @@ fn bench(
                 pool.install(|| bench::run(scene, frames, threads, samples, dense_triangles))?;
             if json {
                 println!(
-                    "{{\"scene\":\"{}\",\"source\":{},\"triangles\":{},\"pixels\":{},\"fragments\":{},\"threads\":{},\"msaa\":{},\"simd\":\"{simd:?}\",\"median_ms\":{:.3},\"min_ms\":{:.3},\"mtri_per_s\":{:.2},\"gfrag_per_s\":{:.3},\"schedule\":{}}}",
+                    "{{\"scene\":\"{}\",\"source\":{},\"triangles\":{},\"pixels\":{},\"fragments\":{},\"threads\":{},\"msaa\":{},\"simd\":\"{simd:?}\",\"median_ms\":{:.3},\"min_ms\":{:.3},\"mtri_per_s\":{:.2},\"gfrag_per_s\":{:.3},\"peak_memory_mb\":{},\"schedule\":{}}}",
                     r.scene,
                     bench::json_string(&r.source),
                     r.triangles,
@@ -930,6 +936,7 @@ fn bench(
                     r.min_ms,
                     r.mtri_per_s(),
                     r.gfrag_per_s(),
+                    r.peak_memory.map_or("null".into(), |b| format!("{:.1}", megabytes(b))),
                     r.schedule.map_or("null".into(), |s| format!("\"{}\"", s.name()))
                 );
             } else {
@@ -938,7 +945,7 @@ fn bench(
                     _ => String::new(),
                 };
                 println!(
-                    "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10.2} {:>10.2} {:>9.1} {:>9.3}  {:<6}{cost}",
+                    "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10.2} {:>10.2} {:>9.1} {:>9.3} {:>8}  {:<6}{cost}",
                     r.scene,
                     r.triangles,
                     r.pixels,
@@ -949,6 +956,7 @@ fn bench(
                     r.min_ms,
                     r.mtri_per_s(),
                     r.gfrag_per_s(),
+                    r.peak_memory.map_or("-".into(), |b| format!("{:.0}", megabytes(b))),
                     r.schedule.map_or("-", Schedule::name)
                 );
                 if r.source != "generated" && r.msaa == 1 {

@@ -719,8 +719,8 @@ fn demos_write_pngs() {
     assert_eq!((img.width, img.height), (512, 512));
 }
 
-/// `trirast bench --json` reports each scene with the SIMD level and schedule it ran at, and
-/// the work it measures does not depend on the level: forcing the scalar kernels reports the same
+/// `trirast bench --json` reports each scene with the SIMD level and schedule it ran at and its
+/// peak memory, and the work it measures does not depend on the level: forcing the scalar kernels reports the same
 /// triangles and fragments.
 #[test]
 fn bench_reports_its_simd_level_and_the_same_work_at_every_level() {
@@ -746,6 +746,15 @@ fn bench_reports_its_simd_level_and_the_same_work_at_every_level() {
     // The fill scene's 256 large triangles are binned (too few to sample for bands).
     assert_eq!(field(&default, "schedule"), "binned");
     assert!(field(&default, "median_ms").parse::<f64>().unwrap() > 0.0);
+    // Peak memory, where Linux's /proc tells it: at least the 3840 x 2160 target's colour and
+    // depth (8 bytes a pixel), which the frames wrote, and less than this machine could hold.
+    let peak = field(&default, "peak_memory_mb");
+    if cfg!(target_os = "linux") {
+        let mb: f64 = peak.parse().unwrap_or_else(|_| panic!("peak memory {peak}"));
+        assert!((3840.0 * 2160.0 * 8.0 / 1e6..100_000.0).contains(&mb), "peak memory {mb} MB");
+    } else {
+        assert!(peak == "null" || peak.parse::<f64>().is_ok(), "peak memory {peak}");
+    }
 }
 
 /// `trirast bench --export` writes the triangles it times, for another renderer to draw: the
