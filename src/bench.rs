@@ -81,7 +81,8 @@ pub struct BenchResult {
     pub schedule: Option<Schedule>,
     /// The process's peak resident memory while the scene was built and drawn, in bytes:
     /// the scene's own data, the target's buffers and the renderer's (the memory
-    /// bound for the dense mesh is stated in these terms). `None` where the system does not
+    /// bound for the dense mesh is stated in these terms). Memory the allocator kept from
+    /// scenes run before in the same process counts too. `None` where the system does not
     /// tell (it is read from Linux's `/proc`).
     pub peak_memory: Option<u64>,
 }

@@ -7,6 +7,7 @@ use common::*;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use trirast::raster::{self, Algorithm};
+use trirast::sample::SampleCount;
 use trirast::{CullMode, PixelRect, RenderOptions, Target, TriangleSetup, Vertex};
 
 /// Tilings of rectangles (inside the image, overlapping it, and reaching thousands of pixels
@@ -150,6 +151,46 @@ fn rectangles_are_accepted_iff_every_pixel_is_covered() {
         }
     }
     assert!(accepted > 1000 && refused > 1000, "{accepted} accepted, {refused} refused");
+}
+
+/// The trivial reject of tiles (`raster::misses_rect_within`, which binning uses for
+/// triangles over many tiles) never rejects a rectangle one of whose pixels has a covered
+/// sample, at 1x, 4x and 8x, and does reject most rectangles the triangle stays clear of
+/// (those outside one edge; a rectangle off a corner, outside two, may pass).
+#[test]
+fn rectangles_are_rejected_only_when_no_sample_is_covered() {
+    let mut rng = SmallRng::seed_from_u64(0x5EC7);
+    let size = 40i64;
+    for samples in [SampleCount::X1, SampleCount::X4, SampleCount::X8] {
+        let (mut rejected, mut clear) = (0, 0);
+        for _ in 0..10_000 {
+            let v = random_triangle(&mut rng, size);
+            let Some(s) = setup(v) else { continue };
+            for _ in 0..4 {
+                let (x0, y0) =
+                    (rng.random_range(-8..size as i32), rng.random_range(-8..size as i32));
+                let r = PixelRect {
+                    x0,
+                    y0,
+                    x1: x0 + rng.random_range(0..12),
+                    y1: y0 + rng.random_range(0..12),
+                };
+                let any = (r.y0..=r.y1).any(|py| {
+                    (r.x0..=r.x1).any(|px| {
+                        (0..samples.count()).any(|k| {
+                            let [ox, oy] = samples.offset(k);
+                            s.covers_point(centre(px.into()) + ox, centre(py.into()) + oy)
+                        })
+                    })
+                });
+                let misses = raster::misses_rect_within(&s, &r, samples.reach());
+                assert!(!(misses && any), "{v:?} on {r:?} at {samples:?}: a sample is covered");
+                clear += usize::from(!any);
+                rejected += usize::from(misses);
+            }
+        }
+        assert!(rejected * 2 > clear, "{samples:?}: {rejected} rejected of {clear} clear");
+    }
 }
 
 /// Scissor rectangles clip both rasterizers identically.

@@ -101,6 +101,17 @@ pub fn covers_rect_within(tri: &TriangleSetup, rect: &PixelRect, reach: i64) -> 
     rect_corners(rect, reach).iter().all(|&[x, y]| tri.covers_point(x, y))
 }
 
+/// Does the triangle miss every point within `reach` of the pixel centres of `rect` (so every
+/// sample of its pixels, `reach` being the sample pattern's)? True when one edge is negative
+/// at all four outermost points: its edge function is linear, so it is negative over their
+/// rectangle, which holds every such point. The trivial reject of hierarchical rasterizers;
+/// `false` does not promise a covered sample.
+#[must_use]
+pub fn misses_rect_within(tri: &TriangleSetup, rect: &PixelRect, reach: i64) -> bool {
+    let corners = rect_corners(rect, reach);
+    tri.edges().iter().any(|e| corners.iter().all(|&[x, y]| e.eval(x, y) < 0))
+}
+
 /// The four corners (fixed point) of the pixel centres of `rect` pushed out by `reach` on
 /// each axis: any point within `reach` of a centre of `rect` lies in their rectangle.
 #[must_use]
