@@ -34,8 +34,8 @@ pub const TILE: u32 = 128;
 
 /// Triangles per batch: bounds the memory of set-up triangles and bins (two batches are in
 /// flight, [`pipelined`]: a window triangle's record is 192 bytes, about 200 MB for both
-/// batches when every triangle makes one). Each batch visits every tile it touches once more, prefetching its buffer rows
-/// and writing them back, so larger batches move fewer tiles through the caches, while the
+/// batches when every triangle makes one). Each batch visits every tile it touches once
+/// more, prefetching its buffer rows and writing them back, so larger batches move fewer tiles through the caches, while the
 /// records, read back tile by tile in bin order, scattered over the batch, fall out of the
 /// cache either way. A million small random triangles at 1x on the AMD VM, two threads:
 /// 104-144 ms with batches of 64k (the slower figure when the shared L3 cache was busy:
@@ -65,13 +65,13 @@ pub fn even_batch_len(items: usize, max: usize) -> usize {
 const HIDDEN_MIN_WIDTH: i32 = TILE as i32 / 2;
 
 /// Triangles whose coverage rectangle spans more tiles than this are binned only to the tiles
-/// where they may cover a sample ([`raster::misses_rect_within`], on the triangle's record):
+/// where they may cover a sample ([`raster::TrivialReject`], on the triangle's record):
 /// a long sliver's rectangle can span the whole target while its samples lie in a diagonal
 /// of tiles, and binning it everywhere made every tile draw it, to no effect. A million
 /// corner-to-corner slivers on a 4K target: 172 s a frame and 2.35 GB peak (bins of all 510
 /// tiles each) before, 28 s and 0.76 GB now; fill 19.3 -> 16.6-17.0 ms. Smaller rectangles
 /// skip the test, which reads the record (binning otherwise reads only the rectangles).
-const EXACT_BINNING_TILES: u32 = 4;
+const TRIVIAL_REJECT_TILES: u32 = 4;
 
 /// How many triangles ahead of the one being drawn the tile loop prefetches.
 const PREFETCH_AHEAD: usize = 4;
@@ -400,31 +400,32 @@ impl TileGrid {
 
     /// The first and last tile (in row-major order) a rectangle on the target overlaps.
     pub(crate) fn first_and_last(&self, r: &PixelRect) -> (u32, u32) {
-        let t = |v: i32| v as u32 / TILE;
+        let t = Self::tile_of;
         (t(r.y0) * self.tiles_x + t(r.x0), t(r.y1) * self.tiles_x + t(r.x1))
+    }
+
+    /// The column (or row) of tiles holding pixel column (or row) `v`, on the target.
+    fn tile_of(v: i32) -> u32 {
+        v as u32 / TILE
     }
 
     /// How many tiles a rectangle on the target overlaps.
     fn tiles_over(&self, r: &PixelRect) -> u32 {
-        let t = |v: i32| v as u32 / TILE;
+        let t = Self::tile_of;
         (t(r.x1) - t(r.x0) + 1) * (t(r.y1) - t(r.y0) + 1)
     }
 
-    /// The pixels of tile `t` within `r`, a rectangle on the target that overlaps it.
-    fn tile_within(&self, t: u32, r: &PixelRect) -> PixelRect {
+    /// The pixels of tile `t` (on the target).
+    fn tile_rect(&self, t: u32) -> PixelRect {
         let (x0, y0) = ((t % self.tiles_x * TILE) as i32, (t / self.tiles_x * TILE) as i32);
         let last = TILE as i32 - 1;
-        PixelRect {
-            x0: x0.max(r.x0),
-            y0: y0.max(r.y0),
-            x1: (x0 + last).min(r.x1),
-            y1: (y0 + last).min(r.y1),
-        }
+        let tile = PixelRect { x0, y0, x1: x0 + last, y1: y0 + last };
+        tile.intersect(&self.screen).unwrap_or(PixelRect::EMPTY)
     }
 
     /// Calls `f` with every tile a rectangle on the target overlaps, in row-major order.
     pub(crate) fn each_tile(&self, r: &PixelRect, mut f: impl FnMut(u32)) {
-        let t = |v: i32| v as u32 / TILE;
+        let t = Self::tile_of;
         for ty in t(r.y0)..=t(r.y1) {
             for tx in t(r.x0)..=t(r.x1) {
                 f(ty * self.tiles_x + tx);
@@ -463,7 +464,7 @@ impl Bins {
         Self::build_groups(
             len.div_ceil(chunk),
             |g| (g * chunk..((g + 1) * chunk).min(len)).map(move |k| (k as u32, bound(k))),
-            |_, _| false,
+            |_| None,
             width,
             height,
         )
@@ -471,7 +472,7 @@ impl Bins {
 
     /// Bins the triangles of a prepared batch by their coverage rectangles, calling
     /// `visit(index, rectangle)` with each (in parallel, in no particular order). A triangle
-    /// over more than [`EXACT_BINNING_TILES`] tiles is left out of the tiles where it covers
+    /// over more than [`TRIVIAL_REJECT_TILES`] tiles is left out of the tiles where it covers
     /// no sample (its samples within `reach` of the pixel centres).
     fn of_batch<T: Sync>(
         batch: &PreparedBatch<T>,
@@ -491,7 +492,7 @@ impl Bins {
                     (i, Some(r))
                 })
             },
-            |i, tile| raster::misses_rect_within(&batch.get(i).setup, tile, reach),
+            |i| Some(raster::TrivialReject::new(&batch.get(i).setup, reach)),
             width,
             height,
         )
@@ -499,12 +500,12 @@ impl Bins {
 
     /// The shared binning loop: group `g` (in submission order) lists `(index, bounds)`;
     /// groups are binned in parallel and merged in group order, so lists stay in submission
-    /// order. An item over more than [`EXACT_BINNING_TILES`] tiles is left out of the tiles
-    /// whose pixels (within its bounds) `misses(index, pixels)` says it does not reach.
+    /// order. An item over more than [`TRIVIAL_REJECT_TILES`] tiles is left out of the tiles
+    /// whose pixels within its bounds `reject(index)` (if it gives a test) says it misses.
     pub(crate) fn build_groups<I>(
         groups: usize,
         group: impl Fn(usize) -> I + Sync,
-        misses: impl Fn(u32, &PixelRect) -> bool + Sync,
+        reject: impl Fn(u32) -> Option<raster::TrivialReject> + Sync,
         width: u32,
         height: u32,
     ) -> Self
@@ -519,11 +520,14 @@ impl Bins {
                 let mut lists = vec![Vec::new(); tiles];
                 for (index, r) in group(g) {
                     let Some(r) = r.and_then(|r| r.intersect(&grid.screen)) else { continue };
-                    if grid.tiles_over(&r) <= EXACT_BINNING_TILES {
+                    if grid.tiles_over(&r) <= TRIVIAL_REJECT_TILES {
                         grid.each_tile(&r, |t| lists[t as usize].push(index));
                     } else {
+                        let reject = reject(index);
                         grid.each_tile(&r, |t| {
-                            if !misses(index, &grid.tile_within(t, &r)) {
+                            let pixels = grid.tile_rect(t).intersect(&r);
+                            let misses = |p: &PixelRect| reject.is_some_and(|j| j.misses(p));
+                            if pixels.is_some_and(|p| !misses(&p)) {
                                 lists[t as usize].push(index);
                             }
                         });
@@ -769,8 +773,7 @@ fn bin_batch<T: Sync>(prepared: &PreparedBatch<T>, to: BinTarget) -> (Bins, u64)
     // Counted while binning (a pass of its own was a twentieth of a frame of small
     // triangles, waiting on memory).
     let wide_coverage = AtomicU64::new(0);
-    let reach = if prepared.coverage.multisampled { samples.reach() } else { 0 };
-    let bins = Bins::of_batch(prepared, width, height, reach, |i, r| {
+    let bins = Bins::of_batch(prepared, width, height, samples.reach(), |i, r| {
         if to.wide(r) {
             let p = prepared.get(i);
             wide_coverage.fetch_add(coverage_count(&p.setup, r, samples), Ordering::Relaxed);
@@ -1021,7 +1024,7 @@ mod binned_tests {
             for (i, _) in batch.indexed_covers(0..batch.chunk_count()) {
                 let p = batch.get(i);
                 for t in 0..grid.tiles {
-                    let tile = grid.tile_within(t, &grid.screen);
+                    let tile = grid.tile_rect(t);
                     let mut covers = false;
                     for s in 0..samples.count() {
                         let offset = samples.offset(s);

@@ -759,7 +759,7 @@ impl FrontEnd {
     }
 
     /// Zero area, culling and "covers no sample", from the snapped corners alone: most
-    /// triangles of a dense mesh stop here, before their edge functions are built. The tests
+    /// triangles of a dense mesh stop here, before they are set up. The tests
     /// of [`simd::corner_tests`], one triangle at a time (the reference backend's).
     fn corner_tests(&self, xy: [[i64; 2]; 3]) -> Result<(), Skipped> {
         TriangleSetup::signed_area2(xy, self.cull)?;

@@ -1,9 +1,10 @@
-//! Triangle setup: snap the vertices, build the three integer edge functions with the fill rule
-//! folded in, and classify the triangle (winding, culling, degeneracy).
+//! Triangle setup: snap the vertices, classify the triangle (winding, culling, degeneracy),
+//! and derive the three integer edge functions with the fill rule folded in.
 //!
 //! Contract: `TriangleSetup::new` either rejects a triangle (a [`Rejection`] the caller counts)
-//! or returns edges such that a sample point `P` (fixed point) is covered iff
-//! `edge.eval(P) >= 0` for all three edges. Nothing downstream knows about windings or ties.
+//! or returns a setup whose edges (`TriangleSetup::edges`) are such that a sample point `P`
+//! (fixed point) is covered iff `edge.eval(P) >= 0` for all three edges. Nothing downstream
+//! knows about windings or ties.
 
 use crate::fixed::{self, ONE};
 use crate::sample::SampleCount;
@@ -107,6 +108,27 @@ impl EdgeFunction {
     #[must_use]
     pub fn eval(&self, x: i64, y: i64) -> i64 {
         self.a * x + self.b * y + self.c
+    }
+
+    /// The values of a triangle's three edges at fixed-point `(x, y)` (covered iff all are
+    /// `>= 0`). Written out element by element, like [`widen`], for the per-triangle paths,
+    /// which derive the edges once ([`TriangleSetup::edges`]) and evaluate them here.
+    #[inline(always)]
+    #[must_use]
+    pub fn values(edges: &[Self; 3], x: i64, y: i64) -> [i64; 3] {
+        let [a, b, c] = edges;
+        [a.eval(x, y), b.eval(x, y), c.eval(x, y)]
+    }
+
+    /// What the three edges' values change by from one pixel to the next: `(right, down)`.
+    #[inline(always)]
+    #[must_use]
+    pub fn pixel_steps(edges: &[Self; 3]) -> ([i64; 3], [i64; 3]) {
+        let [a, b, c] = edges;
+        (
+            [a.a * PIXEL_STEP, b.a * PIXEL_STEP, c.a * PIXEL_STEP],
+            [a.b * PIXEL_STEP, b.b * PIXEL_STEP, c.b * PIXEL_STEP],
+        )
     }
 
     /// True iff this edge owns samples lying exactly on it (top or left edge).
@@ -246,9 +268,9 @@ impl TriangleSetup {
         [edge(p1, p2), edge(p2, p0), edge(p0, p1)]
     }
 
-    /// The checks of [`TriangleSetup::from_snapped`] that need no edge functions: twice the
-    /// signed area (`> 0`: clockwise on a y-down screen), or why the triangle is rejected
-    /// (zero area, culled). Lets a front end drop triangles before paying for a full setup.
+    /// The checks of [`TriangleSetup::from_snapped`], on their own: twice the signed area
+    /// (`> 0`: clockwise on a y-down screen), or why the triangle is rejected (zero area,
+    /// culled). Lets a front end drop triangles before paying for a full setup.
     pub fn signed_area2(xy: [[i64; 2]; 3], cull: CullMode) -> Result<i64, Rejection> {
         let [p0, p1, p2] = xy;
         let signed = (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (p1[1] - p0[1]);
@@ -293,23 +315,17 @@ impl TriangleSetup {
     }
 
     /// The three biased edge values at fixed-point `(x, y)` (covered iff all are `>= 0`).
-    /// Written out element by element, like [`widen`], for the per-triangle paths.
     #[inline(always)]
     #[must_use]
     pub fn edge_values(&self, x: i64, y: i64) -> [i64; 3] {
-        let [a, b, c] = self.edges();
-        [a.eval(x, y), b.eval(x, y), c.eval(x, y)]
+        EdgeFunction::values(&self.edges(), x, y)
     }
 
     /// What the three edge values change by from one pixel to the next: `(right, down)`.
     #[inline(always)]
     #[must_use]
     pub fn pixel_steps(&self) -> ([i64; 3], [i64; 3]) {
-        let [a, b, c] = self.edges();
-        (
-            [a.a * PIXEL_STEP, b.a * PIXEL_STEP, c.a * PIXEL_STEP],
-            [a.b * PIXEL_STEP, b.b * PIXEL_STEP, c.b * PIXEL_STEP],
-        )
+        EdgeFunction::pixel_steps(&self.edges())
     }
 
     /// Unbiased edge values `(E_1, E_2)` at fixed-point `(x, y)`, computed relative to vertex 0
@@ -318,10 +334,7 @@ impl TriangleSetup {
     #[inline]
     #[must_use]
     pub fn barycentric_numerators(&self, x: i64, y: i64) -> (i64, i64) {
-        let dx = x - i64::from(self.xy[0][0]);
-        let dy = y - i64::from(self.xy[0][1]);
-        let [_, e1, e2] = self.edges();
-        (e1.a * dx + e1.b * dy, e2.a * dx + e2.b * dy)
+        self.numerators().at(x, y)
     }
 
     /// What the barycentric numerators change by from a point to the point `offset`
@@ -329,9 +342,47 @@ impl TriangleSetup {
     /// its pixel centre's plus its offset's).
     #[inline]
     #[must_use]
-    pub fn numerator_offset(&self, [ox, oy]: [i64; 2]) -> [i64; 2] {
+    pub fn numerator_offset(&self, offset: [i64; 2]) -> [i64; 2] {
+        self.numerators().offset(offset)
+    }
+
+    /// The barycentric numerators as a function of the sample position, derived once: for
+    /// loops over many samples, since the setup derives its edges on every call.
+    #[inline(always)]
+    #[must_use]
+    pub fn numerators(&self) -> BarycentricNumerators {
         let [_, e1, e2] = self.edges();
-        [e1.a * ox + e1.b * oy, e2.a * ox + e2.b * oy]
+        BarycentricNumerators {
+            origin: [i64::from(self.xy[0][0]), i64::from(self.xy[0][1])],
+            e1: [e1.a, e1.b],
+            e2: [e2.a, e2.b],
+        }
+    }
+}
+
+/// A triangle's barycentric numerators `(E_1, E_2)`: the coefficients of edges 1 and 2 and
+/// vertex 0, which lies on both ([`TriangleSetup::numerators`]).
+#[derive(Clone, Copy, Debug)]
+pub struct BarycentricNumerators {
+    origin: [i64; 2],
+    e1: [i64; 2],
+    e2: [i64; 2],
+}
+
+impl BarycentricNumerators {
+    /// The numerators at fixed-point `(x, y)` ([`TriangleSetup::barycentric_numerators`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn at(&self, x: i64, y: i64) -> (i64, i64) {
+        let (dx, dy) = (x - self.origin[0], y - self.origin[1]);
+        (self.e1[0] * dx + self.e1[1] * dy, self.e2[0] * dx + self.e2[1] * dy)
+    }
+
+    /// What they change by over `offset` ([`TriangleSetup::numerator_offset`]).
+    #[inline(always)]
+    #[must_use]
+    pub fn offset(&self, [ox, oy]: [i64; 2]) -> [i64; 2] {
+        [self.e1[0] * ox + self.e1[1] * oy, self.e2[0] * ox + self.e2[1] * oy]
     }
 }
 

@@ -18,7 +18,7 @@
 use crate::fixed;
 use crate::raster::{self, Algorithm, Span};
 use crate::sample::{MAX_SAMPLES, SampleCount};
-use crate::setup::{PixelRect, TriangleSetup, Vertex};
+use crate::setup::{BarycentricNumerators, EdgeFunction, PixelRect, TriangleSetup, Vertex};
 use crate::simd::{
     self, KernelTarget, NarrowJob, NarrowSamplesJob, SampleSpanJob, SimdLevel, SpanColor, SpanJob,
 };
@@ -553,13 +553,14 @@ pub fn shade_triangle(
             let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
             // Each sample's row coverage as a bit mask without branches (as at 1x), then the
             // pixels with any covered sample, left to right, with their sample masks: no
-            // spans, no lists of them.
+            // spans, no lists of them. The edges are derived once for all of it.
+            let edges = setup.edges();
             let mut rows = [[0i64; 3]; MAX_SAMPLES];
             for (s, row) in rows.iter_mut().enumerate().take(n) {
                 let [ox, oy] = samples.offset(s);
-                *row = setup.edge_values(x + ox, y + oy);
+                *row = EdgeFunction::values(&edges, x + ox, y + oy);
             }
-            let (step_x, step_y) = setup.pixel_steps();
+            let (step_x, step_y) = EdgeFunction::pixel_steps(&edges);
             for py in r.y0..=r.y1 {
                 // Sample s's row mask in byte s (at most 8 columns and 8 samples), then each
                 // pixel's sample mask in byte c: in registers (an array of masks, read back
@@ -598,9 +599,10 @@ fn narrow_job<'a>(
     color: &'a SpanColor,
 ) -> NarrowJob<'a> {
     let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
-    let edges = setup.edge_values(x, y);
+    let functions = setup.edges();
+    let edges = EdgeFunction::values(&functions, x, y);
     let (e1, e2) = setup.barycentric_numerators(x, y);
-    let (step_x, step_y) = setup.pixel_steps();
+    let (step_x, step_y) = EdgeFunction::pixel_steps(&functions);
     NarrowJob {
         edges,
         step_x,
@@ -736,6 +738,8 @@ const SAMPLE_KERNEL_MIN_SPAN: i32 = 2;
 /// the spans' loop (large triangles, fill at 4x) took a fifth longer.
 struct SamplePixels<'a, S> {
     setup: &'a TriangleSetup,
+    /// The setup's numerators, derived once for the triangle's pixels.
+    numerators: BarycentricNumerators,
     /// Samples per pixel.
     n: usize,
     /// Each sample's numerators less its pixel centre's.
@@ -758,11 +762,12 @@ impl<'a, S: FragmentStage> SamplePixels<'a, S> {
         fragment: S,
     ) -> Self {
         let n = samples.count();
+        let numerators = setup.numerators();
         let mut offsets = [[0i64; 2]; MAX_SAMPLES];
         for (s, o) in offsets.iter_mut().enumerate().take(n) {
-            *o = setup.numerator_offset(samples.offset(s));
+            *o = numerators.offset(samples.offset(s));
         }
-        Self { setup, n, offsets, depth, depth_test, id, fragment, covered: 0 }
+        Self { setup, numerators, n, offsets, depth, depth_test, id, fragment, covered: 0 }
     }
 
     /// Pixel `(px, py)` with covered samples `mask`.
@@ -775,7 +780,7 @@ impl<'a, S: FragmentStage> SamplePixels<'a, S> {
             o[p] += mask.count_ones();
         }
         let (cx, cy) = (fixed::pixel_centre(px), fixed::pixel_centre(py));
-        let (c1, c2) = self.setup.barycentric_numerators(cx, cy);
+        let (c1, c2) = self.numerators.at(cx, cy);
         let mut z = [0.0f32; MAX_SAMPLES];
         let mut passed = 0u32;
         for s in (0..n).filter(|s| mask & (1 << s) != 0) {

@@ -720,8 +720,8 @@ fn demos_write_pngs() {
 }
 
 /// `trirast bench --json` reports each scene with the SIMD level and schedule it ran at and its
-/// peak memory, and the work it measures does not depend on the level: forcing the scalar kernels reports the same
-/// triangles and fragments.
+/// peak memory, and the work it measures does not depend on the level: forcing the scalar
+/// kernels reports the same triangles and fragments.
 #[test]
 fn bench_reports_its_simd_level_and_the_same_work_at_every_level() {
     let dir = TempDir::new("bench");

@@ -153,7 +153,7 @@ fn rectangles_are_accepted_iff_every_pixel_is_covered() {
     assert!(accepted > 1000 && refused > 1000, "{accepted} accepted, {refused} refused");
 }
 
-/// The trivial reject of tiles (`raster::misses_rect_within`, which binning uses for
+/// The trivial reject of tiles (`raster::TrivialReject`, which binning uses for
 /// triangles over many tiles) never rejects a rectangle one of whose pixels has a covered
 /// sample, at 1x, 4x and 8x, and does reject most rectangles the triangle stays clear of
 /// (those outside one edge; a rectangle off a corner, outside two, may pass).
@@ -183,7 +183,7 @@ fn rectangles_are_rejected_only_when_no_sample_is_covered() {
                         })
                     })
                 });
-                let misses = raster::misses_rect_within(&s, &r, samples.reach());
+                let misses = raster::TrivialReject::new(&s, samples.reach()).misses(&r);
                 assert!(!(misses && any), "{v:?} on {r:?} at {samples:?}: a sample is covered");
                 clear += usize::from(!any);
                 rejected += usize::from(misses);

@@ -135,7 +135,10 @@ fn slivers_across_many_tiles_match_the_reference() {
                 let target = Target::multisampled(w as u32, h as u32, samples).unwrap().with_ids();
                 if overdraw { target.with_overdraw() } else { target }
             };
-            let options = RenderOptions::default().with_shading(Shading::Smooth);
+            // Binned, whatever the scene's plan would choose: the trivial reject is binning's.
+            let options = RenderOptions::default()
+                .with_shading(Shading::Smooth)
+                .with_schedule(Schedule::Binned);
             let mut reference = fresh();
             let ref_stats =
                 trirast::draw(&mut reference, &tris, &options.with_backend(Backend::Reference))
@@ -145,13 +148,18 @@ fn slivers_across_many_tiles_match_the_reference() {
                 let stats = pool(threads).install(|| trirast::draw(&mut tiled, &tris, &options));
                 let what = format!("{samples:?}, overdraw {overdraw}, {threads} threads");
                 assert_eq!(stats.unwrap(), ref_stats, "{what}");
+                assert_eq!(tiled.last_schedule(), Some(Schedule::Binned), "{what}");
                 assert_same(&reference, &tiled, &what);
             }
         }
     }
+    // Through the 3D pipeline, on the same 6 x 4 tiles, at 1x and 4x, each schedule.
     let (vertices, triangles) = clip_space_mesh(&tris, w, h);
     let fs = |f: &Fragment<f32>| Some(Vec4::new(f.varyings, f.varyings, 0.5, 1.0));
-    assert_pipeline_matches_reference(&vertices, &triangles, &fs);
+    for samples in [SampleCount::X1, SampleCount::X4] {
+        let fresh = || Target::multisampled(w as u32, h as u32, samples).unwrap().with_ids();
+        assert_pipeline_matches_reference_on(fresh, &[1, 2], &vertices, &triangles, &fs);
+    }
 }
 
 /// Hierarchical depth (on at 1x without an overdraw buffer): large overlapping triangles,
@@ -759,10 +767,11 @@ fn batches_are_drawn_in_submission_order() {
     assert_pipeline_matches_reference(&vertices, &triangles, &fs);
 }
 
-/// Multisampled draw calls longer than a batch: one and a half batches of small triangles piled on a small 4x target, one in 500 large, with `Always`
-/// and an overdraw buffer and with `Less` and hierarchical depth, in window space and through
-/// the 3D pipeline (whose 2.4 M vertices take the large-mesh path, shaded batch by batch): the
-/// tiled backend on 1 and 2 threads writes what the reference writes, every sample.
+/// Multisampled draw calls longer than a batch: one and a half batches of small triangles
+/// piled on a small 4x target, one in 500 large, with `Always` and an overdraw buffer and with
+/// `Less` and hierarchical depth, binned (on 1 and 2 threads) and banded, in window space and
+/// through the 3D pipeline (a mesh shaded batch by batch and one shaded up front): the tiled
+/// backend writes what the reference writes, every sample.
 #[test]
 fn multisampled_batches_are_drawn_in_submission_order() {
     use trirast::bin::BATCH;
@@ -778,16 +787,29 @@ fn multisampled_batches_are_drawn_in_submission_order() {
         let ref_stats =
             trirast::draw(&mut reference, &tris, &options.with_backend(Backend::Reference))
                 .unwrap();
-        for threads in [1, 2] {
+        // Binned (the second batch binned as it is prepared) and banded.
+        for (threads, schedule) in
+            [(1, Schedule::Binned), (2, Schedule::Binned), (2, Schedule::Banded)]
+        {
             let mut tiled = fresh(overdraw);
+            let options = options.with_schedule(schedule);
             let stats = pool(threads).install(|| trirast::draw(&mut tiled, &tris, &options));
-            assert_eq!(stats.unwrap(), ref_stats);
-            assert_same(&reference, &tiled, &format!("{depth_test:?}, {threads} threads"));
+            let what = format!("{depth_test:?}, {threads} threads, {schedule:?}");
+            assert_eq!(stats.unwrap(), ref_stats, "{what}");
+            assert_eq!(tiled.last_schedule(), Some(schedule), "{what}");
+            assert_same(&reference, &tiled, &what);
         }
     }
+    // Through the 3D pipeline: as a mesh of 2.4 M vertices (shaded batch by batch), and as one
+    // small enough to be shaded up front (repeated triangles sharing the first 2^18
+    // triangles' vertices, as in `batches_are_drawn_in_submission_order`).
     let (vertices, triangles) = clip_space_mesh(&tris, w, h);
     let fs = |f: &Fragment<f32>| Some(Vec4::new(f.varyings, f.varyings, 0.5, 1.0));
     assert_pipeline_matches_reference_on(|| fresh(false), &[1, 2], &vertices, &triangles, &fs);
+    let distinct = 1 << 18;
+    let (vertices, once) = clip_space_mesh(&tris[..distinct], w, h);
+    let triangles: Vec<[u32; 3]> = (0..tris.len()).map(|t| once[t * 7 % distinct]).collect();
+    assert_pipeline_matches_reference_on(|| fresh(false), &[2], &vertices, &triangles, &fs);
 }
 
 /// Hierarchical depth bounds a triangle's depth over a block's samples, not only its pixel

@@ -15,7 +15,7 @@ pub mod edge;
 pub mod scanline;
 
 use crate::fixed;
-use crate::setup::{PixelRect, TriangleSetup};
+use crate::setup::{EdgeFunction, PixelRect, TriangleSetup};
 
 /// Covered pixels `x_start..x_end` (half-open) on row `y`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -101,15 +101,34 @@ pub fn covers_rect_within(tri: &TriangleSetup, rect: &PixelRect, reach: i64) -> 
     rect_corners(rect, reach).iter().all(|&[x, y]| tri.covers_point(x, y))
 }
 
-/// Does the triangle miss every point within `reach` of the pixel centres of `rect` (so every
-/// sample of its pixels, `reach` being the sample pattern's)? True when one edge is negative
-/// at all four outermost points: its edge function is linear, so it is negative over their
-/// rectangle, which holds every such point. The trivial reject of hierarchical rasterizers;
-/// `false` does not promise a covered sample.
-#[must_use]
-pub fn misses_rect_within(tri: &TriangleSetup, rect: &PixelRect, reach: i64) -> bool {
-    let corners = rect_corners(rect, reach);
-    tri.edges().iter().any(|e| corners.iter().all(|&[x, y]| e.eval(x, y) < 0))
+/// The trivial reject of hierarchical rasterizers for one triangle, its edges derived once
+/// for the many rectangles it is asked about (binning asks it of every tile a large
+/// triangle's box spans).
+#[derive(Clone, Copy, Debug)]
+pub struct TrivialReject {
+    edges: [EdgeFunction; 3],
+    reach: i64,
+}
+
+impl TrivialReject {
+    /// The test for `tri`'s samples within `reach` (fixed point, on either axis) of the pixel
+    /// centres: the sample pattern's ([`crate::sample::SampleCount::reach`]).
+    #[must_use]
+    pub fn new(tri: &TriangleSetup, reach: i64) -> Self {
+        Self { edges: tri.edges(), reach }
+    }
+
+    /// Does the triangle miss every point within the reach of the pixel centres of `rect`,
+    /// so every sample of its pixels? True when one edge is negative at the four corners of
+    /// those points' rectangle: its edge function is linear, so it is negative over all of
+    /// it. `false` does not promise a covered sample (a rectangle off a corner of the
+    /// triangle, outside two edges but wholly outside neither, passes). `rect` lies within a
+    /// target (at most 16384 pixels a side), where no edge value overflows.
+    #[must_use]
+    pub fn misses(&self, rect: &PixelRect) -> bool {
+        let corners = rect_corners(rect, self.reach);
+        self.edges.iter().any(|e| corners.iter().all(|&[x, y]| e.eval(x, y) < 0))
+    }
 }
 
 /// The four corners (fixed point) of the pixel centres of `rect` pushed out by `reach` on

@@ -428,8 +428,8 @@ fn each_f32(tris: &[[Vertex; 3]; 8], f: impl Fn(&[Vertex; 3]) -> f32) -> __m256 
 }
 
 /// [`super::window_group`] in AVX-512: the per-triangle front end's arithmetic lane by lane.
-/// Snapping rounds `x * 256` (exact in `f64`) half to even, as `fixed::snap` does; edge
-/// functions and areas are `i64` lanes (exact, below 2^49); the planes are `f64` lanes with
+/// Snapping rounds `x * 256` (exact in `f64`) half to even, as `fixed::snap` does; areas are
+/// `i64` lanes (exact, below 2^49); the planes are `f64` lanes with
 /// separate multiplies and adds; pixel bounds are arithmetic shifts (floor divisions by 256).
 /// Lanes whose triangle is rejected compute garbage that is never read.
 ///
