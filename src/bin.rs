@@ -986,6 +986,21 @@ mod binned_tests {
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
 
+    /// `triangles` set up for `coverage`, smooth colour, ids by index.
+    fn prepared_batch(
+        triangles: &[[Vertex; 3]],
+        coverage: Coverage,
+    ) -> PreparedBatch<TriangleColor> {
+        let mut batch = PreparedBatch::default();
+        batch.prepare(triangles.len(), coverage, |k, sink| {
+            let tri = &triangles[k];
+            let Ok(setup) = TriangleSetup::new(tri, CullMode::None) else { return };
+            let (depth, payload) = TriangleShader::new(tri, &setup, Shading::Smooth).into_parts();
+            sink.push(Prepared { setup, depth, id: k as i32, payload });
+        });
+        batch
+    }
+
     /// Triangles over many tiles are binned to every tile where they cover a sample, and
     /// long slivers to few others: random slivers across a 1000 x 700 target (8 x 6 tiles)
     /// and large random triangles, at 1x and 4x, each pair of triangle and tile checked by
@@ -1007,14 +1022,7 @@ mod binned_tests {
         for samples in [SampleCount::X1, SampleCount::X4] {
             let target = Target::multisampled(w, h, samples).unwrap();
             let coverage = Coverage { clip: target.rect(), multisampled: samples.count() > 1 };
-            let mut batch = PreparedBatch::<TriangleColor>::default();
-            batch.prepare(triangles.len(), coverage, |k, sink| {
-                let tri = &triangles[k];
-                let Ok(setup) = TriangleSetup::new(tri, CullMode::None) else { return };
-                let (depth, payload) =
-                    TriangleShader::new(tri, &setup, Shading::Smooth).into_parts();
-                sink.push(Prepared { setup, depth, id: k as i32, payload });
-            });
+            let mut batch = prepared_batch(&triangles, coverage);
             batch.bin(BinTarget::of(&target, DepthTest::Less));
             let bins = &batch.binned.as_ref().unwrap().0;
             let grid = TileGrid::of_size(w, h);
@@ -1069,14 +1077,7 @@ mod binned_tests {
                 target = target.with_overdraw();
             }
             let coverage = Coverage { clip: target.rect(), multisampled: false };
-            let mut batch = PreparedBatch::<TriangleColor>::default();
-            batch.prepare(triangles.len(), coverage, |k, sink| {
-                let tri = &triangles[k];
-                let Ok(setup) = TriangleSetup::new(tri, CullMode::None) else { return };
-                let (depth, payload) =
-                    TriangleShader::new(tri, &setup, Shading::Smooth).into_parts();
-                sink.push(Prepared { setup, depth, id: k as i32, payload });
-            });
+            let mut batch = prepared_batch(&triangles, coverage);
             if let Some(other) = bin_for {
                 batch.bin(BinTarget::of(other, DepthTest::Less));
                 // Bins stored, for `other`: reused exactly when it is this target.

@@ -32,6 +32,32 @@ fn assert_same(a: &Target, b: &Target, what: &str) {
     assert!(a.normals == b.normals, "{what}: normals differ");
 }
 
+/// Draws `tris` with `options` on the reference backend and with the tiled one on each of
+/// `threads`, into targets made by `fresh`: the same counts and buffers. Returns the tiled
+/// targets.
+fn assert_tiled_matches_reference(
+    fresh: impl Fn() -> Target,
+    tris: &[[Vertex; 3]],
+    options: &RenderOptions,
+    threads: &[usize],
+    what: &str,
+) -> Vec<Target> {
+    let mut reference = fresh();
+    let ref_stats =
+        trirast::draw(&mut reference, tris, &options.with_backend(Backend::Reference)).unwrap();
+    threads
+        .iter()
+        .map(|&threads| {
+            let mut tiled = fresh();
+            let stats = pool(threads).install(|| trirast::draw(&mut tiled, tris, options));
+            let what = format!("{what}, {threads} threads");
+            assert_eq!(stats.unwrap(), ref_stats, "{what}");
+            assert_same(&reference, &tiled, &what);
+            tiled
+        })
+        .collect()
+}
+
 /// Random window-space scenes: small and large triangles, some far off screen, overlapping at
 /// random depths (so the depth test and submission order matter), some exactly equal depths,
 /// half of them opaque.
@@ -139,17 +165,9 @@ fn slivers_across_many_tiles_match_the_reference() {
             let options = RenderOptions::default()
                 .with_shading(Shading::Smooth)
                 .with_schedule(Schedule::Binned);
-            let mut reference = fresh();
-            let ref_stats =
-                trirast::draw(&mut reference, &tris, &options.with_backend(Backend::Reference))
-                    .unwrap();
-            for threads in [1, 2, 7] {
-                let mut tiled = fresh();
-                let stats = pool(threads).install(|| trirast::draw(&mut tiled, &tris, &options));
-                let what = format!("{samples:?}, overdraw {overdraw}, {threads} threads");
-                assert_eq!(stats.unwrap(), ref_stats, "{what}");
+            let what = format!("{samples:?}, overdraw {overdraw}");
+            for tiled in assert_tiled_matches_reference(fresh, &tris, &options, &[1, 2, 7], &what) {
                 assert_eq!(tiled.last_schedule(), Some(Schedule::Binned), "{what}");
-                assert_same(&reference, &tiled, &what);
             }
         }
     }
@@ -743,17 +761,8 @@ fn batches_are_drawn_in_submission_order() {
             let target = Target::new(w as u32, h as u32).unwrap().with_ids();
             if overdraw { target.with_overdraw() } else { target }
         };
-        let mut reference = fresh();
-        let ref_stats =
-            trirast::draw(&mut reference, &tris, &options.with_backend(Backend::Reference))
-                .unwrap();
-        for threads in [1, 2, 7] {
-            let mut tiled = fresh();
-            let stats = pool(threads).install(|| trirast::draw(&mut tiled, &tris, &options));
-            assert_eq!(stats.unwrap(), ref_stats);
-            let what = format!("{depth_test:?}, overdraw {overdraw}, {threads} threads");
-            assert_same(&reference, &tiled, &what);
-        }
+        let what = format!("{depth_test:?}, overdraw {overdraw}");
+        assert_tiled_matches_reference(fresh, &tris, &options, &[1, 2, 7], &what);
     }
     // Through the 3D pipeline, as a mesh in clip space small enough to have its vertices
     // shaded up front (the large-mesh path is `multisampled_batches_are_drawn_in_submission_
