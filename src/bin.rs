@@ -35,12 +35,14 @@ pub const TILE: u32 = 128;
 /// Triangles per batch: bounds the memory of set-up triangles and bins (two batches are in
 /// flight, [`pipelined`]: a window triangle's record is 192 bytes, about 200 MB for both
 /// batches when every triangle makes one). Each batch visits every tile it touches once
-/// more, prefetching its buffer rows and writing them back, so larger batches move fewer tiles through the caches, while the
-/// records, read back tile by tile in bin order, scattered over the batch, fall out of the
-/// cache either way. A million small random triangles at 1x on the AMD VM, two threads:
-/// 104-144 ms with batches of 64k (the slower figure when the shared L3 cache was busy:
-/// such batches relied on their records staying there), 87-111 ms with 128k, 75 ms with 512k,
-/// 74 ms with one batch of a million (one thread: 197 -> 145 ms). The Intel VM of earlier
+/// more, prefetching its buffer rows and writing them back, so larger batches move fewer
+/// tiles through the caches, while the records, read back tile by tile in bin order,
+/// scattered over the batch, fall out of the cache either way. A million small random
+/// triangles at 1x on the AMD VM, two threads: 104-144 ms with batches of 64k (the slower
+/// figure when the shared L3 cache was busy: such batches relied on their records staying
+/// there), 87-111 ms with 128k, 75 ms with 512k, 74 ms with one batch of a million (one
+/// thread: 197 -> 145 ms; with records 192 bytes instead of 264, 256k took 72-84 ms against
+/// 70-71 for 512k). The Intel VM of earlier
 /// sessions had favoured 64k at 1x (262 -> 208 ms on one thread); multisampled targets, whose
 /// tiles hold four or eight times the bytes, and meshes shaded batch by batch (the dense scene
 /// 0.62 s against 0.67 with 64k) took 512k there already.
@@ -526,8 +528,7 @@ impl Bins {
                         let reject = reject(index);
                         grid.each_tile(&r, |t| {
                             let pixels = grid.tile_rect(t).intersect(&r);
-                            let misses = |p: &PixelRect| reject.is_some_and(|j| j.misses(p));
-                            if pixels.is_some_and(|p| !misses(&p)) {
+                            if pixels.is_some_and(|p| !reject.is_some_and(|j| j.misses(&p))) {
                                 lists[t as usize].push(index);
                             }
                         });
