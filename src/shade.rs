@@ -18,7 +18,9 @@
 use crate::fixed;
 use crate::raster::{self, Algorithm, Span};
 use crate::sample::{MAX_SAMPLES, SampleCount};
-use crate::setup::{BarycentricNumerators, EdgeFunction, PixelRect, TriangleSetup, Vertex};
+use crate::setup::{
+    BarycentricNumerators, EdgeFunction, FillRule, PixelRect, TriangleSetup, Vertex,
+};
 use crate::simd::{
     self, KernelTarget, NarrowJob, NarrowSamplesJob, SampleSpanJob, SimdLevel, SpanColor, SpanJob,
 };
@@ -598,16 +600,12 @@ fn narrow_job<'a>(
     (depth_test, id): (DepthTest, i32),
     color: &'a SpanColor,
 ) -> NarrowJob<'a> {
-    let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
-    let functions = setup.edges();
-    let edges = EdgeFunction::values(&functions, x, y);
-    let (e1, e2) = setup.barycentric_numerators(x, y);
-    let (step_x, step_y) = EdgeFunction::pixel_steps(&functions);
+    let (edges, step_x, step_y, bias) = narrow_start(setup, r);
     NarrowJob {
         edges,
         step_x,
         step_y,
-        bias: [edges[1] - e1, edges[2] - e2],
+        bias,
         columns: (r.x1 - r.x0 + 1) as usize,
         rows: (r.y1 - r.y0 + 1) as usize,
         first: target.index(r.x0, r.y0),
@@ -623,6 +621,18 @@ fn narrow_job<'a>(
             overdraw: target.overdraw.as_deref_mut(),
         },
     }
+}
+
+/// Where the narrow paths start a box `r`: the edge values at the centre of its first pixel,
+/// their steps one pixel right and down, and edges 1 and 2's fill-rule biases (an edge's
+/// value less its bias is the barycentric numerator), from edges derived once.
+#[inline(always)]
+fn narrow_start(setup: &TriangleSetup, r: &PixelRect) -> ([i64; 3], [i64; 3], [i64; 3], [i64; 2]) {
+    let edges = setup.edges();
+    let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
+    let (step_x, step_y) = EdgeFunction::pixel_steps(&edges);
+    let bias = [FillRule::bias(edges[1].a, edges[1].b), FillRule::bias(edges[2].a, edges[2].b)];
+    (EdgeFunction::values(&edges, x, y), step_x, step_y, bias)
 }
 
 /// Each sample's edge values less its pixel centre's: `a ox + b oy` per edge, the same at
@@ -839,11 +849,7 @@ fn shade_single_sample(
                 let job = narrow_job(target, setup, &r, depth, (depth_test, id), color);
                 return simd::shade_narrow(level, job);
             }
-            let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
-            let edges = setup.edge_values(x, y);
-            let (e1, e2) = setup.barycentric_numerators(x, y);
-            let (step_x, step_y) = setup.pixel_steps();
-            let bias = [edges[1] - e1, edges[2] - e2];
+            let (edges, step_x, step_y, bias) = narrow_start(setup, &r);
             // Row coverage as a bit mask without branches (as `rasterize_narrow`), then the
             // covered pixels, left to right.
             let mut covered = 0u64;
