@@ -522,16 +522,15 @@ impl Bins {
                 let mut lists = vec![Vec::new(); tiles];
                 for (index, r) in group(g) {
                     let Some(r) = r.and_then(|r| r.intersect(&grid.screen)) else { continue };
-                    if grid.tiles_over(&r) <= TRIVIAL_REJECT_TILES {
-                        grid.each_tile(&r, |t| lists[t as usize].push(index));
-                    } else {
-                        let reject = reject(index);
-                        grid.each_tile(&r, |t| {
+                    let spans_many = grid.tiles_over(&r) > TRIVIAL_REJECT_TILES;
+                    match spans_many.then(|| reject(index)).flatten() {
+                        None => grid.each_tile(&r, |t| lists[t as usize].push(index)),
+                        Some(reject) => grid.each_tile(&r, |t| {
                             let pixels = grid.tile_rect(t).intersect(&r);
-                            if pixels.is_some_and(|p| !reject.is_some_and(|j| j.misses(&p))) {
+                            if pixels.is_some_and(|p| !reject.misses(&p)) {
                                 lists[t as usize].push(index);
                             }
-                        });
+                        }),
                     }
                 }
                 lists
