@@ -24,7 +24,7 @@
 
 use rayon::prelude::*;
 
-use crate::bin::{self, Coverage, Prepared, Sink};
+use crate::bin::{self, Coverage, Record, Sink};
 use crate::render::{DrawStats, Schedule};
 use crate::setup::PixelRect;
 use crate::shade::{self, DepthTest, OfTriangle, TriangleFragments};
@@ -210,7 +210,7 @@ impl Bands {
     /// with the span kernels `kernel(payload)` gives and the fragment stage `fragments`
     /// otherwise (as [`bin::draw_binned`]). Returns the counts (the first band's; see the
     /// module's doc) and the covered samples.
-    pub fn draw<T, K, F, P>(
+    pub fn draw<S, K, F, P>(
         &self,
         target: &mut Target,
         coverage: Coverage,
@@ -220,10 +220,10 @@ impl Bands {
         prepare: P,
     ) -> (DrawStats, u64)
     where
-        T: Send,
-        K: Fn(&T) -> Option<(SimdLevel, &SpanColor)> + Sync,
-        F: TriangleFragments<T>,
-        P: Fn(std::ops::Range<usize>, &mut Sink<'_, T>) + Sync,
+        S: Record,
+        K: Fn(&S::Payload) -> Option<(SimdLevel, &SpanColor)> + Sync,
+        F: TriangleFragments<S::Payload>,
+        P: Fn(std::ops::Range<usize>, &mut Sink<'_, S>) + Sync,
     {
         let len = self.triangles;
         let per_band: Vec<(DrawStats, u64)> = target
@@ -232,7 +232,7 @@ impl Bands {
             .map(|mut band| {
                 let clip = coverage.clip.intersect(&band.rect()).unwrap_or(PixelRect::EMPTY);
                 let coverage = Coverage { clip, ..coverage };
-                let mut records: Vec<Prepared<T>> = Vec::with_capacity(bin::CHUNK);
+                let mut records: Vec<S> = Vec::with_capacity(bin::CHUNK);
                 let mut covers = Vec::with_capacity(bin::CHUNK);
                 let mut stats = DrawStats::default();
                 let mut covered = 0;
@@ -241,18 +241,20 @@ impl Bands {
                     covers.clear();
                     let mut sink = Sink::new(&mut records, &mut covers, coverage, &mut stats);
                     prepare(first..(first + bin::CHUNK).min(len), &mut sink);
-                    for (p, rect) in records.iter().zip(&covers) {
-                        covered += shade::shade_triangle(
-                            &mut band,
-                            &p.setup,
-                            bin::coverage_algorithm(&p.setup),
-                            rect,
-                            &p.depth,
-                            depth_test,
-                            p.id,
-                            kernel(&p.payload),
-                            OfTriangle(&fragments, &p.payload),
-                        );
+                    for (record, rect) in records.iter().zip(&covers) {
+                        covered += record.with(|p| {
+                            shade::shade_triangle(
+                                &mut band,
+                                &p.setup,
+                                bin::coverage_algorithm(&p.setup),
+                                rect,
+                                &p.depth,
+                                depth_test,
+                                p.id,
+                                kernel(&p.payload),
+                                OfTriangle(&fragments, &p.payload),
+                            )
+                        });
                     }
                 }
                 (stats, covered)

@@ -106,6 +106,35 @@ pub struct Prepared<T> {
     pub payload: T,
 }
 
+/// A prepared triangle as a batch stores it: [`Prepared`] itself, or a packed form that
+/// gives one back where it is drawn. Packing pays where records stream through memory: a
+/// batch of small window triangles is read back tile by tile long after it was written, and
+/// each record's cache lines are most of that traffic (see [`BATCH`]).
+pub trait Record: Copy + Send + Sync {
+    /// What the fragment stage reads per triangle.
+    type Payload;
+
+    /// The triangle's coverage setup.
+    fn setup(&self) -> TriangleSetup;
+
+    /// Calls `f` with the triangle as the back end draws it.
+    fn with<R>(&self, f: impl FnOnce(&Prepared<Self::Payload>) -> R) -> R;
+}
+
+impl<T: Copy + Send + Sync> Record for Prepared<T> {
+    type Payload = T;
+
+    #[inline(always)]
+    fn setup(&self) -> TriangleSetup {
+        self.setup
+    }
+
+    #[inline(always)]
+    fn with<R>(&self, f: impl FnOnce(&Prepared<T>) -> R) -> R {
+        f(self)
+    }
+}
+
 /// Why a triangle gives the back end nothing to do.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Skipped {
@@ -142,8 +171,8 @@ const PIECE_BITS: u32 = 12;
 /// A batch may also hold its bins ([`PreparedBatch::bin`]), which [`draw_binned`] uses when
 /// they were made for the target it draws into.
 #[derive(Debug)]
-pub struct PreparedBatch<T> {
-    chunks: Vec<Vec<Prepared<T>>>,
+pub struct PreparedBatch<S> {
+    chunks: Vec<Vec<S>>,
     covers: Vec<Vec<PixelRect>>,
     used: usize,
     coverage: Coverage,
@@ -152,7 +181,7 @@ pub struct PreparedBatch<T> {
     binned: Option<(Bins, u64, BinTarget)>,
 }
 
-impl<T> Default for PreparedBatch<T> {
+impl<S> Default for PreparedBatch<S> {
     fn default() -> Self {
         Self {
             chunks: Vec::new(),
@@ -195,18 +224,18 @@ impl Coverage {
 /// each ~200-byte record once, in place, instead of moving it through `Result`s and
 /// iterators, which cost a full copy per triangle even for the many that are skipped.
 #[derive(Debug)]
-pub struct Sink<'a, T> {
-    out: &'a mut Vec<Prepared<T>>,
+pub struct Sink<'a, S> {
+    out: &'a mut Vec<S>,
     covers: &'a mut Vec<PixelRect>,
     coverage: Coverage,
     stats: &'a mut DrawStats,
 }
 
-impl<'a, T> Sink<'a, T> {
+impl<'a, S> Sink<'a, S> {
     /// A sink putting pieces into `out` and their coverage rectangles (for `coverage`) into
     /// `covers`, and counting what it skips in `stats`.
     pub(crate) fn new(
-        out: &'a mut Vec<Prepared<T>>,
+        out: &'a mut Vec<S>,
         covers: &'a mut Vec<PixelRect>,
         coverage: Coverage,
         stats: &'a mut DrawStats,
@@ -214,25 +243,16 @@ impl<'a, T> Sink<'a, T> {
         Self { out, covers, coverage, stats }
     }
 
-    /// Takes one piece.
+    /// Takes one piece, as `record`, with setup `setup`. A piece covering no sample (front
+    /// ends usually drop those before computing their shading) is counted as
+    /// [`Skipped::Empty`].
     #[inline]
-    pub fn take(&mut self, piece: Result<Prepared<T>, Skipped>) {
-        match piece {
-            Ok(p) => self.push(p),
-            Err(why) => self.stats.skip(why),
-        }
-    }
-
-    /// Takes one prepared piece (as `take(Ok(piece))`, without building a `Result` of a
-    /// record first). A piece covering no sample (front ends usually drop those before
-    /// computing their shading) is counted as [`Skipped::Empty`].
-    #[inline]
-    pub fn push(&mut self, piece: Prepared<T>) {
-        match self.coverage.of(&piece.setup) {
+    pub fn push_record(&mut self, setup: &TriangleSetup, record: S) {
+        match self.coverage.of(setup) {
             Some(r) => {
                 self.stats.rasterized += 1;
                 self.covers.push(r);
-                self.out.push(piece);
+                self.out.push(record);
             }
             None => self.stats.skip(Skipped::Empty),
         }
@@ -260,9 +280,28 @@ impl<'a, T> Sink<'a, T> {
     }
 }
 
+impl<T> Sink<'_, Prepared<T>> {
+    /// Takes one piece.
+    #[inline]
+    pub fn take(&mut self, piece: Result<Prepared<T>, Skipped>) {
+        match piece {
+            Ok(p) => self.push(p),
+            Err(why) => self.stats.skip(why),
+        }
+    }
+
+    /// Takes one prepared piece (as `take(Ok(piece))`, without building a `Result` of a
+    /// record first); see [`Sink::push_record`].
+    #[inline]
+    pub fn push(&mut self, piece: Prepared<T>) {
+        let setup = piece.setup;
+        self.push_record(&setup, piece);
+    }
+}
+
 /// Two batches of prepared triangles, for [`pipelined`]: one being filled while the other is
 /// drawn.
-pub type PreparedPair<T> = [PreparedBatch<T>; 2];
+pub type PreparedPair<S> = [PreparedBatch<S>; 2];
 
 /// Cuts `items` into batches of at most `batch_len` (of equal length: [`even_batch_len`]) and
 /// runs batch `b` (its items `batch`, the first
@@ -274,12 +313,12 @@ pub type PreparedPair<T> = [PreparedBatch<T>; 2];
 /// tiles, which one thread draws while the other sets up the next batch). Batches are drawn
 /// one after another, in order, so the output is what drawing them in turn gives; `prepare`
 /// must not touch what `draw` writes (it writes only its batch).
-pub fn pipelined<I: Sync, T: Send + Sync>(
+pub fn pipelined<I: Sync, S: Send + Sync>(
     items: &[I],
     batch_len: usize,
-    pair: &mut PreparedPair<T>,
-    mut prepare: impl FnMut(usize, usize, &[I], &mut PreparedBatch<T>) + Send,
-    mut draw: impl FnMut(usize, &PreparedBatch<T>) + Send,
+    pair: &mut PreparedPair<S>,
+    mut prepare: impl FnMut(usize, usize, &[I], &mut PreparedBatch<S>) + Send,
+    mut draw: impl FnMut(usize, &PreparedBatch<S>) + Send,
 ) {
     let batch_len = even_batch_len(items.len(), batch_len);
     let batches = items.len().div_ceil(batch_len);
@@ -307,7 +346,7 @@ pub fn pipelined<I: Sync, T: Send + Sync>(
     }
 }
 
-impl<T: Send> PreparedBatch<T> {
+impl<S: Send> PreparedBatch<S> {
     /// Runs the front end over a batch of `len` triangles in parallel: `prepare(k, sink)`
     /// gives the pieces of the batch's triangle `k` to `sink`, which keeps each piece's
     /// coverage rectangle for `coverage` (the clip and sample count it will be drawn with).
@@ -315,7 +354,7 @@ impl<T: Send> PreparedBatch<T> {
     /// triangles take no memory).
     pub fn prepare<F>(&mut self, len: usize, coverage: Coverage, prepare: F) -> DrawStats
     where
-        F: Fn(usize, &mut Sink<'_, T>) + Sync,
+        F: Fn(usize, &mut Sink<'_, S>) + Sync,
     {
         self.prepare_ranges(len, coverage, |range, sink| range.for_each(|k| prepare(k, sink)))
     }
@@ -324,7 +363,7 @@ impl<T: Send> PreparedBatch<T> {
     /// `prepare(range, sink)` gives the pieces of the batch's triangles `range`, in order.
     pub fn prepare_ranges<F>(&mut self, len: usize, coverage: Coverage, prepare: F) -> DrawStats
     where
-        F: Fn(std::ops::Range<usize>, &mut Sink<'_, T>) + Sync,
+        F: Fn(std::ops::Range<usize>, &mut Sink<'_, S>) + Sync,
     {
         self.used = len.div_ceil(CHUNK);
         self.coverage = coverage;
@@ -350,11 +389,11 @@ impl<T: Send> PreparedBatch<T> {
     }
 }
 
-impl<T> PreparedBatch<T> {
+impl<S> PreparedBatch<S> {
     /// The triangle at `index` (as listed by `PreparedBatch::indexed`).
     #[inline]
     #[must_use]
-    pub fn get(&self, index: u32) -> &Prepared<T> {
+    pub fn get(&self, index: u32) -> &S {
         &self.chunks[(index >> PIECE_BITS) as usize][(index & ((1 << PIECE_BITS) - 1)) as usize]
     }
 
@@ -476,8 +515,8 @@ impl Bins {
     /// `visit(index, rectangle)` with each (in parallel, in no particular order). A triangle
     /// over more than [`TRIVIAL_REJECT_TILES`] tiles is left out of the tiles where it covers
     /// no sample (its samples within `reach` of the pixel centres).
-    fn of_batch<T: Sync>(
-        batch: &PreparedBatch<T>,
+    fn of_batch<S: Record>(
+        batch: &PreparedBatch<S>,
         width: u32,
         height: u32,
         reach: i64,
@@ -494,7 +533,7 @@ impl Bins {
                     (i, Some(r))
                 })
             },
-            |i| Some(raster::TrivialReject::new(&batch.get(i).setup, reach)),
+            |i| Some(raster::TrivialReject::new(&batch.get(i).setup(), reach)),
             width,
             height,
         )
@@ -663,18 +702,18 @@ pub(crate) fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 /// a triangle's largest depth when it covers the whole block and nothing discards. Wide
 /// triangles' fragments are counted once per triangle while binning, not tile by tile
 /// (skipped blocks are not shaded, so shading cannot count them).
-pub fn draw_binned<T, K, F>(
+pub fn draw_binned<S, K, F>(
     target: &mut Target,
-    prepared: &PreparedBatch<T>,
+    prepared: &PreparedBatch<S>,
     depth_test: DepthTest,
     kernel: K,
     fragments: F,
     may_discard: bool,
 ) -> u64
 where
-    T: Sync,
-    K: Fn(&T) -> Option<(SimdLevel, &SpanColor)> + Sync,
-    F: TriangleFragments<T>,
+    S: Record,
+    K: Fn(&S::Payload) -> Option<(SimdLevel, &SpanColor)> + Sync,
+    F: TriangleFragments<S::Payload>,
 {
     let coverage = prepared.coverage();
     let clip = &coverage.clip;
@@ -702,33 +741,36 @@ where
             }
             // Or, where the tile was not, each triangle's first rows (its record, prefetched
             // earlier, is in the cache by then; the first two are not prefetched).
-            let near = list.get(j + 2).filter(|_| !whole_tile).map(|&k| prepared.get(k));
-            if let Some(r) = near.and_then(|p| coverage_bounds(&p.setup, true, tile)) {
+            let near = list.get(j + 2).filter(|_| !whole_tile).map(|&k| prepared.get(k).setup());
+            if let Some(r) = near.and_then(|setup| coverage_bounds(&setup, true, tile)) {
                 band.prefetch(&PixelRect { y1: r.y1.min(r.y0 + 7), ..r });
             }
-            let p = prepared.get(i);
-            let kernel = kernel(&p.payload);
-            let shade = |band: &mut TargetBand<'_>, rect: &PixelRect| {
-                shade::shade_triangle(
-                    band,
-                    &p.setup,
-                    coverage_algorithm(&p.setup),
-                    rect,
-                    &p.depth,
-                    depth_test,
-                    p.id,
-                    kernel,
-                    OfTriangle(&fragments, &p.payload),
-                )
-            };
-            // The rectangle binning had (the same function of the same record).
-            if bin_target.hierarchical && coverage.of(&p.setup).is_some_and(|r| bin_target.wide(&r))
-            {
-                // Its fragments were counted while binning.
-                tile_depth.shade(band, tile, p, !may_discard, shade);
-            } else {
-                covered += shade(band, tile);
-            }
+            covered += prepared.get(i).with(|p| {
+                let kernel = kernel(&p.payload);
+                let shade = |band: &mut TargetBand<'_>, rect: &PixelRect| {
+                    shade::shade_triangle(
+                        band,
+                        &p.setup,
+                        coverage_algorithm(&p.setup),
+                        rect,
+                        &p.depth,
+                        depth_test,
+                        p.id,
+                        kernel,
+                        OfTriangle(&fragments, &p.payload),
+                    )
+                };
+                // The rectangle binning had (the same function of the same record).
+                if bin_target.hierarchical
+                    && coverage.of(&p.setup).is_some_and(|r| bin_target.wide(&r))
+                {
+                    // Its fragments were counted while binning.
+                    tile_depth.shade(band, tile, p, !may_discard, shade);
+                    0
+                } else {
+                    shade(band, tile)
+                }
+            });
         }
         covered
     });
@@ -768,21 +810,21 @@ impl BinTarget {
 
 /// Bins a prepared batch for `to`, counting the samples of the wide triangles (whose
 /// fragments hierarchical depth may leave unshaded) as it goes.
-fn bin_batch<T: Sync>(prepared: &PreparedBatch<T>, to: BinTarget) -> (Bins, u64) {
+fn bin_batch<S: Record>(prepared: &PreparedBatch<S>, to: BinTarget) -> (Bins, u64) {
     let BinTarget { width, height, samples, .. } = to;
     // Counted while binning (a pass of its own was a twentieth of a frame of small
     // triangles, waiting on memory).
     let wide_coverage = AtomicU64::new(0);
     let bins = Bins::of_batch(prepared, width, height, samples.reach(), |i, r| {
         if to.wide(r) {
-            let p = prepared.get(i);
-            wide_coverage.fetch_add(coverage_count(&p.setup, r, samples), Ordering::Relaxed);
+            let setup = prepared.get(i).setup();
+            wide_coverage.fetch_add(coverage_count(&setup, r, samples), Ordering::Relaxed);
         }
     });
     (bins, wide_coverage.into_inner())
 }
 
-impl<T: Sync> PreparedBatch<T> {
+impl<S: Record> PreparedBatch<S> {
     /// Bins the batch for `to` as part of preparing it, so that [`draw_binned`] finds its bins
     /// made (it bins a batch that was not binned, or was binned for another target, itself).
     /// In [`pipelined`] this moves binning from the side drawing to the side preparing: a
@@ -990,7 +1032,7 @@ mod binned_tests {
     fn prepared_batch(
         triangles: &[[Vertex; 3]],
         coverage: Coverage,
-    ) -> PreparedBatch<TriangleColor> {
+    ) -> PreparedBatch<Prepared<TriangleColor>> {
         let mut batch = PreparedBatch::default();
         batch.prepare(triangles.len(), coverage, |k, sink| {
             let tri = &triangles[k];

@@ -447,7 +447,7 @@ struct Scratch<V> {
     /// The corners the corner tests read (all a small mesh's, or a batch's index range).
     window: Vec<Corner>,
     /// The tiled backend's set-up triangles: one batch being drawn, the next being prepared.
-    prepared: bin::PreparedPair<TriangleData<V>>,
+    prepared: bin::PreparedPair<Prepared<TriangleData<V>>>,
 }
 
 impl<V> Default for Scratch<V> {
@@ -660,7 +660,7 @@ impl FrontEnd {
         first_id: usize,
         (corners, base, vertex): (&[Corner], u32, impl Fn(u32) -> R),
         level: SimdLevel,
-        sink: &mut Sink<'_, TriangleData<V>>,
+        sink: &mut Sink<'_, Prepared<TriangleData<V>>>,
     ) {
         let vertices = |k: usize| batch[k].map(&vertex);
         for start in range.clone().step_by(8) {

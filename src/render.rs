@@ -8,9 +8,7 @@ use crate::error::Error;
 use crate::fixed;
 use crate::raster::Algorithm;
 use crate::setup::{CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
-use crate::shade::{
-    self, DepthTest, FragmentOutput, PlaneEquation, Shading, TriangleColor, TriangleShader,
-};
+use crate::shade::{self, DepthTest, FragmentOutput, Shading, TriangleColor, TriangleShader};
 use crate::simd::{self, SimdLevel, SpanColor};
 use crate::target::Target;
 
@@ -294,20 +292,20 @@ fn draw_tiled<C: WindowColor>(
             options.depth_test,
             kernel,
             window_fragment,
-            |range, sink| {
-                set_up_window(triangles, 0, range, options, level, sink);
+            |range, sink: &mut bin::Sink<'_, C::Record>| {
+                set_up_window::<C>(triangles, 0, range, options, level, sink);
             },
         );
         stats = stats.merged(&counts);
         stats.fragments += fragments;
         return stats;
     }
-    let mut pair: bin::PreparedPair<C> = target.take_scratch();
+    let mut pair: bin::PreparedPair<C::Record> = target.take_scratch();
     let mut fragments = 0;
     let bin_target = bin::BinTarget::of(target, options.depth_test);
     let prepare = |b, first: usize, batch: &[_], prepared: &mut bin::PreparedBatch<_>| {
         let counts = prepared.prepare_ranges(batch.len(), coverage, |range, sink| {
-            set_up_window(batch, first, range, options, level, sink);
+            set_up_window::<C>(batch, first, range, options, level, sink);
         });
         stats = stats.merged(&counts);
         // Binned here, except the first batch (see `PreparedBatch::bin`).
@@ -315,7 +313,7 @@ fn draw_tiled<C: WindowColor>(
             prepared.bin(bin_target);
         }
     };
-    let draw = |_, prepared: &bin::PreparedBatch<C>| {
+    let draw = |_, prepared: &bin::PreparedBatch<C::Record>| {
         if clip.is_some() {
             let test = options.depth_test;
             fragments += bin::draw_binned(target, prepared, test, kernel, window_fragment, false);
@@ -355,9 +353,9 @@ fn set_up_window<C: WindowColor>(
     range: std::ops::Range<usize>,
     options: &RenderOptions,
     level: SimdLevel,
-    sink: &mut bin::Sink<'_, C>,
+    sink: &mut bin::Sink<'_, C::Record>,
 ) {
-    let set_up_one = |k: usize, sink: &mut bin::Sink<'_, C>| {
+    let set_up_one = |k: usize, sink: &mut bin::Sink<'_, C::Record>| {
         let tri = &batch[k];
         let setup = match TriangleSetup::new(tri, options.cull) {
             Ok(setup) => setup,
@@ -366,9 +364,8 @@ fn set_up_window<C: WindowColor>(
         if sink.coverage().of(&setup).is_none() {
             return sink.skip_many(Skipped::Empty, 1);
         }
-        let (depth, payload) = C::shade(tri, &setup, options.shading);
-        let id = (first + k) as i32;
-        sink.push(Prepared { setup, depth, id, payload });
+        let record = C::record(tri, setup, options.shading, (first + k) as i32);
+        sink.push_record(&setup, record);
     };
     let mut k = range.start;
     // The first records' memory; each group then asks for the next ones'.
@@ -383,16 +380,16 @@ fn set_up_window<C: WindowColor>(
             break;
         }
         for (l, tri) in tris.iter().enumerate() {
-            let (setup, depth, planes) = match group.lane(l) {
+            let (setup, inv_area2) = match group.lane(l) {
                 Ok(lane) => lane,
                 Err(why) => {
                     sink.skip_many(why.into(), 1);
                     continue;
                 }
             };
-            let payload = C::from_planes(tri, planes, options.shading);
             let id = (first + k + l) as i32;
-            sink.push(Prepared { setup, depth, id, payload });
+            let record = C::group_record(tri, setup, inv_area2, options.shading, id);
+            sink.push_record(&setup, record);
         }
         k += 8;
     }
@@ -424,12 +421,21 @@ fn window_bounds(tri: &[Vertex; 3]) -> Option<PixelRect> {
 /// shading a [`TriangleColor`]: records 24 bytes smaller, and no match on the colour's kind
 /// per triangle and tile (see ARCHITECTURE.md, `render`).
 trait WindowColor: Copy + Send + Sync + 'static {
-    /// The depth plane and colour of a set-up triangle with vertices `v`.
-    fn shade(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> (PlaneEquation, Self);
+    /// What a batch keeps of a triangle drawn with this colour.
+    type Record: bin::Record<Payload = Self>;
 
-    /// For flat and smooth shading: the colour [`WindowColor::shade`] gives a triangle with
-    /// vertices `v` whose Gouraud planes (RGBA) are `planes`.
-    fn from_planes(v: &[Vertex; 3], planes: [[f64; 3]; 4], shading: Shading) -> Self;
+    /// The record of set-up triangle `id` with vertices `v`.
+    fn record(v: &[Vertex; 3], setup: TriangleSetup, shading: Shading, id: i32) -> Self::Record;
+
+    /// For flat and smooth shading: [`WindowColor::record`] of a triangle whose `1 / area2`
+    /// is already computed ([`simd::window_group`]).
+    fn group_record(
+        v: &[Vertex; 3],
+        setup: TriangleSetup,
+        inv_area2: f64,
+        shading: Shading,
+        id: i32,
+    ) -> Self::Record;
 
     /// The colour as a span kernel takes it, if it has one.
     fn kernel(&self) -> Option<&SpanColor>;
@@ -439,14 +445,25 @@ trait WindowColor: Copy + Send + Sync + 'static {
 }
 
 impl WindowColor for TriangleColor {
-    #[inline(always)]
-    fn shade(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> (PlaneEquation, Self) {
-        TriangleShader::new(v, setup, shading).into_parts()
-    }
+    type Record = Prepared<Self>;
 
     #[inline(always)]
-    fn from_planes(v: &[Vertex; 3], planes: [[f64; 3]; 4], shading: Shading) -> Self {
-        SpanColor::from_planes(v, planes, shading).into()
+    fn record(v: &[Vertex; 3], setup: TriangleSetup, shading: Shading, id: i32) -> Prepared<Self> {
+        let (depth, payload) = TriangleShader::new(v, &setup, shading).into_parts();
+        Prepared { setup, depth, id, payload }
+    }
+
+    /// Window groups do not run for perspective colours (the only ones kept this way); as
+    /// [`WindowColor::record`].
+    #[inline(always)]
+    fn group_record(
+        v: &[Vertex; 3],
+        setup: TriangleSetup,
+        _: f64,
+        shading: Shading,
+        id: i32,
+    ) -> Prepared<Self> {
+        Self::record(v, setup, shading, id)
     }
 
     #[inline(always)]
@@ -461,20 +478,25 @@ impl WindowColor for TriangleColor {
 }
 
 impl WindowColor for SpanColor {
+    type Record = WindowRecord;
+
     /// For flat and smooth shading (perspective colours have no span colour: `draw` keeps
     /// [`TriangleColor`] for them); anything but flat counts as smooth.
     #[inline(always)]
-    fn shade(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> (PlaneEquation, Self) {
+    fn record(v: &[Vertex; 3], setup: TriangleSetup, shading: Shading, id: i32) -> WindowRecord {
         debug_assert_ne!(shading, Shading::Perspective, "no span colour for perspective shading");
-        TriangleShader::span_parts(v, setup, shading != Shading::Flat)
+        WindowRecord::new(v, &setup, 1.0 / setup.area2 as f64, shading != Shading::Flat, id)
     }
 
     #[inline(always)]
-    fn from_planes(v: &[Vertex; 3], planes: [[f64; 3]; 4], shading: Shading) -> Self {
-        match shading {
-            Shading::Flat => SpanColor::Flat(crate::shade::flat_color(v)),
-            _ => SpanColor::smooth(planes),
-        }
+    fn group_record(
+        v: &[Vertex; 3],
+        setup: TriangleSetup,
+        inv_area2: f64,
+        shading: Shading,
+        id: i32,
+    ) -> WindowRecord {
+        WindowRecord::new(v, &setup, inv_area2, shading != Shading::Flat, id)
     }
 
     #[inline(always)]
@@ -485,6 +507,60 @@ impl WindowColor for SpanColor {
     #[inline(always)]
     fn at(&self, e1: f64, e2: f64) -> [u8; 4] {
         SpanColor::at(self, e1, e2)
+    }
+}
+
+/// What a batch keeps of a window triangle with flat or smooth colour: its snapped vertices
+/// and winding, vertex depths and colours, `1 / area2` and id, in one cache line. The
+/// setup's box and area, the depth plane and the colour planes are recomputed from these
+/// where the triangle is drawn, by the functions that computed them at setup, so they are
+/// equal. Why: the whole record (192 bytes) took three lines, written at setup and read
+/// back tile by tile after the batch had left the caches; a million small triangles moved
+/// 384 MB a frame through memory for it.
+#[derive(Clone, Copy, Debug)]
+#[repr(align(64))]
+pub struct WindowRecord {
+    xy: [[i32; 2]; 3],
+    z: [f32; 3],
+    colors: [[u8; 4]; 3],
+    inv_area2: f64,
+    id: i32,
+    clockwise: bool,
+    smooth: bool,
+}
+
+const _: () = assert!(size_of::<WindowRecord>() == 64, "a window record is one cache line");
+
+impl WindowRecord {
+    /// The record of triangle `id` with vertices `v`, setup `setup` and `1 / area2`
+    /// `inv_area2` (as `1.0 / setup.area2 as f64`).
+    #[inline(always)]
+    fn new(v: &[Vertex; 3], setup: &TriangleSetup, inv_area2: f64, smooth: bool, id: i32) -> Self {
+        Self {
+            xy: setup.xy,
+            z: [v[0].z, v[1].z, v[2].z],
+            colors: [v[0].color, v[1].color, v[2].color],
+            inv_area2,
+            id,
+            clockwise: setup.clockwise,
+            smooth,
+        }
+    }
+}
+
+impl bin::Record for WindowRecord {
+    type Payload = SpanColor;
+
+    #[inline(always)]
+    fn setup(&self) -> TriangleSetup {
+        TriangleSetup::from_kept(self.xy, self.clockwise)
+    }
+
+    #[inline(always)]
+    fn with<R>(&self, f: impl FnOnce(&Prepared<SpanColor>) -> R) -> R {
+        let (depth, payload) =
+            TriangleShader::span_parts_of(self.z, self.colors, self.inv_area2, self.smooth);
+        f(&Prepared { setup: self.setup(), depth, id: self.id, payload })
     }
 }
 

@@ -253,6 +253,18 @@ impl TriangleSetup {
         Ok(Self { xy, area2: signed.abs(), clockwise, bounds })
     }
 
+    /// The setup [`TriangleSetup::from_snapped`] gave a triangle, from the two fields the
+    /// others follow from (its snapped vertices and winding): for records that keep only
+    /// those. The area and box are recomputed exactly as there, so the result is equal.
+    #[inline(always)]
+    #[must_use]
+    pub fn from_kept(xy: [[i32; 2]; 3], clockwise: bool) -> Self {
+        let [p0, p1, p2] = widen(xy);
+        let signed = (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (p1[1] - p0[1]);
+        let bounds = sample_bounds(extent([p0, p1, p2]), [0, 0]);
+        Self { xy, area2: signed.abs(), clockwise, bounds }
+    }
+
     /// The edge functions, inside positive whatever the input winding, fill rule applied.
     #[inline(always)]
     #[must_use]
@@ -516,6 +528,30 @@ mod tests {
                 })
             });
             assert_eq!(holds_no_sample(extent, samples, &clip), !any, "{extent:?} {samples:?}");
+        }
+    }
+
+    /// A setup rebuilt from its vertices and winding is the setup: random snapped triangles
+    /// of both windings, small and large, anywhere in the fixed-point range.
+    #[test]
+    fn setups_rebuilt_from_what_records_keep_are_equal() {
+        use rand::rngs::SmallRng;
+        use rand::{Rng, SeedableRng};
+        let mut rng = SmallRng::seed_from_u64(34);
+        let limit = 1i64 << 23;
+        for round in 0..20_000 {
+            let spread = [1 << 10, 1 << 16, limit][round % 3];
+            let (cx, cy) = (rng.random_range(-limit..limit), rng.random_range(-limit..limit));
+            let mut point = || {
+                let d = |c: i64, rng: &mut SmallRng| {
+                    (c + rng.random_range(-spread..=spread)).clamp(-limit, limit)
+                };
+                [d(cx, &mut rng), d(cy, &mut rng)]
+            };
+            let xy = [point(), point(), point()];
+            let Ok(setup) = TriangleSetup::from_snapped(xy, CullMode::None) else { continue };
+            let kept = TriangleSetup::from_kept(setup.xy, setup.clockwise);
+            assert_eq!(format!("{kept:?}"), format!("{setup:?}"), "round {round}");
         }
     }
 }

@@ -158,30 +158,43 @@ pub struct TriangleShader {
 #[derive(Clone, Copy, Debug)]
 pub struct TriangleColor(ColorSource);
 
-/// The depth plane of a triangle with vertices `v` (`inv_area2` is `1 / area2` of its setup).
+/// The depth plane of a triangle with vertex depths `z` (`inv_area2` is `1 / area2` of its
+/// setup).
 #[inline(always)]
-fn depth_plane(v: &[Vertex; 3], inv_area2: f64) -> PlaneEquation {
-    PlaneEquation::with_inv_area2(each_vertex(v, |p| f64::from(p.z)), inv_area2)
+fn depth_plane(z: [f32; 3], inv_area2: f64) -> PlaneEquation {
+    PlaneEquation::with_inv_area2([f64::from(z[0]), f64::from(z[1]), f64::from(z[2])], inv_area2)
 }
 
-/// The colour of a triangle with vertices `v` as the span kernels take it: flat, or with
-/// `smooth`, Gouraud planes (`inv_area2` is `1 / area2` of its setup).
+/// The colour of a triangle with vertex colours `c` as the span kernels take it: flat, or
+/// with `smooth`, Gouraud planes (`inv_area2` is `1 / area2` of its setup).
 #[inline(always)]
-fn span_color(v: &[Vertex; 3], inv_area2: f64, smooth: bool) -> SpanColor {
+fn span_color(c: [[u8; 4]; 3], inv_area2: f64, smooth: bool) -> SpanColor {
     if !smooth {
-        return SpanColor::Flat(flat_color(v));
+        return SpanColor::Flat(flat_color_of(c));
     }
-    let channel = |c: usize| each_vertex(v, |p| f64::from(p.color[c]));
-    let plane = |c| PlaneEquation::with_inv_area2(channel(c), inv_area2).coefficients();
+    let channel = |k: usize| [f64::from(c[0][k]), f64::from(c[1][k]), f64::from(c[2][k])];
+    let plane = |k| PlaneEquation::with_inv_area2(channel(k), inv_area2).coefficients();
     SpanColor::smooth([plane(0), plane(1), plane(2), plane(3)])
+}
+
+/// The vertex depths and colours of `v`, written out (see [`each_vertex`]).
+#[inline(always)]
+fn depths_and_colors(v: &[Vertex; 3]) -> ([f32; 3], [[u8; 4]; 3]) {
+    ([v[0].z, v[1].z, v[2].z], [v[0].color, v[1].color, v[2].color])
 }
 
 /// The flat colour of a triangle: per channel, the average of the vertex colours rounded to
 /// nearest (halves up), `(2 * sum + 3) / 6` in integers.
 #[must_use]
 pub fn flat_color(v: &[Vertex; 3]) -> [u8; 4] {
-    std::array::from_fn(|c| {
-        let sum: u32 = v.iter().map(|p| u32::from(p.color[c])).sum();
+    flat_color_of(depths_and_colors(v).1)
+}
+
+/// [`flat_color`] of vertex colours `c`.
+#[inline]
+fn flat_color_of(c: [[u8; 4]; 3]) -> [u8; 4] {
+    std::array::from_fn(|k| {
+        let sum: u32 = c.iter().map(|p| u32::from(p[k])).sum();
         ((2 * sum + 3) / 6) as u8
     })
 }
@@ -209,11 +222,12 @@ impl TriangleShader {
     #[must_use]
     pub fn new(v: &[Vertex; 3], setup: &TriangleSetup, shading: Shading) -> Self {
         let inv_area2 = 1.0 / setup.area2 as f64;
-        let depth = depth_plane(v, inv_area2);
+        let (z, colors) = depths_and_colors(v);
+        let depth = depth_plane(z, inv_area2);
         let channel = |c: usize| each_vertex(v, |p| f64::from(p.color[c]));
         let color = match shading {
             Shading::Flat | Shading::Smooth => {
-                ColorSource::Planes(span_color(v, inv_area2, shading == Shading::Smooth))
+                ColorSource::Planes(span_color(colors, inv_area2, shading == Shading::Smooth))
             }
             Shading::Perspective => {
                 let inv_w = each_vertex(v, |p| f64::from(p.inv_w));
@@ -245,8 +259,21 @@ impl TriangleShader {
         setup: &TriangleSetup,
         smooth: bool,
     ) -> (PlaneEquation, SpanColor) {
-        let inv_area2 = 1.0 / setup.area2 as f64;
-        (depth_plane(v, inv_area2), span_color(v, inv_area2, smooth))
+        let (z, colors) = depths_and_colors(v);
+        Self::span_parts_of(z, colors, 1.0 / setup.area2 as f64, smooth)
+    }
+
+    /// [`TriangleShader::span_parts`] of a triangle with vertex depths `z`, vertex colours
+    /// `colors` and `1 / area2` `inv_area2`: the same planes, from what a packed record keeps.
+    #[inline(always)]
+    #[must_use]
+    pub fn span_parts_of(
+        z: [f32; 3],
+        colors: [[u8; 4]; 3],
+        inv_area2: f64,
+        smooth: bool,
+    ) -> (PlaneEquation, SpanColor) {
+        (depth_plane(z, inv_area2), span_color(colors, inv_area2, smooth))
     }
 
     /// The depth plane.

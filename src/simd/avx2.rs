@@ -653,8 +653,7 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
         let zero = _mm256_setzero_pd();
         let mut finite = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
         let mut in_range = finite;
-        let (mut xs, mut ys, mut zs) = ([zero; 3], [zero; 3], [zero; 3]);
-        let mut colors = [_mm_setzero_si128(); 3];
+        let (mut xs, mut ys) = ([zero; 3], [zero; 3]);
         for v in 0..3 {
             let [x, y, z, w] = [
                 lanes(&|t| t[v].x),
@@ -678,9 +677,7 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
                 let scaled = _mm256_mul_pd(f, _mm256_set1_pd(f64::from(fixed::ONE)));
                 _mm256_round_pd::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(scaled)
             };
-            (xs[v], ys[v], zs[v]) = (snap(x), snap(y), z);
-            let c = |k: usize| i32::from_le_bytes(four[k][v].color);
-            colors[v] = _mm_setr_epi32(c(0), c(1), c(2), c(3));
+            (xs[v], ys[v]) = (snap(x), snap(y));
         }
         let (sub, mul) = (|a, b| _mm256_sub_pd(a, b), |a, b| _mm256_mul_pd(a, b));
         let signed = sub(
@@ -706,18 +703,6 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
         let last = |v| _mm256_floor_pd(mul(sub(v, _mm256_set1_pd(half_px)), scale));
         let bounds = [first(min(xs)), first(min(ys)), last(max(xs)), last(max(ys))];
         let inv_area2 = _mm256_div_pd(_mm256_set1_pd(1.0), area2);
-        let plane = |v: [__m256d; 3]| {
-            [v[0], mul(sub(v[1], v[0]), inv_area2), mul(sub(v[2], v[0]), inv_area2)]
-        };
-        let channel = |c: i32| {
-            let byte = |v: __m128i| {
-                let b =
-                    _mm_and_si128(_mm_srl_epi32(v, _mm_cvtsi32_si128(8 * c)), _mm_set1_epi32(0xFF));
-                _mm256_cvtepi32_pd(b)
-            };
-            plane([byte(colors[0]), byte(colors[1]), byte(colors[2])])
-        };
-        let planes = [plane(zs), channel(0), channel(1), channel(2), channel(3)];
         let at = 4 * half;
         // SAFETY (the stores below): each writes four elements, from `at` (0 or 4), of an
         // array of eight: `i32` lanes as 16 bytes, `i64` and `f64` lanes as 32.
@@ -733,11 +718,7 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
             for (dst, b) in out.bounds.iter_mut().zip(bounds) {
                 store_i32(dst, b);
             }
-            for (dst, p) in out.planes.iter_mut().zip(planes) {
-                for (d, c) in dst.iter_mut().zip(p) {
-                    _mm256_storeu_pd(d.as_mut_ptr().add(at), c);
-                }
-            }
+            _mm256_storeu_pd(out.inv_area2.as_mut_ptr().add(at), inv_area2);
         }
         let bits = |m: __m256d| _mm256_movemask_pd(m) as u8;
         clockwise |= bits(cw) << at;

@@ -429,8 +429,8 @@ fn each_f32(tris: &[[Vertex; 3]; 8], f: impl Fn(&[Vertex; 3]) -> f32) -> __m256 
 
 /// [`super::window_group`] in AVX-512: the per-triangle front end's arithmetic lane by lane.
 /// Snapping rounds `x * 256` (exact in `f64`) half to even, as `fixed::snap` does; areas are
-/// `i64` lanes (exact, below 2^49); the planes are `f64` lanes with
-/// separate multiplies and adds; pixel bounds are arithmetic shifts (floor divisions by 256).
+/// `i64` lanes (exact, below 2^49), converted to `f64` (rounding to nearest, as `as f64`) for
+/// `1 / area2`; pixel bounds are arithmetic shifts (floor divisions by 256).
 /// Lanes whose triangle is rejected compute garbage that is never read.
 ///
 /// # Safety
@@ -442,8 +442,6 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
     let mut in_range: __mmask8 = 0xFF;
     let mut xs = [zero; 3];
     let mut ys = [zero; 3];
-    let mut z = [_mm512_setzero_pd(); 3];
-    let mut color = [_mm256_setzero_si256(); 3];
     for v in 0..3 {
         let x = each_f32(tris, |t| t[v].x);
         let y = each_f32(tris, |t| t[v].y);
@@ -463,10 +461,6 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
             _mm512_cvt_roundpd_epi64::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(scaled)
         };
         (xs[v], ys[v]) = (snap(x), snap(y));
-        z[v] = _mm512_cvtps_pd(zv);
-        let [c0, c1, c2, c3, c4, c5, c6, c7] =
-            std::array::from_fn(|k| i32::from_le_bytes(tris[k][v].color));
-        color[v] = _mm256_setr_epi32(c0, c1, c2, c3, c4, c5, c6, c7);
     }
     let mul = |a: __m512i, b: __m512i| _mm512_mullo_epi64(a, b);
     let sub = |a: __m512i, b: __m512i| _mm512_sub_epi64(a, b);
@@ -490,24 +484,6 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
     let last = |v: __m512i| _mm512_srai_epi64::<8>(_mm512_sub_epi64(v, _mm512_set1_epi64(half)));
     let bounds = [first(min(xs)), first(min(ys)), last(max(xs)), last(max(ys))];
     let inv_area2 = _mm512_div_pd(_mm512_set1_pd(1.0), _mm512_cvtepi64_pd(area2));
-    let plane = |v: [__m512d; 3]| {
-        [
-            v[0],
-            _mm512_mul_pd(_mm512_sub_pd(v[1], v[0]), inv_area2),
-            _mm512_mul_pd(_mm512_sub_pd(v[2], v[0]), inv_area2),
-        ]
-    };
-    let channel = |c: i32| {
-        let bits = |v: __m256i| {
-            let byte = _mm256_and_si256(
-                _mm256_srlv_epi32(v, _mm256_set1_epi32(8 * c)),
-                _mm256_set1_epi32(0xFF),
-            );
-            _mm512_cvtepi32_pd(byte)
-        };
-        plane([bits(color[0]), bits(color[1]), bits(color[2])])
-    };
-    let planes = [plane(z), channel(0), channel(1), channel(2), channel(3)];
     // SAFETY (the stores below): each destination is an array of eight 64-bit or 32-bit
     // elements, 64 or 32 bytes, written whole by one unaligned store.
     unsafe {
@@ -519,11 +495,7 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
         for (dst, b) in out.bounds.iter_mut().zip(bounds) {
             _mm256_storeu_si256(dst.as_mut_ptr().cast(), _mm512_cvtepi64_epi32(b));
         }
-        for (dst, p) in out.planes.iter_mut().zip(planes) {
-            for (d, c) in dst.iter_mut().zip(p) {
-                _mm512_storeu_pd(d.as_mut_ptr(), c);
-            }
-        }
+        _mm512_storeu_pd(out.inv_area2.as_mut_ptr(), inv_area2);
     }
     out.clockwise = clockwise;
     for (k, rejected) in out.rejected.iter_mut().enumerate() {

@@ -662,9 +662,9 @@ fn span_scalar(job: &mut SpanJob<'_>) {
 }
 
 /// Eight window triangles set up side by side, as a structure of arrays: lane `k` holds what
-/// [`TriangleSetup::new`] gives triangle `k` and, when that is set up, its depth plane and
-/// its Gouraud colour planes, each as the per-triangle front end computes them
-/// ([`crate::shade::TriangleShader::span_parts`]). Read a lane with [`WindowGroup::lane`].
+/// [`TriangleSetup::new`] gives triangle `k` and, when that is set up, `1 / area2` as the
+/// per-triangle front end computes it (`1.0 / area2 as f64`, from which the draw computes
+/// the planes). Read a lane with [`WindowGroup::lane`].
 #[derive(Clone, Copy, Debug, Default)]
 pub struct WindowGroup {
     /// Why each lane's triangle was not set up (`None`: it was).
@@ -679,21 +679,17 @@ pub struct WindowGroup {
     pub clockwise: u8,
     /// Pixel bounds, `[x0, y0, x1, y1][lane]`.
     pub bounds: [[i32; 8]; 4],
-    /// Planes, `[depth, red, green, blue, alpha][a0, g1, g2][lane]`.
-    pub planes: [[[f64; 8]; 3]; 5],
+    /// `1 / area2`.
+    pub inv_area2: [f64; 8],
 }
 
 impl WindowGroup {
-    /// Lane `k`: the triangle's setup, depth plane and colour planes (RGBA), or why it was
-    /// not set up.
+    /// Lane `k`: the triangle's setup and `1 / area2`, or why it was not set up.
     ///
     /// # Panics
     /// If `k` is 8 or more.
     #[inline(always)]
-    pub fn lane(
-        &self,
-        k: usize,
-    ) -> Result<(TriangleSetup, PlaneEquation, [[f64; 3]; 4]), Rejection> {
+    pub fn lane(&self, k: usize) -> Result<(TriangleSetup, f64), Rejection> {
         if let Some(why) = self.rejected[k] {
             return Err(why);
         }
@@ -712,9 +708,7 @@ impl WindowGroup {
                 y1: self.bounds[3][k],
             },
         };
-        let plane = |p: usize| [self.planes[p][0][k], self.planes[p][1][k], self.planes[p][2][k]];
-        let depth = PlaneEquation::from_coefficients(plane(0));
-        Ok((setup, depth, [plane(1), plane(2), plane(3), plane(4)]))
+        Ok((setup, self.inv_area2[k]))
     }
 }
 
@@ -1654,9 +1648,9 @@ mod tests {
     }
 
     /// The eight-triangle window setup gives, lane by lane, what the per-triangle front end
-    /// gives (`TriangleSetup::new`, `TriangleShader::span_parts`): the same rejection, or the
-    /// same setup, depth plane and colour to the bit, for every cull mode, on triangles of
-    /// every kind (see `group_vertex`).
+    /// gives (`TriangleSetup::new`, `1.0 / area2 as f64`): the same rejection, or the same
+    /// setup and `1 / area2` to the bit, for every cull mode, on triangles of every kind (see
+    /// `group_vertex`).
     #[test]
     fn window_groups_match_the_front_end() {
         let mut rng = SmallRng::seed_from_u64(2024);
@@ -1672,13 +1666,12 @@ mod tests {
                 }
                 for (k, v) in tris.iter().enumerate() {
                     let want = TriangleSetup::new(v, cull).map(|setup| {
-                        let (depth, color) =
-                            crate::shade::TriangleShader::span_parts(v, &setup, true);
-                        format!("{setup:?} {depth:?} {color:?}")
+                        let inv_area2 = 1.0 / setup.area2 as f64;
+                        format!("{setup:?} {:x}", inv_area2.to_bits())
                     });
-                    let got = group.lane(k).map(|(setup, depth, planes)| {
-                        format!("{setup:?} {depth:?} {:?}", SpanColor::smooth(planes))
-                    });
+                    let got = group
+                        .lane(k)
+                        .map(|(setup, inv_area2)| format!("{setup:?} {:x}", inv_area2.to_bits()));
                     assert_eq!(got, want, "{level:?}, round {round}, lane {k}: {v:?}");
                     *kinds
                         .entry(format!("{want:?}").chars().take(12).collect::<String>())
