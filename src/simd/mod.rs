@@ -58,16 +58,28 @@ impl SimdLevel {
         }
     }
 
-    /// Whether this CPU can run the level.
+    /// Whether this CPU can run the level. Every kernel call asks, so the answer is the
+    /// best level, detected once, compared: the four feature tests each time were a
+    /// seventieth of a frame of small triangles.
+    #[inline]
     #[must_use]
     pub fn is_available(self) -> bool {
+        static BEST: std::sync::OnceLock<SimdLevel> = std::sync::OnceLock::new();
+        self <= *BEST.get_or_init(|| {
+            [Self::Avx512, Self::Avx2].into_iter().find(|l| l.supported()).unwrap_or(Self::Scalar)
+        })
+    }
+
+    /// Whether this CPU has the level's features (levels are ordered: each includes the
+    /// ones below).
+    fn supported(self) -> bool {
         match self {
             Self::Scalar => true,
             #[cfg(target_arch = "x86_64")]
             Self::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
             #[cfg(target_arch = "x86_64")]
             Self::Avx512 => {
-                Self::Avx2.is_available()
+                Self::Avx2.supported()
                     && std::arch::is_x86_feature_detected!("avx512f")
                     && std::arch::is_x86_feature_detected!("avx512vl")
                     && std::arch::is_x86_feature_detected!("avx512dq")
