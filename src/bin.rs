@@ -33,19 +33,20 @@ use crate::target::{Target, TargetBand};
 pub const TILE: u32 = 128;
 
 /// Triangles per batch: bounds the memory of set-up triangles and bins (two batches are in
-/// flight, [`pipelined`]: a window triangle's record is 192 bytes, about 200 MB for both
-/// batches when every triangle makes one). Each batch visits every tile it touches once
-/// more, prefetching its buffer rows and writing them back, so larger batches move fewer
-/// tiles through the caches, while the records, read back tile by tile in bin order,
-/// scattered over the batch, fall out of the cache either way. A million small random
-/// triangles at 1x on the AMD VM, two threads: 104-144 ms with batches of 64k (the slower
-/// figure when the shared L3 cache was busy: such batches relied on their records staying
-/// there), 87-111 ms with 128k, 75 ms with 512k, 74 ms with one batch of a million (one
-/// thread: 197 -> 145 ms; with records 192 bytes instead of 264, 256k took 72-84 ms against
-/// 70-71 for 512k). The Intel VM of earlier
-/// sessions had favoured 64k at 1x (262 -> 208 ms on one thread); multisampled targets, whose
-/// tiles hold four or eight times the bytes, and meshes shaded batch by batch (the dense scene
-/// 0.62 s against 0.67 with 64k) took 512k there already.
+/// flight, [`pipelined`]: a flat or smooth window triangle's record is 64 bytes, about 64 MB
+/// for both batches when every triangle makes one; a 3D triangle's is larger). Each batch
+/// visits every tile it touches once more, prefetching its buffer rows and writing them
+/// back, so larger batches move fewer tiles through the caches, while the records, read back
+/// tile by tile in bin order, scattered over the batch, fall out of the cache either way. A
+/// million small random triangles at 1x on the AMD VM, two threads: 104-144 ms with batches
+/// of 64k (the slower figure when the shared L3 cache was busy: such batches relied on their
+/// records staying there), 87-111 ms with 128k, 75 ms with 512k, 74 ms with one batch of a
+/// million (one thread: 197 -> 145 ms; with records 192 bytes instead of 264, 256k took
+/// 72-84 ms against 70-71 for 512k; with 64-byte records, 79-85 against 66, and a million
+/// 65-81). The Intel VM of earlier sessions had favoured 64k at 1x (262 -> 208 ms on one
+/// thread); multisampled targets, whose tiles hold four or eight times the bytes, and meshes
+/// shaded batch by batch (the dense scene 0.62 s against 0.67 with 64k) took 512k there
+/// already.
 pub const BATCH: usize = 1 << 19;
 
 /// The length of the batches [`pipelined`] cuts `items` items into: as many batches as
@@ -160,13 +161,13 @@ pub(crate) const CHUNK: usize = 256;
 const PIECE_BITS: u32 = 12;
 
 /// A batch of prepared triangles, kept as the per-chunk buffers the parallel front end wrote
-/// (never joined: joining copied every record, ~200 bytes, once more). Piece `k` of chunk `c`
+/// (never joined: joining copied every record once more). Piece `k` of chunk `c`
 /// has index `c << 12 | k`, so indices grow in submission order. The buffers are reused from
 /// batch to batch, so their pages are faulted in once per draw call, not once per batch.
 ///
 /// Beside each chunk's records, the pieces' coverage rectangles ([`coverage_bounds`], with the
 /// clip and sample count the batch was prepared for): binning reads those 16 bytes per
-/// triangle instead of each ~200-byte record, which by then has left the cache.
+/// triangle instead of each record, which by then has left the cache.
 ///
 /// A batch may also hold its bins ([`PreparedBatch::bin`]), which [`draw_binned`] uses when
 /// they were made for the target it draws into.
@@ -221,7 +222,7 @@ impl Coverage {
 
 /// Where the front end puts the pieces of one triangle: prepared ones into the chunk's buffer,
 /// skipped ones into the counts. Passing a sink down (rather than returning pieces) builds
-/// each ~200-byte record once, in place, instead of moving it through `Result`s and
+/// each record once, in place, instead of moving it through `Result`s and
 /// iterators, which cost a full copy per triangle even for the many that are skipped.
 #[derive(Debug)]
 pub struct Sink<'a, S> {

@@ -42,11 +42,12 @@ pub struct Target {
 }
 
 /// Memory a draw call leaves for the next one on the same target: the tiled backend's
-/// per-batch buffers (two batches of set-up triangles: about 200 MB when a draw call has a
-/// million window triangles that all make records; [`Target::release_scratch`] frees them).
-/// Writing a frame's records into freshly allocated memory faulted in (and zeroed) every
-/// page of it again each frame: a tenth of the time of a million small triangles. Type-erased because each pipeline
-/// keeps records of its own payload type; a draw that finds another type starts afresh.
+/// per-batch buffers (two batches of set-up triangles: about 64 MB when a draw call has a
+/// million flat or smooth window triangles that all make records, more for perspective
+/// colours or 3D varyings; [`Target::release_scratch`] frees them). Writing a frame's records
+/// into freshly allocated memory faulted in (and zeroed) every page of it again each frame: a
+/// tenth of the time of a million small triangles. Type-erased because each pipeline keeps
+/// records of its own type; a draw that finds another type starts afresh.
 #[derive(Default)]
 struct Scratch(Option<Box<dyn Any + Send + Sync>>);
 
