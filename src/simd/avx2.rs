@@ -491,7 +491,8 @@ unsafe fn sample_groups(job: &mut SampleSpanJob<'_>, rgba: impl Fn(__m256d, __m2
     // The offsets of samples 0-3 and, at 8x, 4-7.
     let offsets = |first: usize| {
         let o = |k: usize| {
-            let v = |s: usize| job.offsets[(first + s) % samples][k] as f64;
+            // `% samples` as a mask (4 or 8: checked), not a division per lane.
+            let v = |s: usize| job.offsets[(first + s) & (samples - 1)][k] as f64;
             _mm256_setr_pd(v(0), v(1), v(2), v(3))
         };
         [o(0), o(1)]
@@ -551,7 +552,8 @@ unsafe fn narrow_sample_groups(
     // Edge k's offsets for samples 0-3 and, at 8x, 4-7.
     let half = |first: usize| -> [__m256d; 3] {
         std::array::from_fn(|k| {
-            let v = |s: usize| job.offsets[(first + s) % n][k] as f64;
+            // `% n` as a mask (4 or 8: checked), not a division per lane.
+            let v = |s: usize| job.offsets[(first + s) & (n - 1)][k] as f64;
             _mm256_setr_pd(v(0), v(1), v(2), v(3))
         })
     };

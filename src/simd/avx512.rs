@@ -158,6 +158,19 @@ fn lanes() -> __m512d {
     _mm512_setr_pd(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0)
 }
 
+/// Lane `l` of eight samples, `n` (4 or 8) per pixel: `f(pixel, sample)`, the pixel
+/// `l / n` of the group and the sample `l % n`, by shifts and masks (a closure called
+/// through `dyn` with a division per lane, 32 per triangle, was a twentieth of a frame of
+/// small triangles at 4x).
+#[inline]
+#[target_feature(enable = "avx512f")]
+fn sample_lanes(n: usize, f: impl Fn(usize, usize) -> f64) -> __m512d {
+    debug_assert!(n == 4 || n == 8, "4 or 8 samples per pixel");
+    let shift = n.trailing_zeros();
+    let lane = |l: usize| f(l >> shift, l & (n - 1));
+    _mm512_setr_pd(lane(0), lane(1), lane(2), lane(3), lane(4), lane(5), lane(6), lane(7))
+}
+
 /// [`super::shade_narrow`] in AVX-512: each row of the box is one group of eight lanes, the
 /// box's columns and the triangle's coverage (the sign bits of `e0 | e1 | e2`, stepped
 /// exactly in `f64` as in the AVX2 kernel) one mask. No branches on coverage or depth.
@@ -305,11 +318,9 @@ unsafe fn sample_groups(job: &mut SampleSpanJob<'_>, rgba: impl Fn(__m512d, __m5
     let n = job.check();
     let samples = job.samples;
     let pixels_per_group = 8 / samples;
-    let lane =
-        |f: &dyn Fn(usize) -> f64| _mm512_setr_pd(f(0), f(1), f(2), f(3), f(4), f(5), f(6), f(7));
     // Each lane's pixel within the group, and its sample's offset.
-    let pixel = lane(&|l| (l / samples) as f64);
-    let offset = |k: usize| lane(&|l| job.offsets[l % samples][k] as f64);
+    let pixel = sample_lanes(samples, |p, _| p as f64);
+    let offset = |k: usize| sample_lanes(samples, |_, s| job.offsets[s][k] as f64);
     let at_sample = [offset(0), offset(1)];
     let span = &mut job.span;
     let start = |e: i64, step: i64| {
@@ -369,13 +380,11 @@ unsafe fn narrow_sample_groups(
     let (n, offsets) = (job.samples, job.offsets);
     let job = &mut job.narrow;
     let pixels_per_group = 8 / n;
-    let lane =
-        |f: &dyn Fn(usize) -> f64| _mm512_setr_pd(f(0), f(1), f(2), f(3), f(4), f(5), f(6), f(7));
-    let pixel = lane(&|l| (l / n) as f64);
+    let pixel = sample_lanes(n, |p, _| p as f64);
     // Each lane's edge values less the group's first pixel centre's: its pixel's columns
     // and its sample's offset.
     let at_lane: [__m512d; 3] = std::array::from_fn(|k| {
-        let sample = lane(&|l| offsets[l % n][k] as f64);
+        let sample = sample_lanes(n, |_, s| offsets[s][k] as f64);
         _mm512_add_pd(_mm512_mul_pd(pixel, _mm512_set1_pd(job.step_x[k] as f64)), sample)
     });
     // The numerators at each lane's pixel centre less the group's first one's.
