@@ -10,7 +10,7 @@ use super::{
 };
 use crate::clip::MIN_W;
 use crate::fixed;
-use crate::sample::SampleCount;
+use crate::sample::{MAX_SAMPLES, SampleCount};
 use crate::setup::{CullMode, PixelRect, Vertex};
 use crate::shade::DepthTest;
 
@@ -479,6 +479,26 @@ pub(super) unsafe fn shade_samples(job: &mut SampleSpanJob<'_>) {
     })
 }
 
+/// Element `k` of the offsets of samples `first..first + 4`, modulo `n` (4 or 8: a mask, not
+/// a division per lane), as four lanes. Written out: the closures it replaces were compiled
+/// out of line and called per lane.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn offset_lanes<const K: usize>(
+    offsets: &[[i64; K]; MAX_SAMPLES],
+    first: usize,
+    n: usize,
+    k: usize,
+) -> __m256d {
+    let m = n - 1;
+    _mm256_setr_pd(
+        offsets[first & m][k] as f64,
+        offsets[(first + 1) & m][k] as f64,
+        offsets[(first + 2) & m][k] as f64,
+        offsets[(first + 3) & m][k] as f64,
+    )
+}
+
 /// [`shade_samples`] for one colour kind.
 ///
 /// # Safety
@@ -489,15 +509,9 @@ unsafe fn sample_groups(job: &mut SampleSpanJob<'_>, rgba: impl Fn(__m256d, __m2
     let n = job.check();
     let samples = job.samples;
     // The offsets of samples 0-3 and, at 8x, 4-7.
-    let offsets = |first: usize| {
-        let o = |k: usize| {
-            // `% samples` as a mask (4 or 8: checked), not a division per lane.
-            let v = |s: usize| job.offsets[(first + s) & (samples - 1)][k] as f64;
-            _mm256_setr_pd(v(0), v(1), v(2), v(3))
-        };
-        [o(0), o(1)]
-    };
-    let halves = [offsets(0), offsets(4)];
+    let o = &job.offsets;
+    let half = |first| [offset_lanes(o, first, samples, 0), offset_lanes(o, first, samples, 1)];
+    let halves = [half(0), half(4)];
     let span = &mut job.span;
     let (mut e1, mut e2) = (span.e1, span.e2);
     let all = _mm_set1_epi32(-1);
@@ -550,13 +564,8 @@ unsafe fn narrow_sample_groups(
     job.check();
     let n = job.samples;
     // Edge k's offsets for samples 0-3 and, at 8x, 4-7.
-    let half = |first: usize| -> [__m256d; 3] {
-        std::array::from_fn(|k| {
-            // `% n` as a mask (4 or 8: checked), not a division per lane.
-            let v = |s: usize| job.offsets[(first + s) & (n - 1)][k] as f64;
-            _mm256_setr_pd(v(0), v(1), v(2), v(3))
-        })
-    };
+    let o = &job.offsets;
+    let half = |first| [0, 1, 2].map(|k| offset_lanes(o, first, n, k));
     let halves = [half(0), half(4)];
     let job = &mut job.narrow;
     let bias = job.bias.map(|b| b as f64);
