@@ -364,7 +364,14 @@ impl TriangleSetup {
     #[inline(always)]
     #[must_use]
     pub fn numerators(&self) -> BarycentricNumerators {
-        let [_, e1, e2] = self.edges();
+        self.numerators_of(&self.edges())
+    }
+
+    /// [`TriangleSetup::numerators`] from the triangle's edges, already derived.
+    #[inline(always)]
+    #[must_use]
+    pub fn numerators_of(&self, edges: &[EdgeFunction; 3]) -> BarycentricNumerators {
+        let [_, e1, e2] = edges;
         BarycentricNumerators {
             origin: [i64::from(self.xy[0][0]), i64::from(self.xy[0][1])],
             e1: [e1.a, e1.b],

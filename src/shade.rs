@@ -19,7 +19,7 @@ use crate::fixed;
 use crate::raster::{self, Algorithm, Span};
 use crate::sample::{MAX_SAMPLES, SampleCount};
 use crate::setup::{
-    BarycentricNumerators, EdgeFunction, FillRule, PixelRect, TriangleSetup, Vertex,
+    BarycentricNumerators, EdgeFunction, FillRule, PixelRect, TriangleSetup, Vertex, sample_bounds,
 };
 use crate::simd::{
     self, KernelTarget, NarrowJob, NarrowSamplesJob, SampleSpanJob, SimdLevel, SpanColor, SpanJob,
@@ -565,8 +565,10 @@ pub fn shade_triangle(
         );
     }
     if algorithm == Algorithm::EdgeMasks {
-        // The pixels any sample of which may be covered: the union of the sample boxes.
-        let boxes = (0..n).filter_map(|s| setup.sample_bounds(samples.offset(s)).intersect(clip));
+        // The pixels any sample of which may be covered: the union of the sample boxes (of
+        // one snapped box, found once).
+        let extent = setup.extent();
+        let boxes = (0..n).filter_map(|s| sample_bounds(extent, samples.offset(s)).intersect(clip));
         let Some(r) = boxes.reduce(|a, b| a.union(&b)) else { return 0 };
         let columns = r.x1 - r.x0 + 1;
         if columns <= raster::edge::NARROW {
@@ -581,12 +583,14 @@ pub fn shade_triangle(
                     NarrowSamplesJob { narrow, samples: n, offsets },
                 );
             }
-            let mut pixels = SamplePixels::new(setup, samples, depth, (depth_test, id), fragment);
-            let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
             // Each sample's row coverage as a bit mask without branches (as at 1x), then the
             // pixels with any covered sample, left to right, with their sample masks: no
             // spans, no lists of them. The edges are derived once for all of it.
             let edges = setup.edges();
+            let numerators = setup.numerators_of(&edges);
+            let mut pixels =
+                SamplePixels::new(setup, numerators, samples, depth, (depth_test, id), fragment);
+            let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
             let mut rows = [[0i64; 3]; MAX_SAMPLES];
             for (s, row) in rows.iter_mut().enumerate().take(n) {
                 let [ox, oy] = samples.offset(s);
@@ -614,7 +618,8 @@ pub fn shade_triangle(
             return pixels.covered;
         }
     }
-    let pixels = SamplePixels::new(setup, samples, depth, (depth_test, id), fragment);
+    let numerators = setup.numerators();
+    let pixels = SamplePixels::new(setup, numerators, samples, depth, (depth_test, id), fragment);
     sample_spans(target, algorithm, clip, kernel, pixels)
 }
 
@@ -795,16 +800,17 @@ struct SamplePixels<'a, S> {
 }
 
 impl<'a, S: FragmentStage> SamplePixels<'a, S> {
-    /// The loop's state for a triangle, no sample covered yet.
+    /// The loop's state for a triangle with barycentric numerators `numerators`, no sample
+    /// covered yet.
     fn new(
         setup: &'a TriangleSetup,
+        numerators: BarycentricNumerators,
         samples: SampleCount,
         depth: &'a PlaneEquation,
         (depth_test, id): (DepthTest, i32),
         fragment: S,
     ) -> Self {
         let n = samples.count();
-        let numerators = setup.numerators();
         let mut offsets = [[0i64; 2]; MAX_SAMPLES];
         for (s, o) in offsets.iter_mut().enumerate().take(n) {
             *o = numerators.offset(samples.offset(s));
