@@ -364,7 +364,8 @@ fn set_up_window<C: WindowColor>(
         if sink.coverage().of(&setup).is_none() {
             return sink.skip_many(Skipped::Empty, 1);
         }
-        let record = C::record(tri, setup, options.shading, (first + k) as i32);
+        let inv_area2 = 1.0 / setup.area2 as f64;
+        let record = C::record(tri, setup, inv_area2, options.shading, (first + k) as i32);
         sink.push_record(&setup, record);
     };
     let mut k = range.start;
@@ -388,7 +389,7 @@ fn set_up_window<C: WindowColor>(
                 }
             };
             let id = (first + k + l) as i32;
-            let record = C::group_record(tri, setup, inv_area2, options.shading, id);
+            let record = C::record(tri, setup, inv_area2, options.shading, id);
             sink.push_record(&setup, record);
         }
         k += 8;
@@ -424,12 +425,9 @@ trait WindowColor: Copy + Send + Sync + 'static {
     /// What a batch keeps of a triangle drawn with this colour.
     type Record: bin::Record<Payload = Self>;
 
-    /// The record of set-up triangle `id` with vertices `v`.
-    fn record(v: &[Vertex; 3], setup: TriangleSetup, shading: Shading, id: i32) -> Self::Record;
-
-    /// For flat and smooth shading: [`WindowColor::record`] of a triangle whose `1 / area2`
-    /// is already computed ([`simd::window_group`]).
-    fn group_record(
+    /// The record of set-up triangle `id` with vertices `v` and `1 / area2` `inv_area2`
+    /// (`1.0 / setup.area2 as f64`, computed by the caller: the window groups have it).
+    fn record(
         v: &[Vertex; 3],
         setup: TriangleSetup,
         inv_area2: f64,
@@ -447,23 +445,17 @@ trait WindowColor: Copy + Send + Sync + 'static {
 impl WindowColor for TriangleColor {
     type Record = Prepared<Self>;
 
+    /// The shader computes `1 / area2` itself, the same way.
     #[inline(always)]
-    fn record(v: &[Vertex; 3], setup: TriangleSetup, shading: Shading, id: i32) -> Prepared<Self> {
-        let (depth, payload) = TriangleShader::new(v, &setup, shading).into_parts();
-        Prepared { setup, depth, id, payload }
-    }
-
-    /// Window groups do not run for perspective colours (the only ones kept this way); as
-    /// [`WindowColor::record`].
-    #[inline(always)]
-    fn group_record(
+    fn record(
         v: &[Vertex; 3],
         setup: TriangleSetup,
         _: f64,
         shading: Shading,
         id: i32,
     ) -> Prepared<Self> {
-        Self::record(v, setup, shading, id)
+        let (depth, payload) = TriangleShader::new(v, &setup, shading).into_parts();
+        Prepared { setup, depth, id, payload }
     }
 
     #[inline(always)]
@@ -483,19 +475,14 @@ impl WindowColor for SpanColor {
     /// For flat and smooth shading (perspective colours have no span colour: `draw` keeps
     /// [`TriangleColor`] for them); anything but flat counts as smooth.
     #[inline(always)]
-    fn record(v: &[Vertex; 3], setup: TriangleSetup, shading: Shading, id: i32) -> WindowRecord {
-        debug_assert_ne!(shading, Shading::Perspective, "no span colour for perspective shading");
-        WindowRecord::new(v, &setup, 1.0 / setup.area2 as f64, shading != Shading::Flat, id)
-    }
-
-    #[inline(always)]
-    fn group_record(
+    fn record(
         v: &[Vertex; 3],
         setup: TriangleSetup,
         inv_area2: f64,
         shading: Shading,
         id: i32,
     ) -> WindowRecord {
+        debug_assert_ne!(shading, Shading::Perspective, "no span colour for perspective shading");
         WindowRecord::new(v, &setup, inv_area2, shading != Shading::Flat, id)
     }
 
