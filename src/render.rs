@@ -417,10 +417,11 @@ fn window_bounds(tri: &[Vertex; 3]) -> Option<PixelRect> {
     Some(PixelRect { x0: lo[0] as i32, y0: lo[1] as i32, x1: hi[0] as i32, y1: hi[1] as i32 })
 }
 
-/// What the tiled backend keeps per triangle besides its setup and depth plane: for flat and
-/// smooth shading the colour as the span kernels take it ([`SpanColor`]), for perspective
-/// shading a [`TriangleColor`]: records 24 bytes smaller, and no match on the colour's kind
-/// per triangle and tile (see ARCHITECTURE.md, `render`).
+/// The colour the tiled backend draws a triangle with, and the record it keeps: for flat and
+/// smooth shading the colour as the span kernels take it ([`SpanColor`]), rebuilt from a
+/// [`WindowRecord`] where the triangle is drawn; for perspective shading a [`TriangleColor`],
+/// kept whole with the setup and depth plane ([`Prepared`]). No match on the colour's kind per
+/// triangle and tile (see ARCHITECTURE.md, `render`).
 trait WindowColor: Copy + Send + Sync + 'static {
     /// What a batch keeps of a triangle drawn with this colour.
     type Record: bin::Record<Payload = Self>;
@@ -523,6 +524,7 @@ impl WindowRecord {
     /// `inv_area2` (as `1.0 / setup.area2 as f64`).
     #[inline(always)]
     fn new(v: &[Vertex; 3], setup: &TriangleSetup, inv_area2: f64, smooth: bool, id: i32) -> Self {
+        debug_assert_eq!(inv_area2.to_bits(), (1.0 / setup.area2 as f64).to_bits(), "1 / area2");
         Self {
             xy: setup.xy,
             z: [v[0].z, v[1].z, v[2].z],
@@ -586,6 +588,56 @@ fn check_range(triangles: &[[Vertex; 3]]) -> Result<(), Error> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use bin::Record;
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
+
+    /// A window record, built per triangle or from a window group, draws as the whole record
+    /// did: the same setup, depth plane and colour to the bit (`TriangleSetup::new`,
+    /// `TriangleShader::span_parts`), flat and smooth, with one alpha and with three, for
+    /// random triangles small and large.
+    #[test]
+    fn window_records_rebuild_the_whole_record() {
+        let mut rng = SmallRng::seed_from_u64(21);
+        let mut checked = 0;
+        for round in 0..2_000 {
+            let spread = [4.0, 60.0, 3000.0][round % 3];
+            let vertex = |rng: &mut SmallRng| {
+                let alpha = if round % 2 == 0 { 255 } else { rng.random() };
+                Vertex::new(
+                    rng.random_range(-spread..spread) + 500.0,
+                    rng.random_range(-spread..spread) + 400.0,
+                    rng.random_range(0.0..1.0),
+                    [rng.random(), rng.random(), rng.random(), alpha],
+                )
+            };
+            let tris: [[Vertex; 3]; 8] =
+                std::array::from_fn(|_| [vertex(&mut rng), vertex(&mut rng), vertex(&mut rng)]);
+            let mut group = simd::WindowGroup::default();
+            let grouped =
+                simd::window_group(SimdLevel::detect(), &tris, CullMode::None, &mut group);
+            for (k, v) in tris.iter().enumerate() {
+                let Ok(setup) = TriangleSetup::new(v, CullMode::None) else { continue };
+                for shading in [Shading::Flat, Shading::Smooth] {
+                    let smooth = shading == Shading::Smooth;
+                    let (depth, color) = TriangleShader::span_parts(v, &setup, smooth);
+                    let want = format!("{setup:?} {depth:?} {color:?} 7");
+                    let shown = |r: &WindowRecord| {
+                        r.with(|p| format!("{:?} {:?} {:?} {}", p.setup, p.depth, p.payload, p.id))
+                    };
+                    let one = SpanColor::record(v, setup, 1.0 / setup.area2 as f64, shading, 7);
+                    assert_eq!(shown(&one), want, "round {round}, triangle {k}");
+                    if grouped {
+                        let (lane, inv_area2) = group.lane(k).unwrap();
+                        let from_group = SpanColor::record(v, lane, inv_area2, shading, 7);
+                        assert_eq!(shown(&from_group), want, "round {round}, lane {k}");
+                    }
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 20_000, "{checked} records checked");
+    }
 
     /// The boxes `band::plan` samples from window triangles: a grid of two-pixel triangles is
     /// banded; a non-finite vertex makes a triangle's box unknown.

@@ -260,10 +260,9 @@ impl TriangleSetup {
     #[inline(always)]
     #[must_use]
     pub fn from_kept(xy: [[i32; 2]; 3], clockwise: bool) -> Self {
-        let [p0, p1, p2] = widen(xy);
-        let signed = (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (p1[1] - p0[1]);
-        let bounds = sample_bounds(extent([p0, p1, p2]), [0, 0]);
-        Self { xy, area2: signed.abs(), clockwise, bounds }
+        let wide = widen(xy);
+        let bounds = sample_bounds(extent(wide), [0, 0]);
+        Self { xy, area2: twice_signed_area(wide).abs(), clockwise, bounds }
     }
 
     /// The edge functions, inside positive whatever the input winding, fill rule applied.
@@ -285,8 +284,7 @@ impl TriangleSetup {
     /// (`> 0`: clockwise on a y-down screen), or why the triangle is rejected (zero area,
     /// culled). Lets a front end drop triangles before paying for a full setup.
     pub fn signed_area2(xy: [[i64; 2]; 3], cull: CullMode) -> Result<i64, Rejection> {
-        let [p0, p1, p2] = xy;
-        let signed = (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (p1[1] - p0[1]);
+        let signed = twice_signed_area(xy);
         if signed == 0 {
             return Err(Rejection::Degenerate);
         }
@@ -415,6 +413,13 @@ impl BarycentricNumerators {
 pub fn widen(xy: [[i32; 2]; 3]) -> [[i64; 2]; 3] {
     let wide = |[x, y]: [i32; 2]| [i64::from(x), i64::from(y)];
     [wide(xy[0]), wide(xy[1]), wide(xy[2])]
+}
+
+/// Twice the signed area of snapped points (`> 0`: clockwise on a y-down screen), exact.
+#[inline(always)]
+fn twice_signed_area(xy: [[i64; 2]; 3]) -> i64 {
+    let [p0, p1, p2] = xy;
+    (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (p1[1] - p0[1])
 }
 
 /// The bounding box of snapped points: `[[x_min, y_min], [x_max, y_max]]`.

@@ -9,8 +9,8 @@
 //! are `(a_i - a_0) * (1 / area2)` (one division per triangle) and the plane is evaluated in
 //! `f64` in exactly this order, so at a vertex that sits on a pixel centre the weights are
 //! (1, 0, 0) up to two roundings (`1/area2` and the product), about 1e-16 relative, and the
-//! result rounds back to the vertex's own `f32` depth and `u8` colour. A fast path must evaluate the same
-//! expression in the same order to stay bit-identical.
+//! result rounds back to the vertex's own `f32` depth and `u8` colour. A fast path must
+//! evaluate the same expression in the same order to stay bit-identical.
 //!
 //! Depth is interpolated linearly in screen space and clamped to [0, 1]. Colours are
 //! interpolated in 0..=255 units and rounded half to even.
@@ -187,7 +187,7 @@ fn depths_and_colors(v: &[Vertex; 3]) -> ([f32; 3], [[u8; 4]; 3]) {
 /// nearest (halves up), `(2 * sum + 3) / 6` in integers.
 #[must_use]
 pub fn flat_color(v: &[Vertex; 3]) -> [u8; 4] {
-    flat_color_of(depths_and_colors(v).1)
+    flat_color_of([v[0].color, v[1].color, v[2].color])
 }
 
 /// [`flat_color`] of vertex colours `c`.

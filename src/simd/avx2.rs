@@ -490,6 +490,7 @@ fn offset_lanes<const K: usize>(
     n: usize,
     k: usize,
 ) -> __m256d {
+    debug_assert!(n == 4 || n == 8, "4 or 8 samples per pixel");
     let m = n - 1;
     _mm256_setr_pd(
         offsets[first & m][k] as f64,

@@ -264,8 +264,9 @@ impl SpanColor {
 pub struct KernelTarget<'a> {
     /// Depth plane `[a0, g1, g2]`.
     pub depth_plane: [f64; 3],
-    /// Colour, read where the triangle's record keeps it (a copy per triangle, of up to 104
-    /// bytes, was read back with loads spanning its stores, which store forwarding fails).
+    /// Colour, read where the tile loop holds it (in the record, or rebuilt from a packed one:
+    /// a copy per triangle, of up to 104 bytes, was read back with loads spanning its
+    /// stores, which store forwarding fails).
     pub color: &'a SpanColor,
     /// Depth comparison.
     pub depth_test: DepthTest,
