@@ -525,15 +525,8 @@ impl WindowRecord {
     #[inline(always)]
     fn new(v: &[Vertex; 3], setup: &TriangleSetup, inv_area2: f64, smooth: bool, id: i32) -> Self {
         debug_assert_eq!(inv_area2.to_bits(), (1.0 / setup.area2 as f64).to_bits(), "1 / area2");
-        Self {
-            xy: setup.xy,
-            z: [v[0].z, v[1].z, v[2].z],
-            colors: [v[0].color, v[1].color, v[2].color],
-            inv_area2,
-            id,
-            clockwise: setup.clockwise,
-            smooth,
-        }
+        let (z, colors) = shade::depths_and_colors(v);
+        Self { xy: setup.xy, z, colors, inv_area2, id, clockwise: setup.clockwise, smooth }
     }
 }
 

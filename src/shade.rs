@@ -179,7 +179,7 @@ fn span_color(c: [[u8; 4]; 3], inv_area2: f64, smooth: bool) -> SpanColor {
 
 /// The vertex depths and colours of `v`, written out (see [`each_vertex`]).
 #[inline(always)]
-fn depths_and_colors(v: &[Vertex; 3]) -> ([f32; 3], [[u8; 4]; 3]) {
+pub(crate) fn depths_and_colors(v: &[Vertex; 3]) -> ([f32; 3], [[u8; 4]; 3]) {
     ([v[0].z, v[1].z, v[2].z], [v[0].color, v[1].color, v[2].color])
 }
 
@@ -572,10 +572,10 @@ pub fn shade_triangle(
         let Some(r) = boxes.reduce(|a, b| a.union(&b)) else { return 0 };
         let columns = r.x1 - r.x0 + 1;
         if columns <= raster::edge::NARROW {
+            // The edges derived once for all that follows (derived for the kernel's job and
+            // again for its sample offsets, they were a twentieth of the soup's time at 4x).
+            let edges = setup.edges();
             if let Some((level, color)) = kernel.filter(|_| target.overdraw.is_none()) {
-                // The edges derived once for both (derived in each, they were a twentieth
-                // of the soup's time at 4x).
-                let edges = setup.edges();
                 let offsets = sample_edge_offsets(&edges, samples);
                 let narrow = narrow_job(target, &edges, &r, depth, (depth_test, id), color);
                 return simd::shade_narrow_samples(
@@ -585,8 +585,7 @@ pub fn shade_triangle(
             }
             // Each sample's row coverage as a bit mask without branches (as at 1x), then the
             // pixels with any covered sample, left to right, with their sample masks: no
-            // spans, no lists of them. The edges are derived once for all of it.
-            let edges = setup.edges();
+            // spans, no lists of them.
             let numerators = setup.numerators_of(&edges);
             let mut pixels =
                 SamplePixels::new(setup, numerators, samples, depth, (depth_test, id), fragment);
