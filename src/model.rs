@@ -285,7 +285,7 @@ impl ModelFragment<'_> {
 
     /// The surface colour at texture coordinate `uv` with interpolated colour `color`, on
     /// triangle `primitive`. Inlined for meshes without materials (the colour as it is); a
-    /// call per fragment to find that out was a hundredth of the bunny's frame.
+    /// call per fragment to find that out was a twentieth of the bunny's frame.
     #[inline]
     fn albedo_at(&self, uv: Vec2, color: Vec4, primitive: u32) -> Vec4 {
         match &self.surface.mesh.triangle_materials {
