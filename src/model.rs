@@ -298,19 +298,16 @@ impl ModelFragment<'_> {
     #[inline(never)]
     fn material_albedo(&self, uv: Vec2, color: Vec4, material: u32) -> Vec4 {
         let mesh = self.surface.mesh;
-        let material = Some(material as usize);
-        let mut albedo = color;
-        if let Some((k, m)) = material.and_then(|k| Some((k, mesh.materials.get(k)?))) {
-            let texture = self.surface.textures.textures.get(k).and_then(Option::as_ref);
-            let base = match texture {
-                Some(t) if mesh.texcoords.is_some() => {
-                    t.sample(uv, self.options.filter, self.options.wrap)
-                }
-                _ => Vec3::from(m.diffuse.map(srgb_decode)).extend(1.0),
-            };
-            albedo *= base;
-        }
-        albedo
+        let k = material as usize;
+        let Some(m) = mesh.materials.get(k) else { return color };
+        let texture = self.surface.textures.textures.get(k).and_then(Option::as_ref);
+        let base = match texture {
+            Some(t) if mesh.texcoords.is_some() => {
+                t.sample(uv, self.options.filter, self.options.wrap)
+            }
+            _ => Vec3::from(m.diffuse.map(srgb_decode)).extend(1.0),
+        };
+        color * base
     }
 
     fn normal_at(&self, f: &Fragment<ModelVaryings>) -> Vec3 {
