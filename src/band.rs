@@ -240,7 +240,29 @@ impl Bands {
                     covers.clear();
                     let mut sink = Sink::new(&mut records, &mut covers, coverage, &mut stats);
                     prepare(first..(first + bin::CHUNK).min(len), &mut sink);
+                    // Small triangles' fragments share a queue (see `SharedLaneQueue`); any other
+                    // triangle's go after what it holds.
+                    let mut queue = shade::SharedLaneQueue::new();
+                    let single = band.samples().count() == 1;
                     for (record, rect) in records.iter().zip(&covers) {
+                        if single
+                            && let Some(p) = record.kept()
+                            && p.setup.area2 <= shade::SHARED_QUEUE_AREA2
+                            && kernel(&p.payload).is_none()
+                        {
+                            covered += shade::shade_small_triangle(
+                                &mut band,
+                                &p.setup,
+                                rect,
+                                &p.depth,
+                                (depth_test, p.id),
+                                &p.payload,
+                                &fragments,
+                                &mut queue,
+                            );
+                            continue;
+                        }
+                        queue.flush(&mut band, &fragments);
                         covered += record.with(|p| {
                             shade::shade_triangle(
                                 &mut band,
@@ -255,6 +277,7 @@ impl Bands {
                             )
                         });
                     }
+                    queue.flush(&mut band, &fragments);
                 }
                 (stats, covered)
             })

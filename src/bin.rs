@@ -120,6 +120,12 @@ pub trait Record: Copy + Send + Sync {
 
     /// Calls `f` with the triangle as the back end draws it.
     fn with<R>(&self, f: impl FnOnce(&Prepared<Self::Payload>) -> R) -> R;
+
+    /// The triangle itself, when the record keeps it whole: its data then outlives a call of
+    /// [`Record::with`], as a queue shared by several triangles needs (see `band`).
+    fn kept(&self) -> Option<&Prepared<Self::Payload>> {
+        None
+    }
 }
 
 impl<T: Copy + Send + Sync> Record for Prepared<T> {
@@ -133,6 +139,11 @@ impl<T: Copy + Send + Sync> Record for Prepared<T> {
     #[inline(always)]
     fn with<R>(&self, f: impl FnOnce(&Prepared<T>) -> R) -> R {
         f(self)
+    }
+
+    #[inline(always)]
+    fn kept(&self) -> Option<&Prepared<T>> {
+        Some(self)
     }
 }
 

@@ -778,6 +778,32 @@ fn batches_are_drawn_in_submission_order() {
     assert_pipeline_matches_reference(&vertices, &triangles, &fs);
 }
 
+/// Small triangles share a queue of fragments in the banded schedule, their writes waiting for
+/// its flush: a pixel an earlier triangle in the queue covers must see that triangle's depth.
+/// Tiny triangles piled on a 12 x 8 target (most within 4 pixels of area, so consecutive ones
+/// overlap) at four depths with `Less`: through the 3D pipeline, some discarded (whose depth
+/// must not be written), and in window space with perspective colours (the kernels take flat
+/// and smooth ones), banded and binned: the tiled backend on 1, 2 and 7 threads writes what
+/// the reference writes.
+#[test]
+fn small_triangles_sharing_a_queue_keep_their_order() {
+    let (w, h) = (12.0, 8.0);
+    let tris = piled_triangles(79, 20_000, w, h, 1.2);
+    let (vertices, triangles) = clip_space_mesh(&tris, w, h);
+    let fs = |f: &Fragment<f32>| {
+        (!f.primitive.is_multiple_of(7))
+            .then(|| Vec4::new(f.varyings, (f.primitive % 256) as f32 / 255.0, 0.5, 1.0))
+    };
+    let fresh = || Target::new(w as u32, h as u32).unwrap().with_ids();
+    assert_pipeline_matches_reference_on(fresh, &[1, 2, 7], &vertices, &triangles, &fs);
+    let perspective = RenderOptions::default().with_shading(Shading::Perspective);
+    for schedule in SCHEDULES {
+        let options = perspective.with_schedule(schedule);
+        let what = format!("window, {schedule:?}");
+        assert_tiled_matches_reference(fresh, &tris, &options, &[1, 2, 7], &what);
+    }
+}
+
 /// Multisampled draw calls longer than a batch: one and a half batches of small triangles
 /// piled on a small 4x target, one in 500 large, with `Always` and an overdraw buffer and with
 /// `Less` and hierarchical depth, binned (on 1 and 2 threads) and banded, in window space and
