@@ -1112,8 +1112,10 @@ impl<'a, T> SharedLaneQueue<'a, T> {
         }
     }
 
-    /// The bit of `earlier` or `current` buffer index `i` sets: rows 64 pixels apart (or a
-    /// multiple, as 1920 is) share no bit unless their columns' low bits differ as well.
+    /// The bit of `earlier` or `current` buffer index `i` sets: its low six bits mixed with
+    /// the two groups of six above them, so that one column's pixels on nearby rows, whose
+    /// indices differ by a multiple of 64 when the width is one (as 1920 is), take different
+    /// bits.
     #[inline(always)]
     fn bit(i: usize) -> u64 {
         1 << ((i ^ (i >> 6) ^ (i >> 12)) & 63)
