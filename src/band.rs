@@ -240,42 +240,33 @@ impl Bands {
                     covers.clear();
                     let mut sink = Sink::new(&mut records, &mut covers, coverage, &mut stats);
                     prepare(first..(first + bin::CHUNK).min(len), &mut sink);
-                    // Small triangles' fragments share a queue (see `SharedLaneQueue`); any other
-                    // triangle's go after what it holds.
+                    // Small triangles' fragments share a queue (see `bin::shade_record`).
                     let mut queue = shade::SharedLaneQueue::new();
                     let single = band.samples().count() == 1;
                     for (record, rect) in records.iter().zip(&covers) {
-                        if single
-                            && let Some(p) = record.kept()
-                            && p.setup.area2 <= shade::SHARED_QUEUE_AREA2
-                            && kernel(&p.payload).is_none()
-                        {
-                            covered += shade::shade_small_triangle(
-                                &mut band,
-                                &p.setup,
-                                rect,
-                                &p.depth,
-                                (depth_test, p.id),
-                                &p.payload,
-                                &fragments,
-                                &mut queue,
-                            );
-                            continue;
-                        }
-                        queue.flush(&mut band, &fragments);
-                        covered += record.with(|p| {
-                            shade::shade_triangle(
-                                &mut band,
-                                &p.setup,
-                                bin::coverage_algorithm(&p.setup),
-                                rect,
-                                &p.depth,
-                                depth_test,
-                                p.id,
-                                kernel(&p.payload),
-                                OfTriangle(&fragments, &p.payload),
-                            )
-                        });
+                        let stages = (&kernel, &fragments);
+                        covered += bin::shade_record(
+                            &mut band,
+                            record,
+                            rect,
+                            depth_test,
+                            |_| single,
+                            stages,
+                            &mut queue,
+                            |band, p| {
+                                shade::shade_triangle(
+                                    band,
+                                    &p.setup,
+                                    bin::coverage_algorithm(&p.setup),
+                                    rect,
+                                    &p.depth,
+                                    depth_test,
+                                    p.id,
+                                    kernel(&p.payload),
+                                    OfTriangle(&fragments, &p.payload),
+                                )
+                            },
+                        );
                     }
                     queue.flush(&mut band, &fragments);
                 }

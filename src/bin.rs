@@ -684,6 +684,42 @@ pub fn extent_coverage_bounds(
     r.intersect(clip)
 }
 
+/// Draws `record`'s triangle within `rect`: through `queue` when it is small, kept whole,
+/// without a span kernel (see [`shade::SharedLaneQueue`]) and `shared` (1x, and not a
+/// triangle hierarchical depth draws; asked last, as it may cost a setup); otherwise with
+/// `draw`, once the queue's fragments are written. Returns the covered samples. The one place
+/// the band and tile loops choose between the two.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn shade_record<'a, S, K, F>(
+    band: &mut TargetBand<'_>,
+    record: &'a S,
+    rect: &PixelRect,
+    depth_test: DepthTest,
+    shared: impl FnOnce(&Prepared<S::Payload>) -> bool,
+    (kernel, fragments): (&K, &F),
+    queue: &mut shade::SharedLaneQueue<'a, S::Payload>,
+    draw: impl FnOnce(&mut TargetBand<'_>, &Prepared<S::Payload>) -> u64,
+) -> u64
+where
+    S: Record,
+    K: Fn(&S::Payload) -> Option<(SimdLevel, &SpanColor)>,
+    F: TriangleFragments<S::Payload>,
+{
+    if let Some(p) = record.kept()
+        && p.setup.area2 <= shade::SHARED_QUEUE_AREA2
+        && kernel(&p.payload).is_none()
+        && shared(p)
+    {
+        let (setup, depth, at) = (&p.setup, &p.depth, (depth_test, p.id));
+        return shade::shade_small_triangle(
+            band, setup, rect, depth, at, &p.payload, fragments, queue,
+        );
+    }
+    queue.flush(band, fragments);
+    record.with(|p| draw(band, p))
+}
+
 /// The fastest of the (identical) rasterizers for a triangle: scanline spans cost a few
 /// divisions per row however wide the row, edge stepping a few additions per pixel of the
 /// bounding box; narrow triangles are cheaper to step, as branch-free row masks.
@@ -743,6 +779,14 @@ where
     let shaded = bins.draw(target, clip, |band, tile, list| {
         let mut covered = 0;
         let mut tile_depth = TileDepth::new(depth_test, samples);
+        // Small triangles' fragments share a queue, written before any other triangle is
+        // drawn (hierarchical depth reads the depth buffer) and at the tile's end.
+        let mut queue = shade::SharedLaneQueue::new();
+        // Drawn with hierarchical depth, by the rectangle binning had (the same function of
+        // the same record).
+        let hidden = |setup: &TriangleSetup| {
+            bin_target.hierarchical && coverage.of(setup).is_some_and(|r| bin_target.wide(&r))
+        };
         let whole_tile = prefetch_whole_tile(samples, list.len());
         if whole_tile {
             band.prefetch(tile);
@@ -757,33 +801,44 @@ where
             if let Some(r) = near.and_then(|setup| coverage_bounds(&setup, true, tile)) {
                 band.prefetch(&PixelRect { y1: r.y1.min(r.y0 + 7), ..r });
             }
-            covered += prepared.get(i).with(|p| {
-                let kernel = kernel(&p.payload);
-                let shade = |band: &mut TargetBand<'_>, rect: &PixelRect| {
-                    shade::shade_triangle(
-                        band,
-                        &p.setup,
-                        coverage_algorithm(&p.setup),
-                        rect,
-                        &p.depth,
-                        depth_test,
-                        p.id,
-                        kernel,
-                        OfTriangle(&fragments, &p.payload),
-                    )
-                };
-                // The rectangle binning had (the same function of the same record).
-                if bin_target.hierarchical
-                    && coverage.of(&p.setup).is_some_and(|r| bin_target.wide(&r))
-                {
-                    // Its fragments were counted while binning.
-                    tile_depth.shade(band, tile, p, !may_discard, shade);
-                    0
-                } else {
-                    shade(band, tile)
-                }
-            });
+            let single = samples.count() == 1;
+            let shared = |p: &Prepared<S::Payload>| single && !hidden(&p.setup);
+            let stages = (&kernel, &fragments);
+            let record = prepared.get(i);
+            covered += shade_record(
+                band,
+                record,
+                tile,
+                depth_test,
+                shared,
+                stages,
+                &mut queue,
+                |band, p| {
+                    let kernel = kernel(&p.payload);
+                    let shade = |band: &mut TargetBand<'_>, rect: &PixelRect| {
+                        shade::shade_triangle(
+                            band,
+                            &p.setup,
+                            coverage_algorithm(&p.setup),
+                            rect,
+                            &p.depth,
+                            depth_test,
+                            p.id,
+                            kernel,
+                            OfTriangle(&fragments, &p.payload),
+                        )
+                    };
+                    if hidden(&p.setup) {
+                        // Its fragments were counted while binning.
+                        tile_depth.shade(band, tile, p, !may_discard, shade);
+                        0
+                    } else {
+                        shade(band, tile)
+                    }
+                },
+            );
         }
+        queue.flush(band, &fragments);
         covered
     });
     shaded + wide_coverage

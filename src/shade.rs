@@ -1157,10 +1157,11 @@ impl<'a, T> SharedLaneQueue<'a, T> {
         target: &mut TargetBand<'_>,
         stage: &F,
     ) {
-        (self.earlier, self.current) = (0, 0);
+        // Empty, no lane has set a bit since the last flush.
         if self.passed.len == 0 {
             return;
         }
+        (self.earlier, self.current) = (0, 0);
         let mut out = [None; LANES];
         stage.lanes_of(&self.tris, &self.passed, &mut out);
         let ids = &self.ids;
