@@ -243,8 +243,8 @@ impl Bands {
                     // Small triangles' fragments share a queue (see `bin::shade_record`).
                     let mut queue = shade::SharedLaneQueue::new();
                     let single = band.samples().count() == 1;
+                    let stages = (&kernel, &fragments);
                     for (record, rect) in records.iter().zip(&covers) {
-                        let stages = (&kernel, &fragments);
                         covered += bin::shade_record(
                             &mut band,
                             record,

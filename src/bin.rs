@@ -122,7 +122,7 @@ pub trait Record: Copy + Send + Sync {
     fn with<R>(&self, f: impl FnOnce(&Prepared<Self::Payload>) -> R) -> R;
 
     /// The triangle itself, when the record keeps it whole: its data then outlives a call of
-    /// [`Record::with`], as a queue shared by several triangles needs (see `band`).
+    /// [`Record::with`], as a queue shared by several triangles needs (see `shade_record`).
     fn kept(&self) -> Option<&Prepared<Self::Payload>> {
         None
     }
@@ -685,10 +685,10 @@ pub fn extent_coverage_bounds(
 }
 
 /// Draws `record`'s triangle within `rect`: through `queue` when it is small, kept whole,
-/// without a span kernel (see [`shade::SharedLaneQueue`]) and `shared` (1x, and not a
-/// triangle hierarchical depth draws; asked last, as it may cost a setup); otherwise with
-/// `draw`, once the queue's fragments are written. Returns the covered samples. The one place
-/// the band and tile loops choose between the two.
+/// without a span kernel, `shared` (1x, and not a triangle hierarchical depth draws; asked
+/// last, as it computes the triangle's coverage rectangle) and narrow within `rect` (see
+/// [`shade::SharedLaneQueue`]); otherwise with `draw`, once the queue's fragments are written.
+/// Returns the covered samples. The one place the band and tile loops choose between the two.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn shade_record<'a, S, K, F>(
@@ -710,11 +710,18 @@ where
         && p.setup.area2 <= shade::SHARED_QUEUE_AREA2
         && kernel(&p.payload).is_none()
         && shared(p)
+        && let Some(covered) = shade::shade_small_triangle(
+            band,
+            &p.setup,
+            rect,
+            &p.depth,
+            (depth_test, p.id),
+            &p.payload,
+            fragments,
+            queue,
+        )
     {
-        let (setup, depth, at) = (&p.setup, &p.depth, (depth_test, p.id));
-        return shade::shade_small_triangle(
-            band, setup, rect, depth, at, &p.payload, fragments, queue,
-        );
+        return covered;
     }
     queue.flush(band, fragments);
     record.with(|p| draw(band, p))
@@ -787,6 +794,9 @@ where
         let hidden = |setup: &TriangleSetup| {
             bin_target.hierarchical && coverage.of(setup).is_some_and(|r| bin_target.wide(&r))
         };
+        let single = samples.count() == 1;
+        let shared = |p: &Prepared<S::Payload>| single && !hidden(&p.setup);
+        let stages = (&kernel, &fragments);
         let whole_tile = prefetch_whole_tile(samples, list.len());
         if whole_tile {
             band.prefetch(tile);
@@ -801,9 +811,6 @@ where
             if let Some(r) = near.and_then(|setup| coverage_bounds(&setup, true, tile)) {
                 band.prefetch(&PixelRect { y1: r.y1.min(r.y0 + 7), ..r });
             }
-            let single = samples.count() == 1;
-            let shared = |p: &Prepared<S::Payload>| single && !hidden(&p.setup);
-            let stages = (&kernel, &fragments);
             let record = prepared.get(i);
             covered += shade_record(
                 band,

@@ -529,6 +529,23 @@ impl<FS> ShaderStage<'_, FS> {
         };
         FragmentOutput { color: [r, g, b, unorm8(c.w)], normal }
     }
+
+    /// Lane `l` of `passed` as a fragment of `t` with perspective-correct weights `w`, shaded:
+    /// the body of each loop of [`TriangleFragments::lanes`] and `lanes_of`.
+    #[inline(always)]
+    fn shade_lane<V: Varyings>(
+        &self,
+        t: &TriangleData<V>,
+        passed: &PassedLanes,
+        l: usize,
+        w: [f32; 3],
+    ) -> Option<FragmentOutput>
+    where
+        FS: FragmentShader<V>,
+    {
+        let fragment = t.fragment(passed.x[l], passed.y[l], passed.z[l], w);
+        self.shader.shade(&fragment).map(|c| self.output(&fragment, c))
+    }
 }
 
 impl<V, FS> TriangleFragments<TriangleData<V>> for ShaderStage<'_, FS>
@@ -568,13 +585,11 @@ where
         let q = t.inv_w_f64();
         if is_affine(q) {
             // No division: the weights are the screen-space ones, computed where they are used.
-            // (Sharing the shading of this loop and the one below through a closure made the
-            // grid 7% slower, so each writes it out.)
+            // (One loop for both kinds, taking its weights from a closure, made the grid 7%
+            // slower, so each kind has its loop around `shade_lane`.)
             for (l, out) in out.iter_mut().enumerate().take(passed.len) {
                 let (l1, l2) = (passed.e1[l] * t.inv_area2, passed.e2[l] * t.inv_area2);
-                let fragment =
-                    t.fragment(passed.x[l], passed.y[l], passed.z[l], affine_weights(l1, l2));
-                *out = self.shader.shade(&fragment).map(|c| self.output(&fragment, c));
+                *out = self.shade_lane(t, passed, l, affine_weights(l1, l2));
             }
             return;
         }
@@ -590,15 +605,14 @@ where
             [w[0][l], w[1][l], w[2][l]] = divided_weights(e1 * t.inv_area2, e2 * t.inv_area2, q);
         }
         for (l, out) in out.iter_mut().enumerate().take(passed.len) {
-            let weights = [w[0][l], w[1][l], w[2][l]];
-            let fragment = t.fragment(passed.x[l], passed.y[l], passed.z[l], weights);
-            *out = self.shader.shade(&fragment).map(|c| self.output(&fragment, c));
+            *out = self.shade_lane(t, passed, l, [w[0][l], w[1][l], w[2][l]]);
         }
     }
 
     /// [`TriangleFragments::lanes`] for lanes of several triangles: each lane's triangle
     /// constants gathered first, then the weights of all lanes in one loop of fixed length
-    /// (lanes past `len` compute from zeros and are not read), affine or divided lane by lane.
+    /// (lanes past `len` compute from leftovers and zeros, and are not read), affine or
+    /// divided lane by lane.
     /// The lanes in use always have their triangle; shading `Option::and_then` of it instead
     /// of `expect` made the grid 2% slower.
     fn lanes_of(
@@ -620,9 +634,7 @@ where
         }
         for (l, out) in out.iter_mut().enumerate().take(passed.len) {
             let t = tris[l].expect("a queued lane has its triangle");
-            let weights = [w[0][l], w[1][l], w[2][l]];
-            let fragment = t.fragment(passed.x[l], passed.y[l], passed.z[l], weights);
-            *out = self.shader.shade(&fragment).map(|c| self.output(&fragment, c));
+            *out = self.shade_lane(t, passed, l, [w[0][l], w[1][l], w[2][l]]);
         }
     }
 }

@@ -511,6 +511,7 @@ pub trait TriangleFragments<T>: Sync {
         out: &mut [Option<FragmentOutput>; LANES],
     ) {
         for (l, (out, t)) in out.iter_mut().zip(tris).enumerate().take(lanes.len) {
+            debug_assert!(t.is_some(), "lane {l} in use without its triangle");
             let (x, y, e1, e2, z) = lanes.lane(l);
             *out = t.and_then(|t| self.fragment(t, x, y, e1, e2, z));
         }
@@ -1030,7 +1031,8 @@ fn kernel_target<'a>(
 /// calls it once per run of visible blocks and reads the depth buffer in between); and the
 /// stage sees fragments, not the target. Shading a queue rather than each fragment as it
 /// passes lets the 3D pipeline take the perspective divisions of several fragments together.
-/// Every 1x path but the SIMD kernels goes through it, the references included; the
+/// Every 1x path but the SIMD kernels and [`SharedLaneQueue`] goes through it, the references
+/// included; the
 /// tiled-vs-reference tests hold the lanes to single fragments, and the coverage and
 /// interpolation tests (independent of it) the queue.
 struct LaneQueue<S> {
@@ -1082,9 +1084,10 @@ impl<S: FragmentStage> LaneQueue<S> {
 /// fastest of 20 frames, 41.7 -> 39.5 ms). Writes still wait until the flush, so a pixel an
 /// earlier triangle has queued is a conflict: its depth test would read the depth from before
 /// that fragment. Such a pixel flushes the queue first. Every queued pixel sets one of 64
-/// bits (a hash of its index) in `earlier` once its triangle is done; a set bit is checked
-/// against the lanes themselves, so a collision costs a comparison, not a flush (a triangle
-/// never reaches a pixel twice, so its own lanes, in `current`, need no check).
+/// bits (a hash of its index): in `current` while its triangle is drawn, folded into
+/// `earlier` when the next small triangle starts. A pixel whose bit is set in `earlier` is
+/// checked against the lanes themselves, so a collision costs a comparison, not a flush (a
+/// triangle never reaches a pixel twice, so its own lanes need no check).
 pub(crate) struct SharedLaneQueue<'a, T> {
     passed: PassedLanes,
     /// Lane `l`'s triangle: its shading data and id (`Some` for the lanes in use).
@@ -1114,8 +1117,8 @@ impl<'a, T> SharedLaneQueue<'a, T> {
 
     /// The bit of `earlier` or `current` buffer index `i` sets: its low six bits mixed with
     /// the two groups of six above them, so that one column's pixels on nearby rows, whose
-    /// indices differ by a multiple of 64 when the width is one (as 1920 is), take different
-    /// bits.
+    /// indices differ by a multiple of 64 when the width is a multiple of 64 (as 1920 is),
+    /// take different bits.
     #[inline(always)]
     fn bit(i: usize) -> u64 {
         1 << ((i ^ (i >> 6) ^ (i >> 12)) & 63)
@@ -1172,6 +1175,8 @@ impl<'a, T> SharedLaneQueue<'a, T> {
 /// [`shade_triangle`] at 1x without a span kernel, for a small triangle (see
 /// [`SHARED_QUEUE_AREA2`]) with shading data `t`, its fragments going through `queue`
 /// (whose lanes may already hold earlier triangles'; the caller flushes it at the end).
+/// `None`, with nothing done, when its box within `clip` is wider than the narrow path takes
+/// (a sliver): the caller draws it, after flushing the queue.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn shade_small_triangle<'a, T, F: TriangleFragments<T>>(
     target: &mut TargetBand<'_>,
@@ -1182,22 +1187,17 @@ pub(crate) fn shade_small_triangle<'a, T, F: TriangleFragments<T>>(
     t: &'a T,
     stage: &F,
     queue: &mut SharedLaneQueue<'a, T>,
-) -> u64 {
+) -> Option<u64> {
     debug_assert_eq!(target.samples().count(), 1, "a shared queue at 1x only");
-    let Some(r) = setup.bounds.intersect(clip) else { return 0 };
+    let Some(r) = setup.bounds.intersect(clip) else { return Some(0) };
     if r.x1 - r.x0 + 1 > raster::edge::NARROW {
-        // A sliver: the per-triangle path, after the fragments queued before it.
-        queue.flush(target, stage);
-        let algorithm = crate::bin::coverage_algorithm(setup);
-        let fragment = OfTriangle(stage, t);
-        return shade_triangle(
-            target, setup, algorithm, clip, depth, depth_test, id, None, fragment,
-        );
+        return None;
     }
+    // The lanes queued so far are now an earlier triangle's.
     (queue.earlier, queue.current) = (queue.earlier | queue.current, 0);
-    narrow_pixels(target, &setup.edges(), &r, |target, at, f1, f2| {
+    Some(narrow_pixels(target, &setup.edges(), &r, |target, at, f1, f2| {
         queue.pixel(target, depth, depth_test, at, f1, f2, (t, id, stage));
-    })
+    }))
 }
 
 /// Calls `pixel(target, (i, x, y), f1, f2)` for each pixel of box `r` (at most

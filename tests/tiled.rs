@@ -778,22 +778,42 @@ fn batches_are_drawn_in_submission_order() {
     assert_pipeline_matches_reference(&vertices, &triangles, &fs);
 }
 
-/// Small triangles share a queue of fragments in the banded schedule, their writes waiting for
-/// its flush: a pixel an earlier triangle in the queue covers must see that triangle's depth.
-/// Tiny triangles piled on a 12 x 8 target (most within 4 pixels of area, so consecutive ones
-/// overlap) at four depths with `Less`: through the 3D pipeline, some discarded (whose depth
+/// Small triangles share a queue of fragments, their writes waiting for its flush: a pixel an
+/// earlier triangle in the queue covers must see that triangle's depth. Tiny triangles piled
+/// on a 12 x 8 target (most within 4 pixels of area, so consecutive ones overlap), one in 50
+/// a sliver of the same area too long for the narrow path (some cut narrow by the target's
+/// edge), each nearer than those well before it but in random order among its neighbours,
+/// with `Less`: through the 3D pipeline, some discarded (whose depth
 /// must not be written), and in window space with perspective colours (the kernels take flat
-/// and smooth ones), banded and binned: the tiled backend on 1, 2 and 7 threads writes what
-/// the reference writes.
+/// and smooth ones). Then slivers of that area over half a tile long among small triangles
+/// on a 256 x 16 target, where hierarchical depth draws the slivers (and counts their
+/// fragments while binning). Banded and binned, the tiled backend on 1, 2 and 7 threads
+/// writes what the reference writes and counts what it counts.
 #[test]
 fn small_triangles_sharing_a_queue_keep_their_order() {
-    let (w, h) = (12.0, 8.0);
-    let tris = piled_triangles(79, 20_000, w, h, 1.2);
-    let (vertices, triangles) = clip_space_mesh(&tris, w, h);
+    // Triangle `k`'s first vertex and depth, as a sliver `length` long of area 2.4 pixels.
+    let sliver = |t: &[Vertex; 3], length: f32| {
+        let (x, y, thick) = (t[0].x, t[0].y, 4.8 / length);
+        let v = |x: f32, y: f32| Vertex { x, y, ..t[0] };
+        [v(x - length / 2.0, y), v(x + length / 2.0, y + 0.7), v(x + length / 2.0, y + 0.7 + thick)]
+    };
     let fs = |f: &Fragment<f32>| {
         (!f.primitive.is_multiple_of(7))
             .then(|| Vec4::new(f.varyings, (f.primitive % 256) as f32 / 255.0, 0.5, 1.0))
     };
+    let (w, h) = (12.0, 8.0);
+    let mut tris = piled_triangles(79, 20_000, w, h, 1.2);
+    for t in tris.iter_mut().step_by(50) {
+        *t = sliver(t, 16.0);
+    }
+    // Depths that come forward over the draw, shuffled among neighbours: with the four depths
+    // of `piled_triangles` every pixel soon holds the nearest, and nothing passes `Less`.
+    let n = tris.len() as f32;
+    for (k, t) in tris.iter_mut().enumerate() {
+        let z = 0.9 * (1.0 - k as f32 / n) + (k * 7919 % 100) as f32 / 1000.0;
+        t.iter_mut().for_each(|v| v.z = z);
+    }
+    let (vertices, triangles) = clip_space_mesh(&tris, w, h);
     let fresh = || Target::new(w as u32, h as u32).unwrap().with_ids();
     assert_pipeline_matches_reference_on(fresh, &[1, 2, 7], &vertices, &triangles, &fs);
     let perspective = RenderOptions::default().with_shading(Shading::Perspective);
@@ -802,6 +822,14 @@ fn small_triangles_sharing_a_queue_keep_their_order() {
         let what = format!("window, {schedule:?}");
         assert_tiled_matches_reference(fresh, &tris, &options, &[1, 2, 7], &what);
     }
+    let (w, h) = (256.0, 16.0);
+    let mut tris = piled_triangles(80, 4000, w, h, 1.2);
+    for t in tris.iter_mut().step_by(10) {
+        *t = sliver(t, 100.0);
+    }
+    let (vertices, triangles) = clip_space_mesh(&tris, w, h);
+    let fresh = || Target::new(w as u32, h as u32).unwrap().with_ids();
+    assert_pipeline_matches_reference_on(fresh, &[1, 2, 7], &vertices, &triangles, &fs);
 }
 
 /// Multisampled draw calls longer than a batch: one and a half batches of small triangles
