@@ -242,7 +242,6 @@ impl Bands {
                     prepare(first..(first + bin::CHUNK).min(len), &mut sink);
                     // Small triangles' fragments share a queue (see `bin::shade_record`).
                     let mut queue = shade::SharedLaneQueue::new();
-                    let single = band.samples().count() == 1;
                     let stages = (&kernel, &fragments);
                     for (record, rect) in records.iter().zip(&covers) {
                         covered += bin::shade_record(
@@ -250,7 +249,7 @@ impl Bands {
                             record,
                             rect,
                             depth_test,
-                            |_| single,
+                            |_| true,
                             stages,
                             &mut queue,
                             |band, p| {

@@ -684,9 +684,10 @@ pub fn extent_coverage_bounds(
     r.intersect(clip)
 }
 
-/// Draws `record`'s triangle within `rect`: through `queue` when it is small, kept whole,
-/// without a span kernel, `shared` (1x, and not a triangle hierarchical depth draws; asked
-/// last, as it computes the triangle's coverage rectangle) and narrow within `rect` (see
+/// Draws `record`'s triangle within `rect`: through `queue` when the target is 1x and the
+/// triangle small, kept whole, without a span kernel, `shared` (not drawn with hierarchical
+/// depth; asked last, as it computes the triangle's coverage rectangle) and narrow within
+/// `rect` (see
 /// [`shade::SharedLaneQueue`]); otherwise with `draw`, once the queue's fragments are written.
 /// Returns the covered samples. The one place the band and tile loops choose between the two.
 #[inline(always)]
@@ -706,7 +707,8 @@ where
     K: Fn(&S::Payload) -> Option<(SimdLevel, &SpanColor)>,
     F: TriangleFragments<S::Payload>,
 {
-    if let Some(p) = record.kept()
+    if band.samples().count() == 1
+        && let Some(p) = record.kept()
         && p.setup.area2 <= shade::SHARED_QUEUE_AREA2
         && kernel(&p.payload).is_none()
         && shared(p)
@@ -794,8 +796,7 @@ where
         let hidden = |setup: &TriangleSetup| {
             bin_target.hierarchical && coverage.of(setup).is_some_and(|r| bin_target.wide(&r))
         };
-        let single = samples.count() == 1;
-        let shared = |p: &Prepared<S::Payload>| single && !hidden(&p.setup);
+        let shared = |p: &Prepared<S::Payload>| !hidden(&p.setup);
         let stages = (&kernel, &fragments);
         let whole_tile = prefetch_whole_tile(samples, list.len());
         if whole_tile {

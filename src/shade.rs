@@ -172,9 +172,14 @@ fn span_color(c: [[u8; 4]; 3], inv_area2: f64, smooth: bool) -> SpanColor {
     if !smooth {
         return SpanColor::Flat(flat_color_of(c));
     }
-    let channel = |k: usize| [f64::from(c[0][k]), f64::from(c[1][k]), f64::from(c[2][k])];
-    let plane = |k| PlaneEquation::with_inv_area2(channel(k), inv_area2).coefficients();
+    let plane = |k| PlaneEquation::with_inv_area2(channel(&c, k), inv_area2).coefficients();
     SpanColor::smooth([plane(0), plane(1), plane(2), plane(3)])
+}
+
+/// Channel `k` of vertex colours `c`, as the colour planes take it.
+#[inline(always)]
+fn channel(c: &[[u8; 4]; 3], k: usize) -> [f64; 3] {
+    [f64::from(c[0][k]), f64::from(c[1][k]), f64::from(c[2][k])]
 }
 
 /// The vertex depths and colours of `v`, written out (see [`each_vertex`]).
@@ -224,14 +229,13 @@ impl TriangleShader {
         let inv_area2 = 1.0 / setup.area2 as f64;
         let (z, colors) = depths_and_colors(v);
         let depth = depth_plane(z, inv_area2);
-        let channel = |c: usize| each_vertex(v, |p| f64::from(p.color[c]));
         let color = match shading {
             Shading::Flat | Shading::Smooth => {
                 ColorSource::Planes(span_color(colors, inv_area2, shading == Shading::Smooth))
             }
             Shading::Perspective => {
                 let inv_w = each_vertex(v, |p| f64::from(p.inv_w));
-                let plane = |c| PerspectivePlane::new(channel(c), inv_w, setup);
+                let plane = |k| PerspectivePlane::new(channel(&colors, k), inv_w, setup);
                 let [r, g, b, a] = [plane(0), plane(1), plane(2), plane(3)];
                 // Every channel's `1 / w` plane is the same one: kept once.
                 ColorSource::Perspective {
@@ -1032,9 +1036,8 @@ fn kernel_target<'a>(
 /// stage sees fragments, not the target. Shading a queue rather than each fragment as it
 /// passes lets the 3D pipeline take the perspective divisions of several fragments together.
 /// Every 1x path but the SIMD kernels and [`SharedLaneQueue`] goes through it, the references
-/// included; the
-/// tiled-vs-reference tests hold the lanes to single fragments, and the coverage and
-/// interpolation tests (independent of it) the queue.
+/// included; the tiled-vs-reference tests hold the lanes to single fragments, and the
+/// coverage and interpolation tests (independent of it) the queue.
 struct LaneQueue<S> {
     passed: PassedLanes,
     stage: S,
