@@ -1239,9 +1239,10 @@ mod tests {
     use super::*;
 
     /// The colour a triangle keeps gives, per channel, `quantize_channel` of the plane the
-    /// definition names: `PlaneEquation::eval` for smooth colours (four planes, or three and
-    /// an alpha), `PerspectivePlane::eval` for perspective ones (whose shared `1 / w` plane is
-    /// evaluated once), at random numerators, for random triangles.
+    /// definition names: the plane's coefficients with fused multiply-adds for smooth colours
+    /// (four planes, or three and an alpha; see `SpanColor::at`), `PerspectivePlane::eval`
+    /// for perspective ones (whose shared `1 / w` plane is evaluated once), at random
+    /// numerators, for random triangles.
     #[test]
     fn triangle_colours_follow_their_planes() {
         let mut rng = SmallRng::seed_from_u64(12);
@@ -1263,7 +1264,8 @@ mod tests {
                 let e1 = rng.random_range(-1e5..1e5f64).round();
                 let e2 = rng.random_range(-1e5..1e5f64).round();
                 let want: [u8; 4] = std::array::from_fn(|c| {
-                    quantize_channel(PlaneEquation::new(channel(c), &setup).eval(e1, e2))
+                    let [a0, g1, g2] = PlaneEquation::new(channel(c), &setup).coefficients();
+                    quantize_channel(e2.mul_add(g2, e1.mul_add(g1, a0)))
                 });
                 assert_eq!(smooth.color_at(e1, e2), want);
                 let want: [u8; 4] = std::array::from_fn(|c| {

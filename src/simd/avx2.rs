@@ -20,8 +20,8 @@ use crate::shade::DepthTest;
 /// `(v + 127) >> 8`, `floor((v - 128) / 256)` is `(v - 128) >> 8`, arithmetic shifts).
 ///
 /// # Safety
-/// The CPU must support AVX2.
-#[target_feature(enable = "avx2")]
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn corner_tests(
     group: &CornerGroup,
     cull: CullMode,
@@ -41,8 +41,8 @@ pub(super) unsafe fn corner_tests(
 /// wait), four triangles' pairs per half, then split into rows of x and of y.
 ///
 /// # Safety
-/// The CPU must support AVX2.
-#[target_feature(enable = "avx2")]
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn corner_tests_indexed(
     tris: &[[u32; 3]; 8],
     window: &[Corner],
@@ -80,7 +80,7 @@ pub(super) unsafe fn corner_tests_indexed(
 
 /// The corner tests on eight triangles' corners in rows (`x[v]`: corner `v`'s x).
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn tests(
     x: [__m256i; 3],
     y: [__m256i; 3],
@@ -152,8 +152,8 @@ fn tests(
 /// of two scale) and, within the range, so is its rounding to an integer below 2^23.
 ///
 /// # Safety
-/// The CPU must support AVX2.
-#[target_feature(enable = "avx2")]
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn window_corners(p: &[Vec4; 8], guard: [f32; 2], half: [f32; 2]) -> [Corner; 8] {
     let lane = |c: usize| {
         _mm256_setr_ps(p[0][c], p[1][c], p[2][c], p[3][c], p[4][c], p[5][c], p[6][c], p[7][c])
@@ -219,12 +219,20 @@ pub(super) unsafe fn window_corners(p: &[Vec4; 8], guard: [f32; 2], half: [f32; 
     std::array::from_fn(|k| [xs[k], ys[k]])
 }
 
-/// Four lanes of `(a0 + f1 * g1) + f2 * g2`.
+/// Four lanes of `(a0 + f1 * g1) + f2 * g2`: a depth plane.
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn plane(p: [f64; 3], f1: __m256d, f2: __m256d) -> __m256d {
     let t = _mm256_add_pd(_mm256_set1_pd(p[0]), _mm256_mul_pd(f1, _mm256_set1_pd(p[1])));
     _mm256_add_pd(t, _mm256_mul_pd(f2, _mm256_set1_pd(p[2])))
+}
+
+/// Four lanes of `fma(f2, g2, fma(f1, g1, a0))`: a colour plane (see [`SpanColor::at`]).
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn color_plane(p: [f64; 3], f1: __m256d, f2: __m256d) -> __m256d {
+    let t = _mm256_fmadd_pd(f1, _mm256_set1_pd(p[1]), _mm256_set1_pd(p[0]));
+    _mm256_fmadd_pd(f2, _mm256_set1_pd(p[2]), t)
 }
 
 /// `quantize_channel` on four lanes, as i32, in three instructions: `max(v, 0)` returns its
@@ -232,7 +240,7 @@ fn plane(p: [f64; 3], f1: __m256d, f2: __m256d) -> __m256d {
 /// conversion rounds in the default mode, half to even, as the scalar magic-number trick
 /// does.
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn quantize(v: __m256d) -> __m128i {
     let v = _mm256_min_pd(_mm256_set1_pd(255.0), _mm256_max_pd(v, _mm256_setzero_pd()));
     _mm256_cvtpd_epi32(v)
@@ -242,7 +250,7 @@ fn quantize(v: __m256d) -> __m128i {
 /// is `None`, the fourth plane's alpha; without `CLAMP`, the values are only rounded (see
 /// [`SpanColor::SmoothRgb`]).
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn smooth<const CLAMP: bool>(
     p: &[[f64; 3]],
     alpha: Option<u8>,
@@ -250,7 +258,7 @@ fn smooth<const CLAMP: bool>(
     f2: __m256d,
 ) -> __m128i {
     let channel = |p: [f64; 3]| {
-        let v = plane(p, f1, f2);
+        let v = color_plane(p, f1, f2);
         if CLAMP { quantize(v) } else { _mm256_cvtpd_epi32(v) }
     };
     let (r, g, b) = (channel(p[0]), channel(p[1]), channel(p[2]));
@@ -287,9 +295,9 @@ static LANE_MASKS: [[i32; 4]; 16] = {
 /// numerators instead (samples whose colour is their pixel centre's).
 ///
 /// # Safety
-/// The CPU must support AVX2, and `at + 4` must not exceed `t.checked_len()`.
+/// The CPU must support AVX2 and FMA, and `at + 4` must not exceed `t.checked_len()`.
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 unsafe fn group<const SKIP_HIDDEN: bool>(
     t: &mut KernelTarget<'_>,
     at: usize,
@@ -337,7 +345,7 @@ unsafe fn group<const SKIP_HIDDEN: bool>(
 
 /// The lane mask of the low four bits of `bits`.
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn lane_mask(bits: u32) -> __m128i {
     let row = &LANE_MASKS[(bits & 0xF) as usize];
     // SAFETY: `row` is four i32 (16 bytes); unaligned loads need no alignment.
@@ -354,10 +362,10 @@ fn lane_mask(bits: u32) -> __m128i {
 /// few groups each, and mispredicted branches cost more than the work they would skip.
 ///
 /// # Safety
-/// The CPU must support AVX2.
-#[target_feature(enable = "avx2")]
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
-    // SAFETY: the CPU supports AVX2 (this function's contract).
+    // SAFETY: the CPU supports AVX2 and FMA (this function's contract).
     with_rgba!(*job.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
         narrow_groups(job, rgba)
     })
@@ -366,9 +374,9 @@ pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
 /// [`shade_narrow`] for one colour kind.
 ///
 /// # Safety
-/// The CPU must support AVX2.
+/// The CPU must support AVX2 and FMA.
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 unsafe fn narrow_groups(
     job: &mut NarrowJob<'_>,
     rgba: impl Fn(__m256d, __m256d) -> __m128i,
@@ -412,13 +420,13 @@ unsafe fn narrow_groups(
 /// kernel).
 ///
 /// # Safety
-/// The CPU must support AVX2.
-#[target_feature(enable = "avx2")]
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn shade_span(job: &mut SpanJob<'_>) {
     if job.target.checked_len() < 4 {
         return super::span_scalar(job);
     }
-    // SAFETY: the CPU supports AVX2 (this function's contract).
+    // SAFETY: the CPU supports AVX2 and FMA (this function's contract).
     with_rgba!(*job.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
         span_groups(job, rgba)
     })
@@ -427,9 +435,9 @@ pub(super) unsafe fn shade_span(job: &mut SpanJob<'_>) {
 /// [`shade_span`] for one colour kind, on a span of at least four pixels.
 ///
 /// # Safety
-/// The CPU must support AVX2.
+/// The CPU must support AVX2 and FMA.
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 unsafe fn span_groups(job: &mut SpanJob<'_>, rgba: impl Fn(__m256d, __m256d) -> __m128i) {
     let n = job.target.checked_len();
     let lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
@@ -470,10 +478,10 @@ unsafe fn span_groups(job: &mut SpanJob<'_>, rgba: impl Fn(__m256d, __m256d) -> 
 /// every group is whole.
 ///
 /// # Safety
-/// The CPU must support AVX2.
-#[target_feature(enable = "avx2")]
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn shade_samples(job: &mut SampleSpanJob<'_>) {
-    // SAFETY: the CPU supports AVX2 (this function's contract).
+    // SAFETY: the CPU supports AVX2 and FMA (this function's contract).
     with_rgba!(*job.span.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
         sample_groups(job, rgba)
     })
@@ -483,7 +491,7 @@ pub(super) unsafe fn shade_samples(job: &mut SampleSpanJob<'_>) {
 /// a division per lane), as four lanes. Written out: the closures it replaces were compiled
 /// out of line and called per lane.
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn offset_lanes<const K: usize>(
     offsets: &[[i64; K]; MAX_SAMPLES],
     first: usize,
@@ -503,9 +511,9 @@ fn offset_lanes<const K: usize>(
 /// [`shade_samples`] for one colour kind.
 ///
 /// # Safety
-/// The CPU must support AVX2.
+/// The CPU must support AVX2 and FMA.
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 unsafe fn sample_groups(job: &mut SampleSpanJob<'_>, rgba: impl Fn(__m256d, __m256d) -> __m128i) {
     let n = job.check();
     let samples = job.samples;
@@ -539,8 +547,8 @@ unsafe fn sample_groups(job: &mut SampleSpanJob<'_>, rgba: impl Fn(__m256d, __m2
 /// slower (257-262 -> 287-299 ms, two threads).
 ///
 /// # Safety
-/// The CPU must support AVX2.
-#[target_feature(enable = "avx2")]
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn shade_narrow_samples(job: &mut NarrowSamplesJob<'_>) -> u64 {
     // A partly covered pixel's centre may lie outside the triangle, where a `SmoothRgb`'s
     // planes may leave [0, 255]: clamped, as the scalar `SpanColor::at` does.
@@ -554,9 +562,9 @@ pub(super) unsafe fn shade_narrow_samples(job: &mut NarrowSamplesJob<'_>) -> u64
 /// [`shade_narrow_samples`] for one colour kind.
 ///
 /// # Safety
-/// The CPU must support AVX2.
+/// The CPU must support AVX2 and FMA.
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 unsafe fn narrow_sample_groups(
     job: &mut NarrowSamplesJob<'_>,
     rgba: impl Fn(__m256d, __m256d) -> __m128i,
@@ -607,8 +615,8 @@ unsafe fn narrow_sample_groups(
 /// the last `len % 32` values one at a time.
 ///
 /// # Safety
-/// The CPU must support AVX2.
-#[target_feature(enable = "avx2")]
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn index_range(values: &[u32]) -> (u32, u32) {
     let blocks = values.chunks_exact(32);
     let (tail_lo, tail_hi) = super::index_range_scalar(blocks.remainder());
@@ -638,7 +646,7 @@ pub(super) unsafe fn index_range(values: &[u32]) -> (u32, u32) {
 /// puts the integer in the low bits of the sum (one unit in the last place is 1), and
 /// subtracting the bits of 1.5 * 2^52 leaves it, sign included.
 #[inline]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn exact_i64(v: __m256d) -> __m256i {
     const MAGIC: f64 = 6_755_399_441_055_744.0;
     let bits = _mm256_castpd_si256(_mm256_add_pd(v, _mm256_set1_pd(MAGIC)));
@@ -652,8 +660,8 @@ fn exact_i64(v: __m256d) -> __m256i {
 /// `x * 256` half to even, as `fixed::snap` does.
 ///
 /// # Safety
-/// The CPU must support AVX2.
-#[target_feature(enable = "avx2")]
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: &mut WindowGroup) {
     let mut clockwise = 0u8;
     let mut flags = [[false; 4]; 8];

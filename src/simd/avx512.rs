@@ -7,8 +7,8 @@
 //! fallbacks at the buffers' ends, are not needed here.
 //!
 //! The arithmetic is the AVX2 kernels' (and so the scalar code's) lane by lane: separate
-//! multiplies and adds, conversions in the default rounding mode, clamps with the constant
-//! first.
+//! multiplies and adds for depth, fused multiply-adds for colour, conversions in the default
+//! rounding mode, clamps with the constant first.
 
 use std::arch::x86_64::*;
 
@@ -19,12 +19,20 @@ use crate::fixed;
 use crate::setup::{CullMode, Vertex};
 use crate::shade::DepthTest;
 
-/// Eight lanes of `(a0 + f1 * g1) + f2 * g2`.
+/// Eight lanes of `(a0 + f1 * g1) + f2 * g2`: a depth plane.
 #[inline]
 #[target_feature(enable = "avx512f")]
 fn plane(p: [f64; 3], f1: __m512d, f2: __m512d) -> __m512d {
     let t = _mm512_add_pd(_mm512_set1_pd(p[0]), _mm512_mul_pd(f1, _mm512_set1_pd(p[1])));
     _mm512_add_pd(t, _mm512_mul_pd(f2, _mm512_set1_pd(p[2])))
+}
+
+/// Eight lanes of `fma(f2, g2, fma(f1, g1, a0))`: a colour plane (see [`SpanColor::at`]).
+#[inline]
+#[target_feature(enable = "avx512f")]
+fn color_plane(p: [f64; 3], f1: __m512d, f2: __m512d) -> __m512d {
+    let t = _mm512_fmadd_pd(f1, _mm512_set1_pd(p[1]), _mm512_set1_pd(p[0]));
+    _mm512_fmadd_pd(f2, _mm512_set1_pd(p[2]), t)
 }
 
 /// `quantize_channel` on eight lanes, as the AVX2 `quantize`: `max(v, 0)` maps NaN to 0, the
@@ -46,7 +54,7 @@ fn smooth<const CLAMP: bool>(
     f2: __m512d,
 ) -> __m256i {
     let channel = |p: [f64; 3]| {
-        let v = plane(p, f1, f2);
+        let v = color_plane(p, f1, f2);
         if CLAMP { quantize(v) } else { _mm512_cvtpd_epi32(v) }
     };
     let (r, g, b) = (channel(p[0]), channel(p[1]), channel(p[2]));
