@@ -7,10 +7,12 @@
 //! `a(P) = a_0 + E_1(P) * (a_1 - a_0) / area2 + E_2(P) * (a_2 - a_0) / area2`.
 //! `E_1`, `E_2` are integers below 2^49 (see [`crate::fixed`]), exact in `f64`; the gradients
 //! are `(a_i - a_0) * (1 / area2)` (one division per triangle) and the plane is evaluated in
-//! `f64` in exactly this order, so at a vertex that sits on a pixel centre the weights are
-//! (1, 0, 0) up to two roundings (`1/area2` and the product), about 1e-16 relative, and the
-//! result rounds back to the vertex's own `f32` depth and `u8` colour. A fast path must
-//! evaluate the same expression in the same order to stay bit-identical.
+//! `f64` in a fixed order: depth and perspective colour as `(a_0 + E_1 g_1) + E_2 g_2`
+//! ([`PlaneEquation::eval`]), flat and Gouraud colour as `fma(E_2, g_2, fma(E_1, g_1, a_0))`
+//! ([`SpanColor::at`]). So at a vertex that sits on a pixel centre the weights are (1, 0, 0)
+//! up to two roundings (`1/area2` and the gradient), about 1e-16 relative, and the result
+//! rounds back to the vertex's own `f32` depth and `u8` colour. A fast path must evaluate the
+//! same expressions in the same order to stay bit-identical.
 //!
 //! Depth is interpolated linearly in screen space and clamped to [0, 1]. Colours are
 //! interpolated in 0..=255 units and rounded half to even.
@@ -89,7 +91,9 @@ impl PlaneEquation {
         Self { a0: a[0], g1: (a[1] - a[0]) * inv_area2, g2: (a[2] - a[0]) * inv_area2 }
     }
 
-    /// The attribute at a sample with barycentric numerators `(e1, e2)`.
+    /// The attribute at a sample with barycentric numerators `(e1, e2)`, with separate
+    /// multiplies and adds: depth and perspective colour (flat and Gouraud colour planes are
+    /// evaluated fused, by [`SpanColor::at`]).
     #[inline]
     #[must_use]
     pub fn eval(&self, e1: f64, e2: f64) -> f64 {
@@ -103,7 +107,8 @@ impl PlaneEquation {
         Self { a0, g1, g2 }
     }
 
-    /// `[a0, g1, g2]`, for kernels that evaluate the same expression.
+    /// `[a0, g1, g2]`, for the kernels, and for [`SpanColor`], which evaluates colour planes
+    /// fused.
     #[must_use]
     pub fn coefficients(&self) -> [f64; 3] {
         [self.a0, self.g1, self.g2]
