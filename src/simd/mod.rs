@@ -1823,6 +1823,16 @@ mod tests {
                 overdraw: None,
             }
         }
+        // Every pixel at numerators `(f1, f2)`: a span, and a 5 x 3 box wholly covered.
+        fn span(e1: i64, e2: i64, target: KernelTarget<'_>) -> SpanJob<'_> {
+            SpanJob { e1, e2, step1: 0, step2: 0, target }
+        }
+        fn narrow(f1: i64, f2: i64, target: KernelTarget<'_>) -> NarrowJob<'_> {
+            let (step_x, step_y, bias) = ([0; 3], [0; 3], [0; 2]);
+            let (columns, rows, first, stride) = (5, 3, 1, 6);
+            let edges = [1, f1, f2];
+            NarrowJob { edges, step_x, step_y, bias, columns, rows, first, stride, target }
+        }
         let mut rng = SmallRng::seed_from_u64(31);
         let (mut found, mut tries) = (0, 0);
         while found < 300 {
@@ -1846,58 +1856,23 @@ mod tests {
                 assert_eq!(color.at(x1, x2), want);
                 for level in SimdLevel::available() {
                     let (mut depth, mut out) = (vec![1.0f32; 24], vec![[0u8; 4]; 24]);
-                    let (e1, e2, step1, step2) = (f1, f2, 0, 0);
-                    let job = SpanJob {
-                        e1,
-                        e2,
-                        step1,
-                        step2,
-                        target: target(&color, &mut depth, &mut out),
-                    };
-                    shade_span(level, job);
+                    shade_span(level, span(f1, f2, target(&color, &mut depth, &mut out)));
                     assert!(out.iter().all(|&c| c == want), "{level:?} span: {out:?}, {want:?}");
                     let (mut depth, mut out) = (vec![1.0f32; 24], vec![[0u8; 4]; 24]);
-                    // Every pixel of a 5 x 3 box covered, at the same numerators.
-                    let job = NarrowJob {
-                        edges: [1, f1, f2],
-                        step_x: [0; 3],
-                        step_y: [0; 3],
-                        bias: [0; 2],
-                        columns: 5,
-                        rows: 3,
-                        first: 1,
-                        stride: 6,
-                        target: target(&color, &mut depth, &mut out),
-                    };
+                    let job = narrow(f1, f2, target(&color, &mut depth, &mut out));
                     assert_eq!(shade_narrow(level, job), 15);
                     let drawn = out.iter().filter(|&&c| c == want).count();
                     assert_eq!(drawn, 15, "{level:?} narrow: {out:?}, {want:?}");
                     // At 4x, samples at the pixel centres: a span of six pixels, and the box.
                     let (mut depth, mut out) = (vec![1.0f32; 24], vec![[0u8; 4]; 24]);
-                    let span = SpanJob {
-                        e1,
-                        e2,
-                        step1,
-                        step2,
-                        target: target(&color, &mut depth, &mut out),
-                    };
+                    let job = span(f1, f2, target(&color, &mut depth, &mut out));
                     let offsets = [[0; 2]; MAX_SAMPLES];
-                    shade_samples(level, SampleSpanJob { span, samples: 4, offsets });
+                    shade_samples(level, SampleSpanJob { span: job, samples: 4, offsets });
                     assert!(out.iter().all(|&c| c == want), "{level:?} 4x span: {out:?}");
                     let (mut depth, mut out) = (vec![1.0f32; 96], vec![[0u8; 4]; 96]);
-                    let narrow = NarrowJob {
-                        edges: [1, f1, f2],
-                        step_x: [0; 3],
-                        step_y: [0; 3],
-                        bias: [0; 2],
-                        columns: 5,
-                        rows: 3,
-                        first: 1,
-                        stride: 6,
-                        target: target(&color, &mut depth, &mut out),
-                    };
+                    let job = narrow(f1, f2, target(&color, &mut depth, &mut out));
                     let offsets = [[0; 3]; MAX_SAMPLES];
-                    let job = NarrowSamplesJob { narrow, samples: 4, offsets };
+                    let job = NarrowSamplesJob { narrow: job, samples: 4, offsets };
                     assert_eq!(shade_narrow_samples(level, job), 60);
                     let drawn = out.iter().filter(|&&c| c == want).count();
                     assert_eq!(drawn, 60, "{level:?} 4x narrow: {out:?}, {want:?}");
