@@ -26,7 +26,7 @@ use rayon::prelude::*;
 use crate::bin::{self, Coverage, Record, Sink};
 use crate::render::{DrawStats, Schedule};
 use crate::setup::PixelRect;
-use crate::shade::{self, DepthTest, OfTriangle, TriangleFragments};
+use crate::shade::{self, DepthTest, TriangleFragments};
 use crate::simd::{SimdLevel, SpanColor};
 use crate::target::Target;
 
@@ -253,17 +253,8 @@ impl Bands {
                             stages,
                             &mut queue,
                             |band, p| {
-                                shade::shade_triangle(
-                                    band,
-                                    &p.setup,
-                                    bin::coverage_algorithm(&p.setup),
-                                    rect,
-                                    &p.depth,
-                                    depth_test,
-                                    p.id,
-                                    kernel(&p.payload),
-                                    OfTriangle(&fragments, &p.payload),
-                                )
+                                let kernel = kernel(&p.payload);
+                                bin::shade_prepared(band, p, rect, depth_test, kernel, &fragments)
                             },
                         );
                     }

@@ -729,6 +729,31 @@ where
     record.with(|p| draw(band, p))
 }
 
+/// Shades prepared triangle `p` within `rect`: with the span kernel `kernel` where there is
+/// one, otherwise its fragments through `fragments` (what the band and tile loops draw for
+/// a triangle that does not share a lane queue).
+#[inline(always)]
+pub(crate) fn shade_prepared<T, F: TriangleFragments<T>>(
+    band: &mut TargetBand<'_>,
+    p: &Prepared<T>,
+    rect: &PixelRect,
+    depth_test: DepthTest,
+    kernel: Option<(SimdLevel, &SpanColor)>,
+    fragments: &F,
+) -> u64 {
+    shade::shade_triangle(
+        band,
+        &p.setup,
+        coverage_algorithm(&p.setup),
+        rect,
+        &p.depth,
+        depth_test,
+        p.id,
+        kernel,
+        OfTriangle(fragments, &p.payload),
+    )
+}
+
 /// The fastest of the (identical) rasterizers for a triangle: scanline spans cost a few
 /// divisions per row however wide the row, edge stepping a few additions per pixel of the
 /// bounding box; narrow triangles are cheaper to step, as branch-free row masks.
@@ -824,17 +849,7 @@ where
                 |band, p| {
                     let kernel = kernel(&p.payload);
                     let shade = |band: &mut TargetBand<'_>, rect: &PixelRect| {
-                        shade::shade_triangle(
-                            band,
-                            &p.setup,
-                            coverage_algorithm(&p.setup),
-                            rect,
-                            &p.depth,
-                            depth_test,
-                            p.id,
-                            kernel,
-                            OfTriangle(&fragments, &p.payload),
-                        )
+                        shade_prepared(band, p, rect, depth_test, kernel, &fragments)
                     };
                     if hidden(&p.setup) {
                         // Its fragments were counted while binning.
