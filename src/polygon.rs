@@ -25,6 +25,15 @@ use crate::target::Target;
 use earcut::Earcut;
 use earcut::int::EarcutI32;
 
+/// At most this many corners of a polygon may lie on one point for earcut to see it. A simple
+/// polygon has each point once, a polygon with a hole bridged to its boundary twice at the
+/// bridge's ends. Earcut's time on faces that pass through points three times or more grows
+/// with the cube of their length: a triangle's corners repeated 1000 times took 4.5 s (a
+/// 12 KB OBJ face of 6000 corners, 26 s), a 1000-point star traversed three times 3.7 s,
+/// where the same star traversed twice took 6 ms. Such a polygon is not simple, so no
+/// triangulation is the right one: faces take the fan, 2D polygons are not drawn.
+const MAX_CORNERS_AT_ONE_POINT: usize = 2;
+
 /// Half the side of the square [`EarcutI32`] accepts: coordinates must lie in `[-2^19, 2^19]`.
 const EARCUT_I32_HALF_RANGE: i64 = 1 << 19;
 
@@ -38,7 +47,9 @@ const EARCUT_I32_HALF_RANGE: i64 = 1 << 19;
 ///
 /// Degenerate input never panics: fewer than 3 points give nothing; a zero or non-finite normal
 /// (collinear or repeated points, NaN, infinity) gives the fan, whose triangles the rasterizer
-/// then drops and counts as degenerate or non-finite.
+/// then drops and counts as degenerate or non-finite. So does a face passing through one point
+/// more than twice (see [`MAX_CORNERS_AT_ONE_POINT`]), which earcut would take time cubic in
+/// its length to triangulate.
 #[must_use]
 pub fn triangulate_face(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
     let n = points.len();
@@ -53,7 +64,7 @@ pub fn triangulate_face(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
     // Axes (k+1, k+2) keep the orientation: the projected signed area is `normal[k] / 2`.
     let (u, v) = ((k + 1) % 3, (k + 2) % 3);
     let ring: Vec<[f64; 2]> = points.iter().map(|p| [f64::from(p[u]), f64::from(p[v])]).collect();
-    if is_strictly_convex(&ring) {
+    if is_strictly_convex(&ring) || most_corners_at_one_point(&ring) > MAX_CORNERS_AT_ONE_POINT {
         return fan(n);
     }
     let tris = earcut_f64(&ring, &[], normal[k] > 0.0);
@@ -66,7 +77,9 @@ pub fn triangulate_face(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
 ///
 /// Triangles are wound like the outer ring. Rings must not cross or touch each other (holes
 /// strictly inside the outer ring, pairwise disjoint), and each must be simple; for other input
-/// the result is whatever earcut makes of it. Non-finite coordinates give no triangles, holes
+/// the result is whatever earcut makes of it, except that rings passing through one point more
+/// than twice give no triangles (see [`MAX_CORNERS_AT_ONE_POINT`]). Non-finite coordinates give
+/// no triangles, holes
 /// with fewer than 3 points are ignored. For an exact triangulation of pixel coordinates, see
 /// [`triangulate_snapped`].
 #[must_use]
@@ -85,6 +98,9 @@ pub fn triangulate_polygon(rings: &[Vec<[f64; 2]>]) -> Vec<[usize; 3]> {
         return fan(outer.len());
     }
     let (data, holes, map) = flatten(rings, |ring| ring.len() >= 3);
+    if most_corners_at_one_point(&data) > MAX_CORNERS_AT_ONE_POINT {
+        return Vec::new();
+    }
     let tris = earcut_f64(&data, &holes, area > 0.0);
     tris.into_iter().map(|t| t.map(|i| map[i])).collect()
 }
@@ -114,6 +130,9 @@ pub fn triangulate_snapped(rings: &[Vec<[i32; 2]>]) -> Vec<[usize; 3]> {
         return fan(outer.len());
     }
     let (data, holes, map) = flatten(rings, keep);
+    if most_corners_at_one_point(&as_f64(&data)) > MAX_CORNERS_AT_ONE_POINT {
+        return Vec::new();
+    }
     let (mut lo, mut hi) = ([i64::MAX; 2], [i64::MIN; 2]);
     for p in &data {
         for k in 0..2 {
@@ -148,7 +167,8 @@ pub fn triangulate_snapped(rings: &[Vec<[i32; 2]>]) -> Vec<[usize; 3]> {
 /// the 1/256-pixel grid, centres exactly on its boundary follow the top-left rule, and no pixel
 /// is lit twice (see the module docs for why). The rings must form a valid polygon (simple
 /// rings, holes strictly inside the outer ring and disjoint from each other, after snapping);
-/// other input is drawn as earcut triangulates it, without panicking.
+/// other input is drawn as earcut triangulates it, without panicking, except that rings
+/// passing through one point more than twice are not drawn ([`triangulate_snapped`]).
 ///
 /// Errors: a finite vertex outside [-32768, 32768) pixels gives
 /// [`Error::CoordinateOutOfRange`], with `triangle` the ring and `vertex` the index in the
@@ -201,6 +221,13 @@ pub fn fill_polygon_with(
 }
 
 /// The fan `(0, i, i + 1)` over `n` corners: the triangulation of a convex polygon.
+/// How many of `points` lie on the most visited point (`-0.0` and `0.0` being one).
+fn most_corners_at_one_point(points: &[[f64; 2]]) -> usize {
+    let mut keys: Vec<[u64; 2]> = points.iter().map(|p| p.map(|c| (c + 0.0).to_bits())).collect();
+    keys.sort_unstable();
+    keys.chunk_by(|a, b| a == b).map(<[_]>::len).max().unwrap_or(0)
+}
+
 fn fan(n: usize) -> Vec<[usize; 3]> {
     (1..n.saturating_sub(1)).map(|i| [0, i, i + 1]).collect()
 }
@@ -388,6 +415,52 @@ mod tests {
         assert_eq!(triangulate_face(&nan), fan(4));
         let inf = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [f32::INFINITY, 1.0, 0.0], [0.0, 1.0, 0.0]];
         assert_eq!(triangulate_face(&inf), fan(4));
+    }
+
+    /// Polygons through one point three times or more take earcut time cubic in their length
+    /// (a 12 KB OBJ face hung for 26 s): faces take the fan, 2D polygons give nothing. Twice
+    /// (a hole bridged to the boundary, a polygon traversed twice) still goes to earcut.
+    #[test]
+    fn polygons_through_one_point_thrice_skip_earcut() {
+        // A triangle's corners 500 times over (earcut alone: half a second, 500 triangles).
+        let tri = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let face: Vec<[f32; 3]> = (0..1500).map(|i| tri[i % 3]).collect();
+        assert_eq!(triangulate_face(&face), fan(1500));
+        let ring: Vec<[f64; 2]> = face.iter().map(|p| [f64::from(p[0]), f64::from(p[1])]).collect();
+        assert!(triangulate_polygon(&[ring]).is_empty());
+        let snapped: Vec<[i32; 2]> =
+            (0..1500).map(|i| [[0, 0], [256, 0], [0, 256]][i % 3]).collect();
+        assert!(triangulate_snapped(&[snapped]).is_empty());
+        // A point visited three times by otherwise distinct corners: `-0.0` is `0.0`.
+        let thrice = [[0.0, 0.0], [4.0, 1.0], [-0.0, 0.0], [4.0, 3.0], [0.0, -0.0], [4.0, 5.0]];
+        assert_eq!(most_corners_at_one_point(&thrice), 3);
+
+        // A square with a square hole, bridged: the bridge's ends are visited twice. Earcut
+        // tiles it: the triangles' areas sum to the polygon's.
+        let keyhole = [
+            [0.0, 0.0],
+            [4.0, 0.0],
+            [4.0, 4.0],
+            [2.0, 3.0],
+            [3.0, 3.0],
+            [3.0, 1.0],
+            [1.0, 1.0],
+            [1.0, 3.0],
+            [2.0, 3.0],
+            [0.0, 4.0],
+        ];
+        assert_eq!(most_corners_at_one_point(&keyhole), 2);
+        let face: Vec<[f32; 3]> = keyhole.iter().map(|p| [p[0] as f32, p[1] as f32, 0.0]).collect();
+        let tris = triangulate_face(&face);
+        assert_ne!(tris, fan(keyhole.len()), "earcut, not the fan");
+        let area = |t: &[usize; 3]| {
+            let [a, b, c] = t.map(|i| keyhole[i]);
+            ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])) / 2.0
+        };
+        let sum: f64 = tris.iter().map(area).sum();
+        assert_eq!(2.0 * sum, shoelace(&keyhole));
+        // The square, less the hole and the notch the bridge cuts from the top edge.
+        assert_eq!(sum, 16.0 - 4.0 - 2.0);
     }
 
     #[test]
