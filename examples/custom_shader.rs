@@ -25,7 +25,7 @@ fn main() -> Result<(), Error> {
         trirast::mesh::load(path)?
     } else {
         println!("{} not found: drawing a generated sphere", path.display());
-        trirast::scene::sphere_mesh(4096)
+        trirast::scene::sphere_mesh(4096)?
     };
     let normals =
         mesh.normals.clone().unwrap_or_else(|| vertex_normals(&mesh.positions, &mesh.triangles));

@@ -141,7 +141,7 @@ fn prepare(
                 (crate::mesh::load(path)?, format!("{}", path.display()))
             } else {
                 (
-                    scene::sphere_mesh(69_451),
+                    scene::sphere_mesh(69_451)?,
                     "generated sphere of 69,451 triangles (bunny not found)".into(),
                 )
             };
@@ -206,7 +206,7 @@ fn prepare(
         BenchScene::Dense => {
             // Depth + flat colour with the leanest shaders: positions in, no varyings, one
             // colour per triangle from its index. Nothing per vertex is stored but the mesh.
-            let mesh = scene::sphere_mesh(dense_triangles);
+            let mesh = scene::sphere_mesh(dense_triangles)?;
             let (centre, radius) = camera::bounding_sphere(&mesh.positions);
             let projection = Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y };
             let camera = Camera::framing_sphere(centre, radius, 0.3, 0.2, 16.0 / 9.0, projection);
@@ -502,9 +502,9 @@ pub fn run_splats(points: usize, frames: usize) -> Result<SplatBenchResult, Erro
     let (mesh, source) = if path.exists() {
         (crate::mesh::load(path)?, "stanford-bunny.obj".to_string())
     } else {
-        (scene::sphere_mesh(69_451), "generated sphere (bunny not found)".to_string())
+        (scene::sphere_mesh(69_451)?, "generated sphere (bunny not found)".to_string())
     };
-    let cloud = cloud::sample_mesh(&mesh, &MaterialTextures::load(&mesh), points, 7);
+    let cloud = cloud::sample_mesh(&mesh, &MaterialTextures::load(&mesh), points, 7)?;
     let start = Instant::now();
     let tree = SplatTree::build(&cloud);
     let build_ms = start.elapsed().as_secs_f64() * 1e3;

@@ -24,6 +24,16 @@ pub enum Error {
         /// Samples per pixel.
         samples: usize,
     },
+    /// An array whose size the caller chose (points to sample, triangles to generate) could
+    /// not be allocated: an error to report rather than the abort of an infallible
+    /// allocation.
+    #[error("not enough memory for {what}: {gib:.1} GiB", gib = *.bytes as f64 / f64::from(1 << 30))]
+    OutOfMemory {
+        /// What the memory was for.
+        what: String,
+        /// How many bytes were asked for.
+        bytes: u128,
+    },
     /// A vertex lies outside the fixed-point range.
     #[error(
         "triangle {triangle}: vertex {vertex} at ({x}, {y}) is outside the supported window \
@@ -105,6 +115,23 @@ pub enum Error {
         /// What the encoder said.
         message: String,
     },
+}
+
+/// `n` copies of `value` in a vector, or [`Error::OutOfMemory`] naming `what` when the memory
+/// cannot be had.
+pub(crate) fn try_filled<T: Clone>(n: usize, value: T, what: &str) -> Result<Vec<T>, Error> {
+    let mut v = Vec::new();
+    try_reserve(&mut v, n, what)?;
+    v.resize(n, value);
+    Ok(v)
+}
+
+/// Reserves room for `n` more elements in `v`, or [`Error::OutOfMemory`] naming `what`.
+pub(crate) fn try_reserve<T>(v: &mut Vec<T>, n: usize, what: &str) -> Result<(), Error> {
+    v.try_reserve_exact(n).map_err(|_| Error::OutOfMemory {
+        what: what.to_string(),
+        bytes: n as u128 * size_of::<T>() as u128,
+    })
 }
 
 impl Error {

@@ -1020,8 +1020,11 @@ fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Er
     let mesh = trirast::mesh::load(file)?;
     warn_about(&mesh);
     let textures = MaterialTextures::load(&mesh);
+    for w in &textures.warnings {
+        eprintln!("trirast: warning: {w}");
+    }
     let start = std::time::Instant::now();
-    let cloud = trirast::splat::cloud::sample_mesh(&mesh, &textures, points, seed);
+    let cloud = trirast::splat::cloud::sample_mesh(&mesh, &textures, points, seed)?;
     if cloud.positions.is_empty() {
         // An empty cloud written here was refused by every command that reads one.
         return Err(usage(format!(

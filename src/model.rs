@@ -516,7 +516,7 @@ mod tests {
     /// pipeline does), never a panic.
     #[test]
     fn mismatched_meshes_are_errors() {
-        let good = crate::scene::sphere_mesh(200);
+        let good = crate::scene::sphere_mesh(200).unwrap();
         let camera = Camera::framing_sphere(
             Vec3::ZERO,
             1.0,
@@ -562,7 +562,7 @@ mod tests {
     /// triangle its id names, for every triangle drawn (no texture, no vertex colours).
     #[test]
     fn materials_colour_their_triangles() {
-        let mut mesh = crate::scene::sphere_mesh(500);
+        let mut mesh = crate::scene::sphere_mesh(500).unwrap();
         mesh.materials = vec![
             Material { diffuse: [1.0, 0.0, 0.0], ..Material::default() },
             Material { diffuse: [0.0, 0.0, 1.0], ..Material::default() },
@@ -593,7 +593,7 @@ mod tests {
     /// textured material on half its triangles.
     #[test]
     fn surface_varyings_draw_what_the_full_ones_draw() {
-        let mut mesh = crate::scene::sphere_mesh(3000);
+        let mut mesh = crate::scene::sphere_mesh(3000).unwrap();
         let n = mesh.positions.len();
         let wave = |i: usize, k: f32| (i as f32 * k).sin() * 0.5 + 0.5;
         mesh.colors =

@@ -5,6 +5,7 @@
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 
+use crate::error::{Error, try_reserve};
 use crate::setup::Vertex;
 use crate::shade::Shading;
 
@@ -209,13 +210,18 @@ pub fn default_model() -> crate::mesh::Mesh {
     mesh
 }
 
-/// A UV sphere with about `triangles` triangles, counter-clockwise outside.
-#[must_use]
-pub fn sphere_mesh(triangles: usize) -> crate::mesh::Mesh {
+/// A UV sphere with about `triangles` triangles (at most 2^31, as its `u32` indices allow),
+/// counter-clockwise outside.
+///
+/// Errors: [`Error::OutOfMemory`] when its arrays cannot be allocated (`triangles` is the
+/// caller's to choose: `trirast bench dense --dense-triangles`).
+pub fn sphere_mesh(triangles: usize) -> Result<crate::mesh::Mesh, Error> {
+    let triangles = triangles.min(1 << 31);
     let stacks = ((triangles as f64 / 4.0).sqrt().round() as u32).max(2);
     let slices = ((triangles as f64 / (2.0 * f64::from(stacks))).round() as u32).max(3);
     let mut mesh = crate::mesh::Mesh::default();
-    mesh.positions.reserve(((stacks + 1) * (slices + 1)) as usize);
+    let what = format!("a sphere of {triangles} triangles");
+    try_reserve(&mut mesh.positions, ((stacks + 1) * (slices + 1)) as usize, &what)?;
     for j in 0..=stacks {
         let theta = std::f32::consts::PI * j as f32 / stacks as f32;
         for i in 0..=slices {
@@ -224,7 +230,7 @@ pub fn sphere_mesh(triangles: usize) -> crate::mesh::Mesh {
         }
     }
     let row = slices + 1;
-    mesh.triangles.reserve(2 * (stacks * slices) as usize);
+    try_reserve(&mut mesh.triangles, 2 * (stacks * slices) as usize, &what)?;
     for j in 0..stacks {
         for i in 0..slices {
             let (a, b) = (j * row + i, (j + 1) * row + i);
@@ -233,5 +239,5 @@ pub fn sphere_mesh(triangles: usize) -> crate::mesh::Mesh {
         }
     }
     mesh.polygon_count = mesh.triangles.len();
-    mesh
+    Ok(mesh)
 }

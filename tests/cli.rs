@@ -994,3 +994,29 @@ fn empty_inputs_and_misnamed_outputs_are_reported() {
     }
     run_ok(&dir.0, ["render", "--size", "16x12", "-o", "x.PNG"]);
 }
+
+/// A texture whose header reads but whose pixels do not decode is found out only when the
+/// textures are loaded: `sample`, like `render`, says so (it used to fall back to plain colour
+/// in silence).
+#[test]
+fn sample_warns_about_a_texture_that_does_not_decode() {
+    let dir = TempDir::new("undecodable-texture");
+    let png = dir.path("t.png");
+    image::RgbaImage::from_fn(64, 64, |x, y| image::Rgba([(x * 4) as u8, (y * 4) as u8, 7, 255]))
+        .save(&png)
+        .unwrap();
+    // Cut inside the pixel data: the header (what loading the mesh checks) stays whole.
+    let bytes = fs::read(&png).unwrap();
+    fs::write(&png, &bytes[..bytes.len() - 40]).unwrap();
+    dir.write("m.mtl", "newmtl tex\nKd 1 1 1\nmap_Kd t.png\n");
+    dir.write(
+        "q.obj",
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl tex\n\
+         f 1/1 2/2 3/3\n",
+    );
+    let render = run_ok(&dir.0, ["render", "q.obj", "--size", "16x16", "-o", "r.png"]);
+    let sample = run_ok(&dir.0, ["sample", "q.obj", "--points", "10", "-o", "s.ply"]);
+    for (command, err) in [("render", render), ("sample", sample)] {
+        assert!(err.contains("warning") && err.contains("t.png"), "{command}: {err}");
+    }
+}

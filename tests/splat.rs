@@ -193,7 +193,7 @@ fn splat_sphere_covers_what_the_triangle_sphere_covers() {
         far: 10.0,
     };
     // Triangles: a fine UV sphere.
-    let mesh = trirast::scene::sphere_mesh(40_000);
+    let mesh = trirast::scene::sphere_mesh(40_000).unwrap();
     let vp = camera.view_projection(w as f32 / h as f32);
     let mut tri_target = Target::new(w, h).unwrap().with_ids();
     let vs = |p: &[f32; 3]| (vp * Vec3::from(*p).extend(1.0), ());

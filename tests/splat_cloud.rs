@@ -120,7 +120,7 @@ fn write_then_read_is_bit_exact_for_every_attribute_combination() {
 #[test]
 fn sampled_cloud_round_trips() {
     let dir = scratch("sampled_round_trip");
-    let cloud = sample_mesh(&tetrahedron(), &MaterialTextures::default(), 3000, 11);
+    let cloud = sample_mesh(&tetrahedron(), &MaterialTextures::default(), 3000, 11).unwrap();
     let path = dir.join("sampled.ply");
     write_ply(&path, &cloud).unwrap();
     assert_identical(&read_ply(&path).unwrap(), &cloud);
@@ -551,12 +551,27 @@ fn assert_consistent(c: &PointCloud, n: usize) {
     assert_eq!(c.radii.as_ref().map(Vec::len), Some(n));
 }
 
+/// More points than memory can hold are an error naming them, not an abort (`trirast sample
+/// --points 1073741824` under an 8 GB limit aborted in `vec!`). Here the size overflows, so
+/// nothing is allocated.
+#[test]
+fn sampling_more_points_than_memory_holds_is_an_error() {
+    let n = usize::MAX / 16;
+    match sample_mesh(&tetrahedron(), &MaterialTextures::default(), n, 3) {
+        Err(Error::OutOfMemory { what, bytes }) => {
+            assert_eq!(what, format!("{n} sampled points"));
+            assert_eq!(bytes, n as u128 * 12, "the positions' bytes");
+        }
+        other => panic!("expected OutOfMemory, got {:?}", other.map(|c| c.len())),
+    }
+}
+
 #[test]
 fn samples_exactly_n_points_on_the_surface() {
     let m = tetrahedron();
     let none = MaterialTextures::default();
     for n in [1, 7, 4096, 4097, 9000] {
-        let c = sample_mesh(&m, &none, n, 3);
+        let c = sample_mesh(&m, &none, n, 3).unwrap();
         assert_consistent(&c, n);
         let size = 3.0 * 1.3;
         for (i, p) in c.positions.iter().enumerate() {
@@ -588,7 +603,7 @@ fn triangles_get_points_in_proportion_to_their_area() {
         vec![[0, 1, 2], [3, 4, 5]],
     );
     let n = 40_000;
-    let c = sample_mesh(&m, &MaterialTextures::default(), n, 2024);
+    let c = sample_mesh(&m, &MaterialTextures::default(), n, 2024).unwrap();
     let small = c.positions.iter().filter(|p| p[2] < 2.5).count() as f64 / n as f64;
     // Standard deviation sqrt(1/4 * 3/4 / 40000) ~ 0.0022: a tolerance of about 5 of them.
     assert!((small - 0.25).abs() < 0.012, "fraction on the area-1 triangle: {small}");
@@ -618,7 +633,7 @@ fn degenerate_and_broken_triangles_get_no_points() {
         ],
         vec![[3, 4, 5], [0, 1, 2], [0, 1, 99], [4, 4, 3]],
     );
-    let c = sample_mesh(&m, &MaterialTextures::default(), 5000, 1);
+    let c = sample_mesh(&m, &MaterialTextures::default(), 5000, 1).unwrap();
     assert_consistent(&c, 5000);
     assert!(c.positions.iter().all(|p| p[2] == 0.0));
 }
@@ -631,7 +646,7 @@ fn empty_inputs_give_empty_clouds() {
         (Mesh::default(), 100),
         (mesh(vec![[0.0; 3], [1.0, 1.0, 1.0], [2.0, 2.0, 2.0]], vec![[0, 1, 2]]), 100),
     ] {
-        let c = sample_mesh(&m, &none, n, 0);
+        let c = sample_mesh(&m, &none, n, 0).unwrap();
         assert_consistent(&c, 0);
         assert_eq!(c.bounds(), None);
     }
@@ -640,18 +655,18 @@ fn empty_inputs_give_empty_clouds() {
 #[test]
 fn face_normals_follow_the_winding() {
     let none = MaterialTextures::default();
-    let c = sample_mesh(&quad(), &none, 2000, 5);
+    let c = sample_mesh(&quad(), &none, 2000, 5).unwrap();
     assert!(c.normals.unwrap().iter().all(|n| *n == [0.0, 0.0, 1.0]));
     let mut back = quad();
     for t in &mut back.triangles {
         t.swap(1, 2);
     }
-    let c = sample_mesh(&back, &none, 2000, 5);
+    let c = sample_mesh(&back, &none, 2000, 5).unwrap();
     assert!(c.normals.unwrap().iter().all(|n| *n == [0.0, 0.0, -1.0]));
     // A tilted plane x + y + z = 1.
     let m = mesh(vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], vec![[0, 1, 2]]);
     let s = 1.0 / 3.0f32.sqrt();
-    for n in sample_mesh(&m, &none, 1000, 5).normals.unwrap() {
+    for n in sample_mesh(&m, &none, 1000, 5).unwrap().normals.unwrap() {
         let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
         assert!((len - 1.0).abs() < 1e-6, "{n:?}");
         assert!(n.iter().all(|c| (c - s).abs() < 1e-6), "{n:?}");
@@ -663,7 +678,7 @@ fn vertex_normals_are_interpolated_and_normalised() {
     let mut m = mesh(vec![[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]], vec![[0, 1, 2]]);
     let vn = [[0.0, 0.0, 1.0], unit([1.0, 0.0, 1.0]), unit([0.0, -1.0, 1.0])];
     m.normals = Some(vn.to_vec());
-    let c = sample_mesh(&m, &MaterialTextures::default(), 2000, 8);
+    let c = sample_mesh(&m, &MaterialTextures::default(), 2000, 8).unwrap();
     let [a, b, cc] = [0, 1, 2].map(|i| f64s(m.positions[i]));
     for (p, n) in c.positions.iter().zip(c.normals.unwrap()) {
         let w = barycentric(f64s(*p), a, b, cc);
@@ -680,7 +695,7 @@ fn vertex_colours_are_interpolated_in_linear_light() {
     let mut m = mesh(vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], vec![[0, 1, 2]]);
     let vc = [[1.0, 0.0, 0.0, 1.0], [0.0, 1.0, 0.0, 1.0], [0.0, 0.0, 1.0, 0.5]];
     m.colors = Some(vc.to_vec());
-    let c = sample_mesh(&m, &MaterialTextures::default(), 3000, 9);
+    let c = sample_mesh(&m, &MaterialTextures::default(), 3000, 9).unwrap();
     let [a, b, cc] = [0, 1, 2].map(|i| f64s(m.positions[i]));
     for (p, col) in c.positions.iter().zip(c.colors.unwrap()) {
         let w = barycentric(f64s(*p), a, b, cc);
@@ -694,7 +709,7 @@ fn vertex_colours_are_interpolated_in_linear_light() {
     }
     // One colour everywhere comes back exactly (8-bit values survive the linear round trip).
     m.colors = Some(vec![[0.2, 0.4, 0.8, 1.0]; 3]);
-    let c = sample_mesh(&m, &MaterialTextures::default(), 500, 9);
+    let c = sample_mesh(&m, &MaterialTextures::default(), 500, 9).unwrap();
     assert!(c.colors.unwrap().iter().all(|c| *c == [51, 102, 204]));
 }
 
@@ -705,7 +720,7 @@ fn texture_colours_come_from_the_texture() {
     let mut m = quad();
     m.materials = vec![Material { diffuse: [0.0, 1.0, 0.0], ..Material::default() }];
     m.triangle_materials = Some(vec![0, 0]);
-    let c = sample_mesh_with_textures(&m, &[Some(texture.clone())], 4000, 12);
+    let c = sample_mesh_with_textures(&m, &[Some(texture.clone())], 4000, 12).unwrap();
     let colors = c.colors.unwrap();
     let mut near_centre = 0;
     for (p, col) in c.positions.iter().zip(&colors) {
@@ -729,7 +744,7 @@ fn texture_colours_come_from_the_texture() {
     assert!(near_centre > 0);
     // Without texture coordinates, the material colour.
     m.texcoords = None;
-    let c = sample_mesh_with_textures(&m, &[Some(texture)], 100, 12);
+    let c = sample_mesh_with_textures(&m, &[Some(texture)], 100, 12).unwrap();
     assert!(c.colors.unwrap().iter().all(|c| *c == [0, 255, 0]));
 }
 
@@ -742,7 +757,7 @@ fn material_and_default_colours() {
     ];
     m.triangle_materials = Some(vec![1, 0]);
     let textures = MaterialTextures::load(&m);
-    let c = sample_mesh(&m, &textures, 2000, 4);
+    let c = sample_mesh(&m, &textures, 2000, 4).unwrap();
     for (p, col) in c.positions.iter().zip(c.colors.unwrap()) {
         // Triangle 0 is below the diagonal y = x.
         let expected = if p[1] < p[0] { [51, 51, 255] } else { [255, 128, 0] };
@@ -750,13 +765,13 @@ fn material_and_default_colours() {
             assert_eq!(col, expected, "at {p:?}");
         }
     }
-    let c = sample_mesh(&quad(), &MaterialTextures::default(), 100, 4);
+    let c = sample_mesh(&quad(), &MaterialTextures::default(), 100, 4).unwrap();
     assert!(c.colors.unwrap().iter().all(|c| *c == [200, 200, 200]));
 }
 
 #[test]
 fn radii_make_disks_cover_the_area_one_and_a_half_times_over() {
-    let c = sample_mesh(&tetrahedron(), &MaterialTextures::default(), 1234, 0);
+    let c = sample_mesh(&tetrahedron(), &MaterialTextures::default(), 1234, 0).unwrap();
     let m = tetrahedron();
     let area: f64 = m
         .triangles
@@ -780,17 +795,17 @@ fn same_seed_same_cloud_whatever_the_threads() {
     let n = 3 * 4096 + 5;
     let run = |threads: usize, seed: u64| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| sample_mesh(&m, &none, n, seed))
+        pool.install(|| sample_mesh(&m, &none, n, seed).unwrap())
     };
     let one = run(1, 42);
     assert_identical(&one, &run(2, 42));
     assert_identical(&one, &run(3, 42));
-    assert_identical(&one, &sample_mesh(&m, &none, n, 42));
+    assert_identical(&one, &sample_mesh(&m, &none, n, 42).unwrap());
     let other = run(2, 43);
     let same = one.positions.iter().zip(&other.positions).filter(|(a, b)| a == b).count();
     assert!(same < 10, "{same} of {n} points equal with another seed");
     // A shorter run is a prefix of a longer one with the same seed (fixed chunks).
-    let short = sample_mesh(&m, &none, 5000, 42);
+    let short = sample_mesh(&m, &none, 5000, 42).unwrap();
     assert_eq!(short.positions[..], one.positions[..5000]);
 }
 
@@ -816,7 +831,7 @@ fn samples_shared_models_when_present() {
         }
         let m = trirast::mesh::load(&path).unwrap();
         let textures = MaterialTextures::load(&m);
-        let c = sample_mesh(&m, &textures, 20_000, 7);
+        let c = sample_mesh(&m, &textures, 20_000, 7).unwrap();
         assert_consistent(&c, 20_000);
         let (lo, hi) = c.bounds().unwrap();
         let mesh_cloud = PointCloud { positions: m.positions.clone(), ..PointCloud::default() };

@@ -44,7 +44,7 @@ use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
 use crate::color::{linear_to_srgb8, srgb_decode};
-use crate::error::Error;
+use crate::error::{Error, try_filled};
 use crate::mesh::ply_common::{
     At, COLOR_NAMES, Fail, Fields, NX, POSITION_NORMAL, Ply, RED, Sink, X, parse_error, scalar,
 };
@@ -414,28 +414,38 @@ const DEFAULT_COLOR: [u8; 3] = [200, 200, 200];
 /// its own `SmallRng` stream seeded from `(seed, chunk index)`, and run on rayon's threads:
 /// the same seed gives the same cloud whatever the number of threads (for a given version of
 /// `rand`, whose `SmallRng` algorithm is not promised to stay the same).
-#[must_use]
-pub fn sample_mesh(mesh: &Mesh, textures: &MaterialTextures, n: usize, seed: u64) -> PointCloud {
+///
+/// Errors: [`Error::OutOfMemory`] when the `n` points' arrays cannot be allocated.
+pub fn sample_mesh(
+    mesh: &Mesh,
+    textures: &MaterialTextures,
+    n: usize,
+    seed: u64,
+) -> Result<PointCloud, Error> {
     sample(mesh, &|k| textures.get(k), n, seed)
 }
 
 /// [`sample_mesh`] with the diffuse textures given directly: `textures[k]` is the texture of
 /// material `k` (`None`, or a short slice, for materials without one). For textures built in
 /// code.
-#[must_use]
 pub fn sample_mesh_with_textures(
     mesh: &Mesh,
     textures: &[Option<Texture>],
     n: usize,
     seed: u64,
-) -> PointCloud {
+) -> Result<PointCloud, Error> {
     sample(mesh, &|k| textures.get(k).and_then(Option::as_ref), n, seed)
 }
 
 type TextureOf<'a> = dyn Fn(usize) -> Option<&'a Texture> + Sync + 'a;
 
 #[allow(clippy::cast_possible_truncation, clippy::cast_precision_loss)]
-fn sample(mesh: &Mesh, texture_of: &TextureOf<'_>, n: usize, seed: u64) -> PointCloud {
+fn sample(
+    mesh: &Mesh,
+    texture_of: &TextureOf<'_>,
+    n: usize,
+    seed: u64,
+) -> Result<PointCloud, Error> {
     // Without normals in the file, the smooth (area-weighted, welded) vertex normals the mesh
     // renderer shades with: face normals of scanned meshes include flipped slivers, whose
     // points the splat renderer's back-face culling would then drop, leaving holes.
@@ -449,16 +459,17 @@ fn sample(mesh: &Mesh, texture_of: &TextureOf<'_>, n: usize, seed: u64) -> Point
     }
     let total = sampler.cumulative.last().copied().unwrap_or(0.0);
     if n == 0 || !(total > 0.0 && total.is_finite()) {
-        return PointCloud {
+        return Ok(PointCloud {
             positions: Vec::new(),
             normals: Some(Vec::new()),
             colors: Some(Vec::new()),
             radii: Some(Vec::new()),
-        };
+        });
     }
-    let mut positions = vec![[0.0f32; 3]; n];
-    let mut normals = vec![[0.0f32; 3]; n];
-    let mut colors = vec![[0u8; 3]; n];
+    let what = format!("{n} sampled points");
+    let mut positions = try_filled(n, [0.0f32; 3], &what)?;
+    let mut normals = try_filled(n, [0.0f32; 3], &what)?;
+    let mut colors = try_filled(n, [0u8; 3], &what)?;
     positions
         .par_chunks_mut(CHUNK)
         .zip(normals.par_chunks_mut(CHUNK))
@@ -471,12 +482,12 @@ fn sample(mesh: &Mesh, texture_of: &TextureOf<'_>, n: usize, seed: u64) -> Point
             }
         });
     let radius = ((total / (std::f64::consts::PI * n as f64)).sqrt() * 3.0) as f32;
-    PointCloud {
+    Ok(PointCloud {
         positions,
         normals: Some(normals),
         colors: Some(colors),
-        radii: Some(vec![radius; n]),
-    }
+        radii: Some(try_filled(n, radius, &what)?),
+    })
 }
 
 /// The seed of chunk `chunk`'s random stream: SplitMix64 mixing, so that neighbouring seeds and
