@@ -503,13 +503,15 @@ fn main() -> ExitCode {
 }
 
 fn render(args: &RenderArgs) -> Result<(), Error> {
-    check_outputs(&[
+    let outputs = [
         ("--output", Some(args.output.as_path()), Written::Png),
         ("--depth", args.depth.as_deref(), Written::Npy),
         ("--ids", args.ids.as_deref(), Written::Npy),
         ("--overdraw", args.overdraw.as_deref(), Written::Npy),
         ("--normals", args.normals.as_deref(), Written::Npy),
-    ])?;
+    ];
+    let inputs: Vec<&Path> = args.file.iter().chain(&args.texture).map(PathBuf::as_path).collect();
+    check_outputs(&outputs, &inputs)?;
     let (width, height) = args.size;
     let window = args.projection == ProjectionArg::Window;
     let default_msaa = if window { SampleCount::X1 } else { SampleCount::X4 };
@@ -750,42 +752,62 @@ enum Written {
     Png,
     /// A NumPy array.
     Npy,
-    /// Another format (a point cloud, a packed hierarchy): only the directory is checked.
-    Other,
+    /// A PLY point cloud.
+    Ply,
+    /// A packed splat hierarchy.
+    Tsplat,
 }
 
-/// Extensions of formats trirast does not write: a PNG or `.npy` named with one would be read
-/// as that format by whatever opens it.
-const OTHER_FORMATS: [&str; 14] = [
-    "jpg", "jpeg", "bmp", "gif", "tif", "tiff", "webp", "tga", "exr", "hdr", "ppm", "ply", "obj",
-    "tsplat",
+impl Written {
+    /// The extension of the format.
+    fn extension(self) -> &'static str {
+        match self {
+            Self::Png => "png",
+            Self::Npy => "npy",
+            Self::Ply => "ply",
+            Self::Tsplat => "tsplat",
+        }
+    }
+}
+
+/// Extensions of formats that readers recognise by name: a file named with one but holding
+/// another format would be read as that one by whatever opens it.
+const KNOWN_FORMATS: [&str; 16] = [
+    "png", "npy", "jpg", "jpeg", "bmp", "gif", "tif", "tiff", "webp", "tga", "exr", "hdr", "ppm",
+    "ply", "obj", "tsplat",
 ];
 
-/// Checks the files a command will write before it does any work: two options naming one
-/// file (the second silently overwrote the first, and "wrote" named a PNG holding an `.npy`),
-/// a directory that does not exist (found only after rendering, with some files already
-/// written), and a name that says another format (a `.jpg` held PNG bytes).
-fn check_outputs(outputs: &[(&str, Option<&Path>, Written)]) -> Result<(), Error> {
+/// Checks the files a command will write before it does any work: an output that is one of
+/// the command's `inputs` (`pack c.ply -o c.ply` replaced the cloud it read, `render --texture
+/// t.png -o t.png` the texture), two options naming one file (the second silently overwrote
+/// the first, and "wrote" named a PNG holding an `.npy`), a directory that does not exist
+/// (found only after rendering, with some files already written), and a name that says
+/// another format (a `.jpg` held PNG bytes). Files are compared where they lead
+/// ([`resolved`]), so `x.npy` and `../dir/x.npy` or a link to it are one file.
+fn check_outputs(
+    outputs: &[(&str, Option<&Path>, Written)],
+    inputs: &[&Path],
+) -> Result<(), Error> {
     let named: Vec<(&str, &Path, Written)> =
         outputs.iter().filter_map(|&(option, path, kind)| Some((option, path?, kind))).collect();
-    // `a.png` and `./a.png` are one file.
-    let same = |a: &Path, b: &Path| {
-        let cur = std::path::Component::CurDir;
-        a.components().filter(|c| *c != cur).eq(b.components().filter(|c| *c != cur))
-    };
+    let inputs: Vec<(&Path, PathBuf)> = inputs.iter().map(|&p| (p, resolved(p))).collect();
+    let outputs: Vec<PathBuf> = named.iter().map(|&(_, p, _)| resolved(p)).collect();
     for (k, &(option, path, kind)) in named.iter().enumerate() {
+        if let Some((input, _)) = inputs.iter().find(|(_, r)| *r == outputs[k]) {
+            return Err(usage(format!(
+                "{option} {} is the input {}: writing it would destroy what is read",
+                path.display(),
+                input.display()
+            )));
+        }
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         let ext = ext.as_deref().unwrap_or("");
-        let misnamed = match kind {
-            Written::Png => OTHER_FORMATS.contains(&ext) || ext == "npy",
-            Written::Npy => OTHER_FORMATS.contains(&ext) || ext == "png",
-            Written::Other => false,
-        };
-        if misnamed {
-            let format = if kind == Written::Png { ".png" } else { ".npy" };
-            return Err(usage(format!("{option} {}: it is written as {format}", path.display())));
+        if KNOWN_FORMATS.contains(&ext) && ext != kind.extension() {
+            let format = kind.extension();
+            return Err(usage(format!("{option} {}: it is written as .{format}", path.display())));
         }
-        if let Some(&(first, ..)) = named[..k].iter().find(|(_, p, _)| same(p, path)) {
+        if let Some(j) = outputs[..k].iter().position(|r| *r == outputs[k]) {
+            let first = named[j].0;
             return Err(usage(format!("{first} and {option} both name {}", path.display())));
         }
         let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
@@ -798,6 +820,20 @@ fn check_outputs(outputs: &[(&str, Option<&Path>, Written)]) -> Result<(), Error
         }
     }
     Ok(())
+}
+
+/// Where `path` leads: the file itself with links and `..` resolved when it exists, else its
+/// directory resolved and its name (the name as given where the directory is missing, which
+/// [`check_outputs`] reports anyway).
+fn resolved(path: &Path) -> PathBuf {
+    if let Ok(p) = std::fs::canonicalize(path) {
+        return p;
+    }
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    match (std::fs::canonicalize(dir), path.file_name()) {
+        (Ok(dir), Some(name)) => dir.join(name),
+        _ => path.to_path_buf(),
+    }
 }
 
 /// Writes the PNG and the requested buffers; a turntable `frame` numbers every file name.
@@ -1016,7 +1052,7 @@ fn warn_about(mesh: &Mesh) {
 }
 
 fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Error> {
-    check_outputs(&[("--output", Some(output), Written::Other)])?;
+    check_outputs(&[("--output", Some(output), Written::Ply)], &[file])?;
     let mesh = trirast::mesh::load(file)?;
     warn_about(&mesh);
     let textures = MaterialTextures::load(&mesh);
@@ -1067,7 +1103,7 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
 }
 
 fn pack(file: &Path, output: &Path) -> Result<(), Error> {
-    check_outputs(&[("--output", Some(output), Written::Other)])?;
+    check_outputs(&[("--output", Some(output), Written::Tsplat)], &[file])?;
     let tree = load_splats(file)?;
     trirast::splat::format::write(output, &tree)?;
     let bytes = std::fs::metadata(output).map_err(|e| Error::io(output, e))?.len();
@@ -1085,10 +1121,11 @@ fn pack(file: &Path, output: &Path) -> Result<(), Error> {
 
 fn splat(args: &SplatArgs) -> Result<(), Error> {
     use trirast::splat::render::{Progressive, SplatOptions, SplatShape};
-    check_outputs(&[
+    let outputs = [
         ("--output", Some(args.output.as_path()), Written::Png),
         ("--depth", args.depth.as_deref(), Written::Npy),
-    ])?;
+    ];
+    check_outputs(&outputs, &[&args.file])?;
     let tree = load_splats(&args.file)?;
     let (width, height) = args.size;
     let mut target = Target::new(width, height)?;
@@ -1204,7 +1241,7 @@ fn demo(
         DemoArg::Smooth => Demo::Smooth,
         DemoArg::Soup => Demo::Soup,
     };
-    check_outputs(&[("--output", Some(output), Written::Png)])?;
+    check_outputs(&[("--output", Some(output), Written::Png)], &[])?;
     let mut target = Target::new(size.0, size.1)?;
     let s = scene::demo(which, size.0, size.1);
     let options = RenderOptions::default().with_shading(s.shading).with_algorithm(algorithm.into());

@@ -909,6 +909,54 @@ fn clashing_or_unreachable_outputs_are_refused_before_rendering() {
     assert!(dir.path("a.png").exists() && dir.path("a.npy").exists());
 }
 
+/// An output that is the command's input, or another output reached by another path, is
+/// refused before anything is written: `pack c.ply -o c.ply` replaced the cloud it read,
+/// `render --texture t.png -o t.png` the texture, and `--ids x.npy --depth ../dir/x.npy` wrote
+/// one file twice.
+#[test]
+fn outputs_that_are_inputs_or_each_other_are_refused() {
+    let dir = TempDir::new("inputs");
+    let cloud = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                 property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
+    let quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+                f 1/1 2/2 3/3 4/4\n";
+    let files = [("c.ply", cloud), ("m.obj", quad)];
+    for (name, text) in files {
+        dir.write(name, text);
+    }
+    run_ok(&dir.0, ["render", "--size", "8x8", "-o", "t.png"]);
+    run_ok(&dir.0, ["pack", "c.ply", "-o", "c.tsplat"]);
+    let here = dir.0.file_name().unwrap().to_str().unwrap().to_string();
+    let round_trip = format!("../{here}/x.npy");
+    let cases: [(&[&str], &str); 6] = [
+        (&["pack", "c.tsplat", "-o", "c.tsplat"], "is the input"),
+        (&["pack", "c.tsplat", "-o", "./c.tsplat"], "is the input"),
+        (&["sample", "m.obj", "-o", "./m.obj"], "is the input"),
+        (
+            &["render", "m.obj", "--texture", "t.png", "--size", "8x8", "-o", "t.png"],
+            "is the input",
+        ),
+        (&["render", "--size", "8x8", "--ids", "x.npy", "--depth", &round_trip], "both name"),
+        (&["sample", "m.obj", "-o", "m.png"], "written as .ply"),
+    ];
+    for (args, refused) in cases {
+        let before: Vec<Vec<u8>> =
+            ["c.tsplat", "m.obj", "t.png"].map(|f| fs::read(dir.path(f)).unwrap()).into();
+        let err = run_err(&dir.0, args);
+        assert!(err.contains(refused), "{args:?}: {err}");
+        let after: Vec<Vec<u8>> =
+            ["c.tsplat", "m.obj", "t.png"].map(|f| fs::read(dir.path(f)).unwrap()).into();
+        assert!(before == after, "{args:?}: an input was written");
+        assert!(!dir.path("x.npy").exists(), "{args:?}: nothing is written");
+    }
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink(dir.path("c.tsplat"), dir.path("link.tsplat")).unwrap();
+        let err = run_err(&dir.0, ["pack", "c.tsplat", "-o", "link.tsplat"]);
+        assert!(err.contains("is the input"), "{err}");
+    }
+}
+
 /// Options are honoured or refused, never silently ignored: `--frames` times window
 /// projection too (its image the same as one untimed frame's, on the same background), and
 /// `--turntable` refuses the window projection, `--frames` and `--eye` (its frames would all
