@@ -79,11 +79,11 @@ pub enum Error {
         path: PathBuf,
     },
     /// A malformed input file.
-    #[error("{}:{line}: {message}", path.display())]
+    #[error("{}{}: {message}", path.display(), at_line(*line))]
     Parse {
         /// The file.
         path: PathBuf,
-        /// 1-based line number.
+        /// 1-based line number; 0 in a binary file, whose message names the byte.
         line: usize,
         /// What was expected.
         message: String,
@@ -115,6 +115,12 @@ pub enum Error {
         /// What the encoder said.
         message: String,
     },
+}
+
+/// `:line` after a file's name, nothing for line 0 (a binary file: `f.ply:0: byte 115` read
+/// as a line number that does not exist).
+fn at_line(line: usize) -> String {
+    if line == 0 { String::new() } else { format!(":{line}") }
 }
 
 /// `n` copies of `value` in a vector, or [`Error::OutOfMemory`] naming `what` when the memory

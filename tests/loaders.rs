@@ -757,19 +757,19 @@ fn malformed_files_name_the_file_and_position() {
             "huge_count.ply",
             huge.clone(),
             format!(
-                ":0: byte {}: file ends inside `vertex` 0 of 4000000000",
+                ": byte {}: file ends inside `vertex` 0 of 4000000000",
                 huge.len()
             ),
         ),
         (
             "truncated_le.ply",
             truncated,
-            format!(":0: byte {}: file ends inside `vertex` 2 of 3", body + 24),
+            format!(": byte {}: file ends inside `vertex` 2 of 3", body + 24),
         ),
         (
             "negative_list.ply",
             negative_list,
-            format!(":0: byte {face_at}: `face` 0: List length cannot be negative"),
+            format!(": byte {face_at}: `face` 0: List length cannot be negative"),
         ),
         (
             "float_indices.ply",
@@ -791,12 +791,12 @@ fn malformed_files_name_the_file_and_position() {
         (
             "count_mismatch.stl",
             binary_stl,
-            ":0: byte 80: the header declares 7 triangles, which take 434 bytes".into(),
+            ": byte 80: the header declares 7 triangles, which take 434 bytes".into(),
         ),
         (
             "nan.stl",
             nan_stl,
-            ":0: byte 100: triangle 0, vertex 0: coordinate y is NaN".into(),
+            ": byte 100: triangle 0, vertex 0: coordinate y is NaN".into(),
         ),
         (
             "short_vertex.stl",

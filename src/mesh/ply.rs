@@ -341,7 +341,7 @@ mod tests {
             b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n\
                       property float y\nproperty float z\nend_header\n\0\0\0\0\0\0\0\0\0\0\xc0\x7f",
         );
-        assert!(e.starts_with("t.ply:0: byte 115: vertex 0: position [0.0, 0.0, NaN]"), "{e}");
+        assert!(e.starts_with("t.ply: byte 115: vertex 0: position [0.0, 0.0, NaN]"), "{e}");
         let e = err(b"plx\n");
         assert!(e.starts_with("t.ply:1: not a PLY file"), "{e}");
         let e = err(b"ply\nformat ascii 1.0\nelement vertex x\n");

@@ -350,7 +350,7 @@ mod tests {
         assert_eq!(m.triangles.len(), 1);
         b.push(0);
         let e = parse(&b, Path::new("t.stl")).unwrap_err().to_string();
-        assert!(e.starts_with("t.stl:0: byte 80: the header declares 1 triangles"), "{e}");
+        assert!(e.starts_with("t.stl: byte 80: the header declares 1 triangles"), "{e}");
         assert!(e.contains("not ASCII STL either"), "{e}");
     }
 
