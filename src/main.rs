@@ -172,15 +172,15 @@ struct RenderArgs {
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     #[arg(requires_all = ["eye", "target"])]
     up: Option<[f32; 3]>,
-    /// Vertical field of view in degrees (perspective), 1 to 170.
-    #[arg(long, default_value_t = 35.0, value_parser = parse_fov)]
-    fov: f32,
-    /// Texture filtering.
-    #[arg(long, value_enum, default_value_t = FilterArg::Bilinear)]
-    filter: FilterArg,
-    /// Texture wrapping.
-    #[arg(long, value_enum, default_value_t = WrapArg::Repeat)]
-    wrap: WrapArg,
+    /// Vertical field of view in degrees (perspective), 1 to 170 [default: 35].
+    #[arg(long, value_parser = parse_fov)]
+    fov: Option<f32>,
+    /// Texture filtering [default: bilinear].
+    #[arg(long, value_enum)]
+    filter: Option<FilterArg>,
+    /// Texture wrapping [default: repeat].
+    #[arg(long, value_enum)]
+    wrap: Option<WrapArg>,
     /// Background colour as R,G,B (0-255).
     #[arg(long, value_parser = parse_rgb)]
     background: Option<[u8; 3]>,
@@ -444,8 +444,9 @@ fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
 
 fn parse_rgb(s: &str) -> Result<[u8; 3], String> {
     let f = parse_floats::<3>(s)?;
-    if f.iter().any(|&c| !(0.0..=255.0).contains(&c)) {
-        return Err(format!("colour components must be 0-255, found `{s}`"));
+    // Whole numbers only: `0.5,0.5,0.5` (a colour in 0-1) became black in silence.
+    if f.iter().any(|&c| !(0.0..=255.0).contains(&c) || c.fract() != 0.0) {
+        return Err(format!("colour components are whole numbers 0-255, found `{s}`"));
     }
     Ok(f.map(|c| c as u8))
 }
@@ -529,6 +530,9 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         render_window(args, &mut target)?;
         return write_outputs(args, &target, None);
     }
+    if args.projection == ProjectionArg::Orthographic && args.fov.is_some() {
+        return Err(usage("--fov is for the perspective projection".into()));
+    }
     let mut mesh = match &args.file {
         Some(path) => trirast::mesh::load(path)?,
         None => scene::default_model(),
@@ -585,7 +589,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     let camera_at = |azimuth: f32| -> Camera {
         let projection = match args.projection {
             ProjectionArg::Orthographic => Projection::Orthographic { height: 2.0 * radius },
-            _ => Projection::Perspective { fov_y: args.fov.to_radians() },
+            _ => Projection::Perspective { fov_y: args.fov.unwrap_or(35.0).to_radians() },
         };
         let mut cam = Camera::framing_sphere(
             centre,
@@ -658,11 +662,11 @@ fn model_options(args: &RenderArgs) -> Result<ModelOptions, Error> {
         }
     };
     options.depth_test = args.depth_test.into();
-    options.filter = match args.filter {
+    options.filter = match args.filter.unwrap_or(FilterArg::Bilinear) {
         FilterArg::Nearest => Filter::Nearest,
         FilterArg::Bilinear => Filter::Bilinear,
     };
-    options.wrap = match args.wrap {
+    options.wrap = match args.wrap.unwrap_or(WrapArg::Repeat) {
         WrapArg::Repeat => Wrap::Repeat,
         WrapArg::Clamp => Wrap::Clamp,
     };
@@ -712,11 +716,20 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
             ));
         }
     };
-    if args.normals.is_some() {
-        return Err(usage("--normals needs a 3D projection".into()));
-    }
-    if args.turntable.is_some() {
-        return Err(usage("--turntable needs a 3D projection".into()));
+    // Options of the camera and of textures (the window projection has neither) were
+    // ignored in silence.
+    let camera_or_texture = [
+        ("--normals", args.normals.is_some()),
+        ("--turntable", args.turntable.is_some()),
+        ("--view", args.view.is_some()),
+        ("--eye", args.eye.is_some()),
+        ("--fov", args.fov.is_some()),
+        ("--texture", args.texture.is_some()),
+        ("--filter", args.filter.is_some()),
+        ("--wrap", args.wrap.is_some()),
+    ];
+    if let Some((option, _)) = camera_or_texture.iter().find(|(_, given)| *given) {
+        return Err(usage(format!("{option} needs a 3D projection")));
     }
     let clear =
         args.background.map_or(trirast::target::DEFAULT_CLEAR_COLOR, |[r, g, b]| [r, g, b, 255]);

@@ -961,7 +961,10 @@ fn outputs_that_are_inputs_or_each_other_are_refused() {
 /// projection too (its image the same as one untimed frame's, on the same background), and
 /// `--turntable` refuses the window projection, `--frames` and `--eye` (its frames would all
 /// be one view); `--view` refuses `--eye`; a `--texture` that cannot be read is an error
-/// naming it; `--up` needs `--eye` and must not lie along the view; splat thresholds and
+/// naming it; the window projection refuses the camera's and textures' options (`--view`,
+/// `--eye`, `--fov`, `--texture`, `--filter`, `--wrap`, which it ignored), orthographic
+/// `--fov`; `--background` takes whole numbers (`0.5,0.5,0.5` was black); `--up` needs `--eye`
+/// and must not lie along the view; splat thresholds and
 /// budgets must be numbers that mean something; turntable frames are numbered so that their
 /// names sort.
 #[test]
@@ -976,8 +979,16 @@ fn options_are_honoured_or_refused() {
     let (once, timed) = (read_png(&dir.path("once.png")), read_png(&dir.path("timed.png")));
     assert!(once.rgba == timed.rgba, "timing changes the image");
 
-    let refused: [(&[&str], &str); 5] = [
+    let refused: [(&[&str], &str); 13] = [
         (&["render", "--projection", "window", "--turntable", "3"], "--turntable"),
+        (&["render", "--projection", "window", "--view", "10,10"], "--view"),
+        (&["render", "--projection", "window", "--eye", "1,1,1", "--target", "0,0,0"], "--eye"),
+        (&["render", "--projection", "window", "--fov", "50"], "--fov"),
+        (&["render", "--projection", "orthographic", "--fov", "50"], "--fov"),
+        (&["render", "--projection", "window", "--texture", "t.png"], "--texture"),
+        (&["render", "--projection", "window", "--filter", "nearest"], "--filter"),
+        (&["render", "--projection", "window", "--wrap", "clamp"], "--wrap"),
+        (&["render", "--background", "0.5,0.5,0.5"], "whole numbers"),
         (&["render", "--turntable", "3", "--frames", "2"], "--frames"),
         (&["render", "--turntable", "3", "--eye", "1,1,1", "--target", "0,0,0"], "--eye"),
         (&["render", "--view", "10,10", "--eye", "1,1,1", "--target", "0,0,0"], "--eye"),
