@@ -385,6 +385,39 @@ fn check_rayon_threads() -> Result<(), Error> {
     Ok(())
 }
 
+/// The comparison switches `TRIRAST_SIMD` and `TRIRAST_SCHEDULE`, checked as the commands
+/// start: a value the library does not know (it ignored them in silence, so a comparison could
+/// measure the default against itself) is an error, and a SIMD level this CPU lacks a warning
+/// naming the level used instead.
+fn check_switches() -> Result<(), Error> {
+    use trirast::simd::SimdLevel;
+    if let Some(value) = std::env::var_os("TRIRAST_SIMD") {
+        let level = match value.to_str() {
+            Some("scalar") => SimdLevel::Scalar,
+            Some("avx2") => SimdLevel::Avx2,
+            Some("avx512") => SimdLevel::Avx512,
+            _ => {
+                let value = value.to_string_lossy();
+                return Err(usage(format!("TRIRAST_SIMD={value}: scalar, avx2 or avx512")));
+            }
+        };
+        if !level.is_available() {
+            eprintln!(
+                "trirast: warning: TRIRAST_SIMD={}: this CPU lacks it; using {:?}",
+                value.to_string_lossy(),
+                SimdLevel::detect()
+            );
+        }
+    }
+    if let Some(value) = std::env::var_os("TRIRAST_SCHEDULE")
+        && !matches!(value.to_str(), Some("binned" | "banded"))
+    {
+        let value = value.to_string_lossy();
+        return Err(usage(format!("TRIRAST_SCHEDULE={value}: binned or banded")));
+    }
+    Ok(())
+}
+
 fn parse_msaa(s: &str) -> Result<SampleCount, String> {
     s.parse::<u32>()
         .ok()
@@ -479,21 +512,32 @@ fn usage(message: String) -> Error {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result = check_rayon_threads().and_then(|()| match cli.command {
-        Command::Render(args) => render(&args),
-        Command::Info { file } => info(&file),
-        Command::Sample { file, points, output, seed } => sample(&file, points, &output, seed),
-        Command::SplatBench { points, threads, frames } => splat_bench(&points, threads, frames),
-        Command::Pack { file, output } => pack(&file, &output),
-        Command::Splat(args) => splat(&args),
-        Command::Bench { scenes, dense_triangles, export: Some(dir), .. } => {
-            export(&scenes, dense_triangles, &dir)
-        }
-        Command::Bench { scenes, threads, frames, msaa, dense_triangles, json, export: None } => {
-            bench(&scenes, threads, frames, msaa, dense_triangles, json)
-        }
-        Command::Demo { which, output, size, algorithm } => demo(which, &output, size, algorithm),
-    });
+    let result =
+        check_rayon_threads().and_then(|()| check_switches()).and_then(|()| match cli.command {
+            Command::Render(args) => render(&args),
+            Command::Info { file } => info(&file),
+            Command::Sample { file, points, output, seed } => sample(&file, points, &output, seed),
+            Command::SplatBench { points, threads, frames } => {
+                splat_bench(&points, threads, frames)
+            }
+            Command::Pack { file, output } => pack(&file, &output),
+            Command::Splat(args) => splat(&args),
+            Command::Bench { scenes, dense_triangles, export: Some(dir), .. } => {
+                export(&scenes, dense_triangles, &dir)
+            }
+            Command::Bench {
+                scenes,
+                threads,
+                frames,
+                msaa,
+                dense_triangles,
+                json,
+                export: None,
+            } => bench(&scenes, threads, frames, msaa, dense_triangles, json),
+            Command::Demo { which, output, size, algorithm } => {
+                demo(which, &output, size, algorithm)
+            }
+        });
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

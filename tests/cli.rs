@@ -852,6 +852,20 @@ fn impossible_thread_counts_are_usage_errors() {
         let out = trirast_with_env(&dir.0, args, ("RAYON_NUM_THREADS", value));
         assert!(out.status.success(), "RAYON_NUM_THREADS={value}: {}", stderr_of(&out));
     }
+    // The comparison switches refuse what they do not know (they ignored it, so a comparison
+    // measured the default twice) and take what they do.
+    let args = ["render", "--size", "64x48", "-o", "switch.png"];
+    for switch in [("TRIRAST_SIMD", "avx1024"), ("TRIRAST_SCHEDULE", "tiled")] {
+        let out = trirast_with_env(&dir.0, args, switch);
+        let err = stderr_of(&out);
+        assert_eq!(out.status.code(), Some(1), "{switch:?}: {err}");
+        assert!(err.contains(&format!("{}={}", switch.0, switch.1)), "{err}");
+        assert!(!dir.path("switch.png").exists(), "nothing is rendered");
+    }
+    for switch in [("TRIRAST_SIMD", "scalar"), ("TRIRAST_SCHEDULE", "banded")] {
+        let out = trirast_with_env(&dir.0, args, switch);
+        assert!(out.status.success(), "{switch:?}: {}", stderr_of(&out));
+    }
 }
 
 /// Counts and angles that cannot be meant are usage errors naming the option, not an abort,
