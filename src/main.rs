@@ -1183,14 +1183,24 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
         ("--depth", args.depth.as_deref(), Written::Npy),
     ];
     check_outputs(&outputs, &[&args.file])?;
-    let tree = load_splats(&args.file)?;
+    // The target first: a size it refuses is reported before the hierarchy is built.
     let (width, height) = args.size;
     let mut target = Target::new(width, height)?;
+    let tree = load_splats(&args.file)?;
     // Framed like `trirast render` frames a mesh: by the points' bounding box, so a cloud
     // sampled from a mesh appears exactly where the mesh does.
     let leaves: Vec<[f32; 3]> =
         tree.nodes.iter().filter(|n| n.child_count == 0).map(|n| n.centre).collect();
     let (centre, radius) = camera::bounding_sphere(&leaves);
+    // The view's arithmetic is single precision: squares of distances past about 1.8e19
+    // overflow, and a cloud with one point at 1e20 drew nothing at all.
+    let reach = leaves.iter().flatten().fold(0.0f32, |m, c| m.max(c.abs()));
+    if reach > 1e18 {
+        eprintln!(
+            "trirast: warning: a point lies {reach:.1e} units along an axis; past about \
+             1e19 the view's single-precision arithmetic overflows and points may be lost"
+        );
+    }
     let [az, el] = args.view.unwrap_or([30.0, 20.0]);
     let camera = Camera::framing_sphere(
         centre,
@@ -1340,7 +1350,9 @@ fn draw_timed(
 fn report(stats: &trirast::DrawStats) {
     if stats.non_finite > 0 {
         eprintln!(
-            "trirast: warning: dropped {} triangle(s) with NaN or infinite coordinates",
+            "trirast: warning: dropped {} triangle(s) whose coordinates are NaN or infinite, \
+             in the file or after the camera's transform (single precision: about 3.4e38 at \
+             most)",
             stats.non_finite
         );
     }

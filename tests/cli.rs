@@ -1093,3 +1093,24 @@ fn sample_warns_about_a_texture_that_does_not_decode() {
         assert!(err.contains("warning") && err.contains("t.png"), "{command}: {err}");
     }
 }
+
+/// A cloud reaching past what the splat view's single-precision arithmetic holds is drawn
+/// with a warning saying so (one point at 1e20 beside a unit cluster drew nothing, silently),
+/// and a size the target refuses is reported before the hierarchy is built.
+#[test]
+fn splat_warns_about_points_too_far_and_checks_the_size_first() {
+    let dir = TempDir::new("far-cloud");
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\n\
+         property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n",
+    );
+    dir.write("near.ply", &format!("{ply}1 1 1\n"));
+    ply.push_str("1e20 0 0\n");
+    dir.write("far.ply", &ply);
+    let err = run_ok(&dir.0, ["splat", "far.ply", "--size", "32x32", "-o", "far.png"]);
+    assert!(err.contains("warning") && err.contains("1.0e20"), "{err}");
+    let err = run_ok(&dir.0, ["splat", "near.ply", "--size", "32x32", "-o", "near.png"]);
+    assert!(!err.contains("warning"), "{err}");
+    let err = run_err(&dir.0, ["splat", "near.ply", "--size", "0x32", "-o", "zero.png"]);
+    assert!(err.contains("0x32") && !err.contains("hierarchy"), "{err}");
+}
