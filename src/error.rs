@@ -96,6 +96,32 @@ pub enum Error {
         /// The underlying error.
         source: std::io::Error,
     },
+    /// An input path that names a directory, a device, a FIFO or a socket (symlinks followed),
+    /// refused rather than read: reading a device or a FIFO may never end.
+    #[error("{}: is {kind}, not a regular file", path.display())]
+    NotRegularFile {
+        /// The path as given.
+        path: PathBuf,
+        /// What it is, with its article (`"a directory"`, `"a character device"`, ...).
+        kind: &'static str,
+    },
+    /// A texture larger than [`crate::texture::MAX_TEXTURE_SIDE`] a side or
+    /// [`crate::texture::MAX_TEXELS`] in all, refused from its header before it is decoded.
+    #[error(
+        "{}: texture size {width}x{height} is not supported: each side must be at most {} \
+         texels and the whole at most {} texels",
+        path.display(),
+        crate::texture::MAX_TEXTURE_SIDE,
+        crate::texture::MAX_TEXELS
+    )]
+    TextureSize {
+        /// The file.
+        path: PathBuf,
+        /// Width its header declares.
+        width: u32,
+        /// Height its header declares.
+        height: u32,
+    },
     /// Options that do not fit together.
     #[error("{0}")]
     Usage(String),

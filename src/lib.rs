@@ -30,6 +30,7 @@ pub mod clip;
 pub mod color;
 pub mod error;
 pub mod fixed;
+pub mod input;
 pub mod mesh;
 pub mod model;
 pub mod output;

@@ -4,9 +4,11 @@
 //! row. Texel `(i, j)` (row `j` from the top) has its centre at
 //! `u = (i + 0.5) / W`, `v = 1 - (j + 0.5) / H`; sampling there returns that texel.
 
+use std::io::BufReader;
 use std::path::Path;
 
 use glam::{Vec2, Vec4};
+use image::ImageDecoder as _;
 
 use crate::color::srgb_to_linear;
 use crate::error::Error;
@@ -39,13 +41,38 @@ pub struct Texture {
     texels: Vec<Vec4>,
 }
 
+/// The largest texture side, in texels: what GPUs allow (16384 in Direct3D 11 and 12).
+pub const MAX_TEXTURE_SIDE: u32 = 16384;
+
+/// The most texels a texture may have: 2^26 (8192 x 8192), 1 GiB as linear `Vec4` texels plus
+/// 256 MiB decoded as RGBA8 while they are made. An 11000 x 11000 PNG of 494 KB had taken
+/// 2.9 GB.
+pub const MAX_TEXELS: u64 = 1 << 26;
+
 impl Texture {
-    /// Reads a PNG or JPEG file (sRGB-encoded).
+    /// Reads a PNG or JPEG file (sRGB-encoded). The format is taken from the file's first bytes,
+    /// else from its extension.
+    ///
+    /// # Errors
+    /// [`Error::NotRegularFile`] or [`Error::Io`] when the file cannot be opened;
+    /// [`Error::TextureSize`] when its header declares more than [`MAX_TEXTURE_SIDE`] a side or
+    /// [`MAX_TEXELS`] in all (before any texel is decoded); [`Error::Decode`] when it cannot be
+    /// decoded.
     pub fn load(path: &Path) -> Result<Self, Error> {
-        let img = image::open(path)
-            .map_err(|e| Error::Decode { path: path.to_path_buf(), message: e.to_string() })?;
-        let rgba = img.to_rgba8();
+        let decoder = decoder(path)?;
+        let img = image::DynamicImage::from_decoder(decoder).map_err(|e| decode_error(path, e))?;
+        // `into_rgba8` reuses an RGBA8 image's buffer (`to_rgba8` copied it).
+        let rgba = img.into_rgba8();
         Ok(Self::from_srgba8(rgba.width(), rgba.height(), rgba.as_raw()))
+    }
+
+    /// The size of the texture in `path` (width, height), as [`Texture::load`] would find it,
+    /// read from the header only.
+    ///
+    /// # Errors
+    /// As [`Texture::load`], except for problems past the header.
+    pub fn dimensions(path: &Path) -> Result<(u32, u32), Error> {
+        decoder(path).map(|d| d.dimensions())
     }
 
     /// A texture from sRGB-encoded RGBA8 texels, rows from the top.
@@ -114,4 +141,24 @@ impl Texture {
             }
         }
     }
+}
+
+/// A decoder for the image in `path`, its header read and its size within the limits.
+fn decoder(path: &Path) -> Result<impl image::ImageDecoder, Error> {
+    let mut reader = image::ImageReader::new(BufReader::new(crate::input::open(path)?));
+    if let Ok(format) = image::ImageFormat::from_path(path) {
+        reader.set_format(format);
+    }
+    let reader = reader.with_guessed_format().map_err(|e| Error::io(path, e))?;
+    let decoder = reader.into_decoder().map_err(|e| decode_error(path, e))?;
+    let (width, height) = decoder.dimensions();
+    if width.max(height) > MAX_TEXTURE_SIDE || u64::from(width) * u64::from(height) > MAX_TEXELS {
+        return Err(Error::TextureSize { path: path.to_path_buf(), width, height });
+    }
+    Ok(decoder)
+}
+
+/// An image error as [`Error::Decode`], naming the file.
+fn decode_error(path: &Path, e: image::ImageError) -> Error {
+    Error::Decode { path: path.to_path_buf(), message: e.to_string() }
 }

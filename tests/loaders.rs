@@ -2,7 +2,9 @@
 //! and variant (OBJ, ASCII / binary little / big endian PLY with every attribute spelling and
 //! index type, ASCII / binary STL) and read back; malformed files must give errors naming the
 //! file and the line or byte offset; missing material libraries and textures are warnings; and a
-//! deterministic mutation fuzz checks that the PLY and STL readers never panic.
+//! deterministic mutation fuzz checks that the PLY and STL readers never panic. Paths that are
+//! not regular files (directories, devices, FIFOs) are refused by name, and oversized textures
+//! from their header.
 //!
 //! Everything is generated in code: the tests need nothing outside the repository (the real
 //! models in `../shared/models` are loaded too when that directory exists).
@@ -18,8 +20,12 @@ use std::path::{Path, PathBuf};
 use common::xorshift::XorShift;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
+use trirast::Error;
 use trirast::mesh::{self, Mesh};
+use trirast::model::MaterialTextures;
 use trirast::polygon::triangulate_face;
+use trirast::splat::{cloud, format};
+use trirast::texture::Texture;
 
 /// A fresh scratch directory for one test.
 fn scratch(name: &str) -> PathBuf {
@@ -658,6 +664,170 @@ fn materials_resolve_relative_paths_and_missing_files_are_warnings() {
     let mesh = mesh::load(&path).unwrap();
     assert!(mesh.materials.is_empty() && mesh.triangle_materials.is_none());
     assert!(mesh.warnings.is_empty());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Input files that are not regular files, and oversized textures
+
+/// `f()`, or a failure if it takes more than five seconds: a reader stuck on a FIFO or a device
+/// then fails the test rather than hanging it.
+fn within_seconds<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> T {
+    let (sender, receiver) = std::sync::mpsc::channel();
+    std::thread::spawn(move || sender.send(f()));
+    receiver.recv_timeout(std::time::Duration::from_secs(5)).expect("still reading after 5 s")
+}
+
+/// Makes a FIFO at `path` with `mkfifo`; false (and the case is skipped) where there is none.
+fn fifo(path: &Path) -> bool {
+    let made = std::process::Command::new("mkfifo").arg(path).status().is_ok_and(|s| s.success());
+    if !made {
+        eprintln!("mkfifo not available: skipping the FIFO case");
+    }
+    made
+}
+
+#[test]
+fn paths_that_are_not_regular_files_are_refused_by_name() {
+    let dir = scratch("not_regular");
+    let refused = |path: &Path, result: Result<(), Error>, kind: &str| {
+        let e = result.expect_err("not a regular file: must be refused");
+        assert!(matches!(e, Error::NotRegularFile { .. }), "{e:?}");
+        assert_eq!(e.to_string(), format!("{}: is {kind}, not a regular file", path.display()));
+    };
+    for name in ["d.obj", "d.ply", "d.stl"] {
+        let path = dir.join(name);
+        fs::create_dir(&path).unwrap();
+        refused(&path, mesh::load(&path).map(drop), "a directory");
+    }
+    let path = dir.join("d.ply");
+    refused(&path, cloud::read_ply(&path).map(drop), "a directory");
+    refused(&path, Texture::load(&path).map(drop), "a directory");
+    let path = dir.join("d.tsplat");
+    fs::create_dir(&path).unwrap();
+    refused(&path, format::read(&path).map(drop), "a directory");
+
+    // A symlink is followed: to /dev/zero, it had been read until memory ran out.
+    #[cfg(target_os = "linux")]
+    {
+        let path = dir.join("zero.obj");
+        std::os::unix::fs::symlink("/dev/zero", &path).unwrap();
+        let p = path.clone();
+        refused(&path, within_seconds(move || mesh::load(&p).map(drop)), "a character device");
+    }
+    // A FIFO with no writer: opening it had blocked forever.
+    let path = dir.join("pipe.stl");
+    if fifo(&path) {
+        let p = path.clone();
+        refused(&path, within_seconds(move || mesh::load(&p).map(drop)), "a FIFO (named pipe)");
+    }
+}
+
+#[test]
+fn material_libraries_and_textures_that_are_not_files_are_warnings() {
+    let dir = scratch("not_regular_materials");
+    fs::create_dir(dir.join("dir.mtl")).unwrap();
+    fs::create_dir(dir.join("dir.png")).unwrap();
+    let mut libraries = vec![("dir.mtl".to_string(), "a directory")];
+    let mut textures = vec![("dir.png".to_string(), "a directory")];
+    if cfg!(target_os = "linux") {
+        libraries.push(("/dev/zero".into(), "a character device"));
+        textures.push(("/dev/zero".into(), "a character device"));
+    }
+    if fifo(&dir.join("pipe.mtl")) && fifo(&dir.join("pipe.png")) {
+        libraries.push(("pipe.mtl".into(), "a FIFO (named pipe)"));
+        textures.push(("pipe.png".into(), "a FIFO (named pipe)"));
+    }
+    let triangle = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nusemtl m\nf 1/1 2/1 3/1\n";
+    for (k, (library, kind)) in libraries.into_iter().enumerate() {
+        let path = dir.join(format!("library{k}.obj"));
+        fs::write(&path, format!("mtllib {library}\n{triangle}")).unwrap();
+        let p = path.clone();
+        let mesh = within_seconds(move || mesh::load(&p)).unwrap();
+        let expected = format!(
+            "{}:1: material library {} is {kind}, not a regular file; using default materials",
+            path.display(),
+            dir.join(&library).display()
+        );
+        assert_eq!(mesh.warnings, [expected]);
+    }
+    for (k, (texture, kind)) in textures.into_iter().enumerate() {
+        let library = dir.join(format!("texture{k}.mtl"));
+        fs::write(&library, format!("newmtl m\nKd 0.5\nmap_Kd {texture}\n")).unwrap();
+        let path = dir.join(format!("texture{k}.obj"));
+        fs::write(&path, format!("mtllib texture{k}.mtl\n{triangle}")).unwrap();
+        let p = path.clone();
+        let mesh = within_seconds(move || mesh::load(&p)).unwrap();
+        let expected = format!(
+            "{}: texture {} of material `m` is {kind}, not a regular file; using its diffuse \
+             colour",
+            library.display(),
+            dir.join(&texture).display()
+        );
+        assert_eq!(mesh.warnings, [expected]);
+        assert_eq!(mesh.materials[0].diffuse, [0.5; 3]);
+        assert_eq!(mesh.materials[0].diffuse_texture, None);
+    }
+}
+
+/// A PNG whose header declares `width` x `height` RGBA texels and which holds none of them (its
+/// one image data chunk is a bare zlib header): what a decompression bomb looks like before its
+/// texels are decoded.
+fn png_header_only(path: &Path, width: u32, height: u32) {
+    let mut encoder = png::Encoder::new(fs::File::create(path).unwrap(), width, height);
+    encoder.set_color(png::ColorType::Rgba);
+    let mut writer = encoder.write_header().unwrap();
+    writer.write_chunk(png::chunk::IDAT, &[0x78, 0x01]).unwrap();
+    // Dropping the writer ends the file (IEND).
+}
+
+#[test]
+fn oversized_textures_are_refused_from_their_header() {
+    let dir = scratch("texture_size");
+    // Over the side limit (a real image, 80 KB of texels), then over the texel limit.
+    image::RgbaImage::new(20000, 1).save(dir.join("wide.png")).unwrap();
+    png_header_only(&dir.join("bomb.png"), 8193, 8193);
+    for (name, width, height) in [("wide.png", 20000, 1), ("bomb.png", 8193, 8193)] {
+        let path = dir.join(name);
+        let expected = format!(
+            "{}: texture size {width}x{height} is not supported: each side must be at most 16384 \
+             texels and the whole at most 67108864 texels",
+            path.display()
+        );
+        for e in [Texture::load(&path).map(drop), Texture::dimensions(&path).map(drop)] {
+            let e = e.expect_err("over the limit: must be refused");
+            assert!(matches!(e, Error::TextureSize { .. }), "{e:?}");
+            assert_eq!(e.to_string(), expected);
+        }
+    }
+    // At the side limit: loaded.
+    image::RgbaImage::new(16384, 1).save(dir.join("limit.png")).unwrap();
+    assert_eq!(Texture::load(&dir.join("limit.png")).unwrap().width(), 16384);
+
+    // Through a material: one warning each, the plain colour, nothing left to load when drawing.
+    fs::write(
+        dir.join("lib.mtl"),
+        "newmtl wide\nKd 0.25\nmap_Kd wide.png\nnewmtl bomb\nmap_Kd bomb.png\n",
+    )
+    .unwrap();
+    let path = dir.join("scene.obj");
+    let obj = "mtllib lib.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nusemtl wide\nf 1/1 2/1 3/1\n\
+               usemtl bomb\nf 1/1 3/1 2/1\n";
+    fs::write(&path, obj).unwrap();
+    let mesh = mesh::load(&path).unwrap();
+    let library = dir.join("lib.mtl");
+    let expected = [("wide", "20000x1"), ("bomb", "8193x8193")].map(|(name, size)| {
+        format!(
+            "{}: texture {} of material `{name}` is {size} texels, more than a texture may have \
+             (at most 16384 a side and 67108864 in all); using its diffuse colour",
+            library.display(),
+            dir.join(format!("{name}.png")).display()
+        )
+    });
+    assert_eq!(mesh.warnings, expected);
+    assert_eq!(mesh.materials[0].diffuse, [0.25; 3]);
+    assert!(mesh.materials.iter().all(|m| m.diffuse_texture.is_none()));
+    let textures = MaterialTextures::load(&mesh);
+    assert!(textures.warnings.is_empty() && textures.get(0).is_none(), "{:?}", textures.warnings);
 }
 
 // ---------------------------------------------------------------------------------------------

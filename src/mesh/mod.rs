@@ -1,7 +1,8 @@
 //! Mesh input: file readers, the [`Mesh`] they produce, and the window-space view of an OBJ.
 //!
 //! Readers report errors as [`Error::Parse`] naming the file and the 1-based line (or, for
-//! binary files, the byte offset).
+//! binary files, the byte offset). They read files through [`crate::input`], which refuses a
+//! path that is not a regular file ([`Error::NotRegularFile`]).
 
 pub mod mtl;
 pub mod obj;

@@ -6,16 +6,20 @@
 //! skipped). Other statements (`Ka`, `Ks`, `Ns`, `d`, `illum`, other maps, ...) are ignored.
 //!
 //! Paths: `mtllib` names are resolved relative to the OBJ's directory, `map_Kd` names relative to
-//! the `.mtl`'s directory. A missing library, a missing or unreadable texture and a `usemtl`
-//! naming no known material are warnings ([`Mesh::warnings`]), and the affected faces fall back
-//! to the material's `Kd` (or the default grey); a malformed `.mtl` is an error naming its line.
+//! the `.mtl`'s directory. A missing library, a missing or unreadable texture, a library or
+//! texture path that is not a regular file, a texture over [`Texture::load`]'s size limits and a
+//! `usemtl` naming no known material are warnings ([`Mesh::warnings`]), and the affected faces
+//! fall back to the material's `Kd` (or the default grey); a malformed `.mtl` is an error naming
+//! its line.
 
 use std::collections::HashMap;
+use std::io::ErrorKind;
 use std::path::{Path, PathBuf};
 
 use super::obj::ObjMesh;
 use super::{Material, Mesh};
 use crate::error::Error;
+use crate::texture::{MAX_TEXELS, MAX_TEXTURE_SIDE, Texture};
 
 /// The materials of one `.mtl` file, in file order.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -29,7 +33,7 @@ pub struct MaterialLibrary {
 
 /// Reads and parses a `.mtl` file; texture paths are resolved relative to its directory.
 pub fn read(path: &Path) -> Result<MaterialLibrary, Error> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::input::read(path)?;
     let dir = path.parent().unwrap_or_else(|| Path::new(""));
     parse(&bytes, dir).map_err(|(line, message)| Error::Parse {
         path: path.to_path_buf(),
@@ -101,8 +105,9 @@ pub fn parse(bytes: &[u8], dir: &Path) -> Result<MaterialLibrary, (usize, String
 /// Resolves an OBJ's materials: loads its `mtllib` files (relative to `obj_path`'s directory)
 /// and fills in the colour and texture of every named material in `mesh.materials` (as made by
 /// [`super::obj::to_mesh`]). Problems that do not stop rendering go to `mesh.warnings`: a
-/// missing or unreadable library, a material no library defines (not reported when a library is
-/// missing: it was probably there), a texture that is missing or cannot be decoded (its
+/// missing or unreadable library or one that is not a regular file, a material no library
+/// defines (not reported when a library is missing: it was probably there), a texture that is
+/// missing, not a regular file, too large or whose header cannot be decoded (its
 /// `diffuse_texture` is then `None`, leaving the `Kd` colour). Materials keep the default grey
 /// when undefined. A malformed library is an error naming the `.mtl` file and line.
 pub fn apply(mesh: &mut Mesh, obj: &ObjMesh, obj_path: &Path) -> Result<(), Error> {
@@ -122,6 +127,15 @@ pub fn apply(mesh: &mut Mesh, obj: &ObjMesh, obj_path: &Path) -> Result<(), Erro
                     };
                     mesh.warnings.push(format!(
                         "{obj_name}:{line}: material library {} {why}; using default materials",
+                        file.display()
+                    ));
+                    missing_library = true;
+                    continue;
+                }
+                Err(Error::NotRegularFile { kind, .. }) => {
+                    mesh.warnings.push(format!(
+                        "{obj_name}:{line}: material library {} is {kind}, not a regular file; \
+                         using default materials",
                         file.display()
                     ));
                     missing_library = true;
@@ -184,23 +198,34 @@ fn library_files(dir: &Path, argument: &str) -> Vec<PathBuf> {
     argument.split(' ').map(|f| dir.join(f)).collect()
 }
 
-/// Checks that a texture exists and its header decodes; returns the path to use (a name
-/// written with Windows separators is retried with `/`).
+/// Checks that a texture is a regular file whose header decodes to a size within the limits
+/// of [`Texture::load`]; returns the path to use (a name written with Windows separators is
+/// retried with `/`).
 fn check_texture(path: &Path) -> Result<PathBuf, String> {
     let mut path = path.to_path_buf();
-    if !path.is_file() {
+    let mut found = Texture::dimensions(&path);
+    if matches!(&found, Err(Error::Io { source, .. }) if source.kind() == ErrorKind::NotFound) {
         let text = path.to_string_lossy();
-        let alternative = PathBuf::from(text.replace('\\', "/"));
-        if !text.contains('\\') || !alternative.is_file() {
+        if !text.contains('\\') {
             return Err("was not found".into());
         }
-        path = alternative;
+        path = PathBuf::from(text.replace('\\', "/"));
+        found = Texture::dimensions(&path);
     }
-    let reader = image::ImageReader::open(&path)
-        .and_then(image::ImageReader::with_guessed_format)
-        .map_err(|e| format!("cannot be read ({e})"))?;
-    reader.into_dimensions().map_err(|e| format!("cannot be decoded ({e})"))?;
-    Ok(path)
+    match found {
+        Ok(_) => Ok(path),
+        Err(Error::Io { source, .. }) if source.kind() == ErrorKind::NotFound => {
+            Err("was not found".into())
+        }
+        Err(Error::Io { source, .. }) => Err(format!("cannot be read ({source})")),
+        Err(Error::NotRegularFile { kind, .. }) => Err(format!("is {kind}, not a regular file")),
+        Err(Error::TextureSize { width, height, .. }) => Err(format!(
+            "is {width}x{height} texels, more than a texture may have (at most {MAX_TEXTURE_SIDE} \
+             a side and {MAX_TEXELS} in all)"
+        )),
+        Err(Error::Decode { message, .. }) => Err(format!("cannot be decoded ({message})")),
+        Err(e) => Err(e.to_string()),
+    }
 }
 
 #[cfg(test)]

@@ -73,7 +73,7 @@ impl ObjMesh {
 
 /// Reads and parses an OBJ file.
 pub fn read(path: &Path) -> Result<ObjMesh, Error> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::input::read(path)?;
     parse(&bytes).map_err(|(line, message)| Error::Parse {
         path: path.to_path_buf(),
         line,

@@ -34,7 +34,7 @@ use crate::error::Error;
 
 /// Reads a PLY file as a [`Mesh`].
 pub fn read(path: &Path) -> Result<Mesh, Error> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::input::read(path)?;
     parse(&bytes, path)
 }
 

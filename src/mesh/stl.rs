@@ -36,7 +36,7 @@ use crate::error::Error;
 
 /// Reads an STL file (ASCII or binary) as a welded [`Mesh`].
 pub fn read(path: &Path) -> Result<Mesh, Error> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::input::read(path)?;
     parse(&bytes, path)
 }
 

@@ -124,10 +124,11 @@ impl PointCloud {
 /// Reads a point cloud from a PLY file (see the [module documentation](self) for what is read).
 ///
 /// # Errors
-/// [`Error::Io`] when the file cannot be read; [`Error::Parse`] naming the file and the line
+/// [`Error::Io`] when the file cannot be read, [`Error::NotRegularFile`] when the path is not a
+/// regular file (see [`crate::input`]); [`Error::Parse`] naming the file and the line
 /// (header, ASCII body) or byte offset (binary body) of the first problem.
 pub fn read_ply(path: &Path) -> Result<PointCloud, Error> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::input::read(path)?;
     parse_ply(&bytes, path)
 }
 

@@ -195,7 +195,7 @@ pub fn write(path: &Path, tree: &SplatTree) -> Result<(), Error> {
 /// Reads a `.tsplat` file. Format errors are [`Error::Parse`] with `line: 0` and a message
 /// starting `byte N:`.
 pub fn read(path: &Path) -> Result<SplatTree, Error> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::input::read(path)?;
     decode(&bytes).map_err(|e| Error::Parse {
         path: path.to_path_buf(),
         line: 0,
