@@ -48,7 +48,7 @@ const EARCUT_I32_HALF_RANGE: i64 = 1 << 19;
 /// Degenerate input never panics: fewer than 3 points give nothing; a zero or non-finite normal
 /// (collinear or repeated points, NaN, infinity) gives the fan, whose triangles the rasterizer
 /// then drops and counts as degenerate or non-finite. So does a face passing through one point
-/// more than twice (see [`MAX_CORNERS_AT_ONE_POINT`]), which earcut would take time cubic in
+/// more than twice (not a simple polygon), which earcut would take time cubic in
 /// its length to triangulate.
 #[must_use]
 pub fn triangulate_face(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
@@ -78,7 +78,7 @@ pub fn triangulate_face(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
 /// Triangles are wound like the outer ring. Rings must not cross or touch each other (holes
 /// strictly inside the outer ring, pairwise disjoint), and each must be simple; for other input
 /// the result is whatever earcut makes of it, except that rings passing through one point more
-/// than twice give no triangles (see [`MAX_CORNERS_AT_ONE_POINT`]). Non-finite coordinates give
+/// than twice give no triangles (not a simple polygon). Non-finite coordinates give
 /// no triangles, holes
 /// with fewer than 3 points are ignored. For an exact triangulation of pixel coordinates, see
 /// [`triangulate_snapped`].
