@@ -365,6 +365,23 @@ impl FragmentShader<SurfaceVaryings> for SurfaceFragment<'_> {
     }
 }
 
+/// [`SurfaceVaryings`] without the texture coordinate, for meshes that have none (the
+/// coordinate would be zero at every vertex, and materials read it only from a mesh with
+/// texture coordinates): four values per fragment instead of six (the Stanford bunny,
+/// Gouraud, two threads, eight alternated runs: 5.74-5.97 -> 5.42-5.73 ms, the fastest frame
+/// of each).
+struct ColorFragment<'a>(ModelFragment<'a>);
+
+impl FragmentShader<Vec4> for ColorFragment<'_> {
+    fn shade(&self, f: &Fragment<Vec4>) -> Option<Vec4> {
+        Some(self.0.albedo_at(Vec2::ZERO, f.varyings, f.primitive))
+    }
+
+    fn may_discard(&self) -> bool {
+        false
+    }
+}
+
 /// Renders `mesh` seen by `camera` into `target` (which the caller clears).
 pub fn render_mesh(
     target: &mut Target,
@@ -434,6 +451,14 @@ pub fn render_mesh(
     let per_pixel_normals = matches!(lighting, Lighting::Flat | Lighting::Phong);
     if per_pixel_normals || target.normals.is_some() {
         return pipeline.draw(target, &vertex, &fragment, &indices, &mesh.triangles);
+    }
+    if mesh.texcoords.is_none() {
+        let color_vertex = |i: &u32| {
+            let (position, (_, _, color, _)) = vertex(i);
+            (position, color)
+        };
+        let fragment = ColorFragment(fragment);
+        return pipeline.draw(target, &color_vertex, &fragment, &indices, &mesh.triangles);
     }
     let surface_vertex = |i: &u32| {
         let (position, (_, uv, color, _)) = vertex(i);
@@ -623,6 +648,45 @@ mod tests {
             assert_eq!(surface.color, full.color, "{lighting:?}");
             assert_eq!(surface.depth, full.depth, "{lighting:?}");
             assert_eq!(surface.ids, full.ids, "{lighting:?}");
+        }
+    }
+
+    /// Without texture coordinates, unlit and Gouraud lighting interpolate the colour alone
+    /// ([`ColorFragment`]): the same bits as the full varyings, with and without materials
+    /// (which then take their diffuse colour).
+    #[test]
+    fn color_varyings_draw_what_the_full_ones_draw() {
+        let mut mesh = crate::scene::sphere_mesh(3000).unwrap();
+        let n = mesh.positions.len();
+        let wave = |i: usize, k: f32| (i as f32 * k).sin() * 0.5 + 0.5;
+        mesh.colors =
+            Some((0..n).map(|i| [wave(i, 0.3), wave(i, 0.7), wave(i, 1.1), 0.8]).collect());
+        with_vertex_normals(&mut mesh);
+        let mut with_materials = mesh.clone();
+        let red = Material { diffuse: [0.9, 0.2, 0.1], ..Material::default() };
+        with_materials.materials = vec![Material::default(), red];
+        let count = mesh.triangles.len() as u32;
+        with_materials.triangle_materials = Some((0..count).map(|t| t % 2).collect());
+        let (centre, radius) = camera::bounding_sphere(&mesh.positions);
+        let projection = Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y };
+        let camera = Camera::framing_sphere(centre, radius, 0.4, 0.3, 1.5, projection);
+        for mesh in [&mesh, &with_materials] {
+            assert!(mesh.texcoords.is_none());
+            for lighting in [Lighting::Unlit, Lighting::Gouraud] {
+                let options = ModelOptions::default().with_lighting(lighting);
+                let draw = |target: Target| {
+                    let mut target = target.with_ids();
+                    let textures = MaterialTextures::default();
+                    let stats = render_mesh(&mut target, mesh, &camera, &options, &textures);
+                    assert!(stats.unwrap().fragments > 1000, "{lighting:?}: the sphere is drawn");
+                    target
+                };
+                let color = draw(Target::new(96, 64).unwrap());
+                let full = draw(Target::new(96, 64).unwrap().with_normals());
+                assert_eq!(color.color, full.color, "{lighting:?}");
+                assert_eq!(color.depth, full.depth, "{lighting:?}");
+                assert_eq!(color.ids, full.ids, "{lighting:?}");
+            }
         }
     }
 }
