@@ -603,13 +603,24 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     }
     // The camera's up with --eye and --target (Y, unless --up says otherwise).
     let up = Vec3::from(args.up.unwrap_or([0.0, 1.0, 0.0]));
+    // Scaled by its largest component: the length of an --up of 1e38 overflowed, and it was
+    // called zero.
+    let up = up / up.abs().max_element().max(f32::MIN_POSITIVE);
     if let (Some(eye), Some(look)) = (args.eye, args.target) {
         if eye == look {
             return Err(usage("--eye and --target must differ".into()));
         }
+        // The camera works in single precision: a view that overflows it (an --eye at 1e38)
+        // was reported as an --up along the view.
+        let view = Vec3::from(look) - Vec3::from(eye);
+        if !view.is_finite() || !view.length().is_finite() {
+            return Err(usage(
+                "--eye and --target are too far apart for single precision (3.4e38 at most)".into(),
+            ));
+        }
         // An up direction along the view (or zero) leaves the image's roll undefined; the
         // camera fell back to another up without a word.
-        let view = (Vec3::from(look) - Vec3::from(eye)).normalize();
+        let view = view.normalize();
         if up.normalize_or_zero().cross(view).length() < 1e-3 {
             let which = if args.up.is_some() { "--up" } else { "the default --up 0,1,0" };
             return Err(usage(format!(

@@ -1030,6 +1030,12 @@ fn options_are_honoured_or_refused() {
     assert!(run_err(&dir.0, above).contains("--up"));
     assert!(run_err(&dir.0, [&above[..], &["--up", "0,-2,0"]].concat()).contains("--up"));
     run_ok(&dir.0, [&above[..], &["--up", "0,0,1"]].concat());
+    // Single precision: an --up whose length overflows is still a direction, an --eye whose
+    // distance to --target overflows is refused (both were reported as an --up along the
+    // view).
+    run_ok(&dir.0, [&above[..], &["--up", "1e38,0,1e38"]].concat());
+    let far = ["render", "--size", "16x12", "--eye", "1e38,1e38,1e38", "--target", "0,0,0"];
+    assert!(run_err(&dir.0, far).contains("too far apart"));
     run_ok(&dir.0, ["render", "--size", "16x12", "--turntable", "3", "-o", "t.png"]);
     for k in 0..3 {
         assert!(dir.path(&format!("t_{k:03}.png")).exists(), "frame {k}");
