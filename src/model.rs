@@ -167,7 +167,10 @@ impl MaterialTextures {
                 match Texture::load(path) {
                     Ok(t) => Some(t),
                     Err(e) => {
-                        warnings.push(format!("texture not used, plain colour instead: {e}"));
+                        warnings.push(format!(
+                            "material `{}`: texture not used, its diffuse colour instead: {e}",
+                            m.name
+                        ));
                         None
                     }
                 }

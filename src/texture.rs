@@ -158,7 +158,10 @@ fn decoder(path: &Path) -> Result<impl image::ImageDecoder, Error> {
     Ok(decoder)
 }
 
-/// An image error as [`Error::Decode`], naming the file.
+/// An image error as [`Error::Decode`], naming the file, on one line (the JPEG decoder's
+/// messages span several, which broke the warning they end up in).
 fn decode_error(path: &Path, e: image::ImageError) -> Error {
-    Error::Decode { path: path.to_path_buf(), message: e.to_string() }
+    let text = e.to_string();
+    let message = text.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>();
+    Error::Decode { path: path.to_path_buf(), message: message.join("; ") }
 }

@@ -1076,7 +1076,7 @@ fn empty_inputs_and_misnamed_outputs_are_reported() {
 
 /// A texture whose header reads but whose pixels do not decode is found out only when the
 /// textures are loaded: `sample`, like `render`, says so (it used to fall back to plain colour
-/// in silence).
+/// in silence), naming the material.
 #[test]
 fn sample_warns_about_a_texture_that_does_not_decode() {
     let dir = TempDir::new("undecodable-texture");
@@ -1097,6 +1097,7 @@ fn sample_warns_about_a_texture_that_does_not_decode() {
     let sample = run_ok(&dir.0, ["sample", "q.obj", "--points", "10", "-o", "s.ply"]);
     for (command, err) in [("render", render), ("sample", sample)] {
         assert!(err.contains("warning") && err.contains("t.png"), "{command}: {err}");
+        assert!(err.contains("material `tex`"), "{command}: the warning names it: {err}");
     }
 }
 
