@@ -686,6 +686,10 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
                 bar.inc(1);
             }
             bar.finish();
+            // Named as the files are (the progress bar alone left them to be guessed).
+            let last = frame_path(&args.output, frames - 1, frames);
+            let first = frame_path(&args.output, 0, frames);
+            eprintln!("wrote {frames} frames, {} to {}", first.display(), last.display());
             Ok(())
         }
     }

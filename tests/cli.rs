@@ -1036,7 +1036,8 @@ fn options_are_honoured_or_refused() {
     run_ok(&dir.0, [&above[..], &["--up", "1e38,0,1e38"]].concat());
     let far = ["render", "--size", "16x12", "--eye", "1e38,1e38,1e38", "--target", "0,0,0"];
     assert!(run_err(&dir.0, far).contains("too far apart"));
-    run_ok(&dir.0, ["render", "--size", "16x12", "--turntable", "3", "-o", "t.png"]);
+    let err = run_ok(&dir.0, ["render", "--size", "16x12", "--turntable", "3", "-o", "t.png"]);
+    assert!(err.contains("wrote 3 frames") && err.contains("t_002.png"), "{err}");
     for k in 0..3 {
         assert!(dir.path(&format!("t_{k:03}.png")).exists(), "frame {k}");
     }
