@@ -599,7 +599,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     }
     warn_about(&mesh);
     if mesh.positions.is_empty() {
-        eprintln!("trirast: warning: the file has no vertices and no faces: nothing to draw");
+        eprintln!("trirast: warning: the file has no faces: nothing to draw");
     }
     // The camera's up with --eye and --target (Y, unless --up says otherwise).
     let up = Vec3::from(args.up.unwrap_or([0.0, 1.0, 0.0]));
