@@ -14,7 +14,9 @@ use crate::error::Error;
 /// Opens `path` for reading if it is a regular file (symlinks followed).
 ///
 /// The type is checked before opening, since opening a FIFO blocks until it has a writer, and
-/// again on the open file, in case the path was replaced in between.
+/// again on the open file, so that what is read is what was checked. (A path replaced by a
+/// FIFO between the two would still block the open: a race only with someone swapping files
+/// under the command.)
 ///
 /// # Errors
 /// [`Error::NotRegularFile`] naming what the path is, or [`Error::Io`].
@@ -36,9 +38,8 @@ pub fn read(path: &Path) -> Result<Vec<u8>, Error> {
     // The size is a hint only (files under /proc report 0).
     let size = file.metadata().map(|m| m.len()).unwrap_or(0);
     let mut bytes = Vec::new();
-    bytes
-        .try_reserve_exact(usize::try_from(size).unwrap_or(0))
-        .map_err(|_| Error::io(path, std::io::Error::from(std::io::ErrorKind::OutOfMemory)))?;
+    let what = format!("reading {}", path.display());
+    crate::error::try_reserve(&mut bytes, usize::try_from(size).unwrap_or(0), &what)?;
     file.read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
     Ok(bytes)
 }

@@ -393,6 +393,8 @@ fn check_switches() -> Result<(), Error> {
     use trirast::simd::SimdLevel;
     if let Some(value) = std::env::var_os("TRIRAST_SIMD") {
         let level = match value.to_str() {
+            // Empty: as unset, the best level.
+            Some("") => SimdLevel::detect(),
             Some("scalar") => SimdLevel::Scalar,
             Some("avx2") => SimdLevel::Avx2,
             Some("avx512") => SimdLevel::Avx512,
@@ -410,10 +412,10 @@ fn check_switches() -> Result<(), Error> {
         }
     }
     if let Some(value) = std::env::var_os("TRIRAST_SCHEDULE")
-        && !matches!(value.to_str(), Some("binned" | "banded"))
+        && !matches!(value.to_str(), Some("" | "auto" | "binned" | "banded"))
     {
         let value = value.to_string_lossy();
-        return Err(usage(format!("TRIRAST_SCHEDULE={value}: binned or banded")));
+        return Err(usage(format!("TRIRAST_SCHEDULE={value}: auto, binned or banded")));
     }
     Ok(())
 }
@@ -556,7 +558,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         ("--normals", args.normals.as_deref(), Written::Npy),
     ];
     let inputs: Vec<&Path> = args.file.iter().chain(&args.texture).map(PathBuf::as_path).collect();
-    check_outputs(&outputs, &inputs)?;
+    check_outputs(&outputs, &inputs, args.turntable)?;
     let (width, height) = args.size;
     let window = args.projection == ProjectionArg::Window;
     let default_msaa = if window { SampleCount::X1 } else { SampleCount::X4 };
@@ -597,15 +599,20 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
             mesh.triangle_materials = Some(vec![0; mesh.triangles.len()]);
         }
     }
+    // The materials' textures are inputs too, known once the mesh is read.
+    let textures: Vec<&Path> =
+        mesh.materials.iter().filter_map(|m| m.diffuse_texture.as_deref()).collect();
+    check_outputs(&outputs, &textures, args.turntable)?;
     warn_about(&mesh);
     if mesh.positions.is_empty() {
         eprintln!("trirast: warning: the file has no faces: nothing to draw");
     }
     // The camera's up with --eye and --target (Y, unless --up says otherwise).
     let up = Vec3::from(args.up.unwrap_or([0.0, 1.0, 0.0]));
-    // Scaled by its largest component: the length of an --up of 1e38 overflowed, and it was
-    // called zero.
-    let up = up / up.abs().max_element().max(f32::MIN_POSITIVE);
+    // The length of an --up of 1e38 overflowed, and it was called zero: such an up is scaled
+    // by its largest component (others are left as given, so that their pictures keep their
+    // bits).
+    let up = if up.length().is_finite() { up } else { up / up.abs().max_element() };
     if let (Some(eye), Some(look)) = (args.eye, args.target) {
         if eye == look {
             return Err(usage("--eye and --target must differ".into()));
@@ -615,7 +622,9 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         let view = Vec3::from(look) - Vec3::from(eye);
         if !view.is_finite() || !view.length().is_finite() {
             return Err(usage(
-                "--eye and --target are too far apart for single precision (3.4e38 at most)".into(),
+                "--eye and --target are too far apart for single precision (about 1.8e19 at \
+                 most: the square of their distance must stay below 3.4e38)"
+                    .into(),
             ));
         }
         // An up direction along the view (or zero) leaves the image's roll undefined; the
@@ -844,9 +853,9 @@ impl Written {
 
 /// Extensions of formats that readers recognise by name: a file named with one but holding
 /// another format would be read as that one by whatever opens it.
-const KNOWN_FORMATS: [&str; 16] = [
+const KNOWN_FORMATS: [&str; 18] = [
     "png", "npy", "jpg", "jpeg", "bmp", "gif", "tif", "tiff", "webp", "tga", "exr", "hdr", "ppm",
-    "ply", "obj", "tsplat",
+    "ply", "obj", "stl", "mtl", "tsplat",
 ];
 
 /// Checks the files a command will write before it does any work: an output that is one of
@@ -859,13 +868,13 @@ const KNOWN_FORMATS: [&str; 16] = [
 fn check_outputs(
     outputs: &[(&str, Option<&Path>, Written)],
     inputs: &[&Path],
+    frames: Option<u32>,
 ) -> Result<(), Error> {
     let named: Vec<(&str, &Path, Written)> =
         outputs.iter().filter_map(|&(option, path, kind)| Some((option, path?, kind))).collect();
-    let inputs: Vec<(&Path, PathBuf)> = inputs.iter().map(|&p| (p, resolved(p))).collect();
     let outputs: Vec<PathBuf> = named.iter().map(|&(_, p, _)| resolved(p)).collect();
     for (k, &(option, path, kind)) in named.iter().enumerate() {
-        if let Some((input, _)) = inputs.iter().find(|(_, r)| *r == outputs[k]) {
+        if let Some(input) = inputs.iter().find(|&&input| writes(path, frames, input)) {
             return Err(usage(format!(
                 "{option} {} is the input {}: writing it would destroy what is read",
                 path.display(),
@@ -892,6 +901,32 @@ fn check_outputs(
         }
     }
     Ok(())
+}
+
+/// Whether writing `output` (or, for a turntable of `frames`, its numbered files
+/// `stem_000.ext`...) would write over `input`: the same file where they lead ([`resolved`]),
+/// or, on Unix, two names (hard links) of one file.
+fn writes(output: &Path, frames: Option<u32>, input: &Path) -> bool {
+    let input_at = resolved(input);
+    let Some(total) = frames else {
+        if input_at == resolved(output) {
+            return true;
+        }
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt as _;
+            if let (Ok(a), Ok(b)) = (std::fs::metadata(output), std::fs::metadata(input)) {
+                return (a.dev(), a.ino()) == (b.dev(), b.ino());
+            }
+        }
+        return false;
+    };
+    // Only the frame whose number the input's name (where it leads) carries can be it.
+    let stem = input_at.file_stem().and_then(|s| s.to_str()).unwrap_or("");
+    let number = &stem[stem.trim_end_matches(|c: char| c.is_ascii_digit()).len()..];
+    number
+        .parse::<u32>()
+        .is_ok_and(|k| k < total && writes(&frame_path(output, k, total), None, input))
 }
 
 /// Where `path` leads: the file itself with links and `..` resolved when it exists, else its
@@ -1124,7 +1159,7 @@ fn warn_about(mesh: &Mesh) {
 }
 
 fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Error> {
-    check_outputs(&[("--output", Some(output), Written::Ply)], &[file])?;
+    check_outputs(&[("--output", Some(output), Written::Ply)], &[file], None)?;
     let mesh = trirast::mesh::load(file)?;
     warn_about(&mesh);
     let textures = MaterialTextures::load(&mesh);
@@ -1175,7 +1210,7 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
 }
 
 fn pack(file: &Path, output: &Path) -> Result<(), Error> {
-    check_outputs(&[("--output", Some(output), Written::Tsplat)], &[file])?;
+    check_outputs(&[("--output", Some(output), Written::Tsplat)], &[file], None)?;
     let tree = load_splats(file)?;
     trirast::splat::format::write(output, &tree)?;
     let bytes = std::fs::metadata(output).map_err(|e| Error::io(output, e))?.len();
@@ -1197,7 +1232,7 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
         ("--output", Some(args.output.as_path()), Written::Png),
         ("--depth", args.depth.as_deref(), Written::Npy),
     ];
-    check_outputs(&outputs, &[&args.file])?;
+    check_outputs(&outputs, &[&args.file], None)?;
     // The target first: a size it refuses is reported before the hierarchy is built.
     let (width, height) = args.size;
     let mut target = Target::new(width, height)?;
@@ -1323,7 +1358,7 @@ fn demo(
         DemoArg::Smooth => Demo::Smooth,
         DemoArg::Soup => Demo::Soup,
     };
-    check_outputs(&[("--output", Some(output), Written::Png)], &[])?;
+    check_outputs(&[("--output", Some(output), Written::Png)], &[], None)?;
     let mut target = Target::new(size.0, size.1)?;
     let s = scene::demo(which, size.0, size.1);
     let options = RenderOptions::default().with_shading(s.shading).with_algorithm(algorithm.into());

@@ -614,27 +614,10 @@ mod tests {
         assert!(seen.iter().all(|&n| n > 100), "both materials drawn: {seen:?}");
     }
 
-    /// Unlit and Gouraud lighting interpolate only the texture coordinate and colour when the
-    /// target has no normal buffer ([`SurfaceVaryings`]); with one they take the full
-    /// varyings. What is interpolated must not change the picture: colour, depth and ids are
-    /// the same bits either way, on a sphere with vertex colours, texture coordinates and a
-    /// textured material on half its triangles.
-    #[test]
-    fn surface_varyings_draw_what_the_full_ones_draw() {
-        let mut mesh = crate::scene::sphere_mesh(3000).unwrap();
-        let n = mesh.positions.len();
-        let wave = |i: usize, k: f32| (i as f32 * k).sin() * 0.5 + 0.5;
-        mesh.colors =
-            Some((0..n).map(|i| [wave(i, 0.3), wave(i, 0.7), wave(i, 1.1), 1.0]).collect());
-        mesh.texcoords = Some((0..n).map(|i| [wave(i, 0.13), wave(i, 0.29)]).collect());
-        mesh.materials = vec![Material::default(), Material::default()];
-        mesh.triangle_materials = Some((0..mesh.triangles.len() as u32).map(|t| t % 2).collect());
-        with_vertex_normals(&mut mesh);
-        let texels: Vec<u8> = (0..4 * 8 * 8).map(|k| (k * 37 % 251) as u8).collect();
-        let textures = MaterialTextures {
-            textures: vec![None, Some(Texture::from_srgba8(8, 8, &texels))],
-            warnings: Vec::new(),
-        };
+    /// Draws `mesh` unlit and Gouraud without and with a normal buffer (which takes the full
+    /// varyings) and asserts the same colour, depth and ids: what is interpolated must not
+    /// change the picture.
+    fn assert_draws_as_with_full_varyings(mesh: &Mesh, textures: &MaterialTextures) {
         let (centre, radius) = camera::bounding_sphere(&mesh.positions);
         let projection = Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y };
         let camera = Camera::framing_sphere(centre, radius, 0.4, 0.3, 1.5, projection);
@@ -642,54 +625,68 @@ mod tests {
             let options = ModelOptions::default().with_lighting(lighting);
             let draw = |target: Target| {
                 let mut target = target.with_ids();
-                let stats = render_mesh(&mut target, &mesh, &camera, &options, &textures).unwrap();
+                let stats = render_mesh(&mut target, mesh, &camera, &options, textures).unwrap();
                 assert!(stats.fragments > 1000, "{lighting:?}: the sphere is drawn");
                 target
             };
-            let surface = draw(Target::new(96, 64).unwrap());
+            let lean = draw(Target::new(96, 64).unwrap());
             let full = draw(Target::new(96, 64).unwrap().with_normals());
-            assert_eq!(surface.color, full.color, "{lighting:?}");
-            assert_eq!(surface.depth, full.depth, "{lighting:?}");
-            assert_eq!(surface.ids, full.ids, "{lighting:?}");
+            assert_eq!(lean.color, full.color, "{lighting:?}");
+            assert_eq!(lean.depth, full.depth, "{lighting:?}");
+            assert_eq!(lean.ids, full.ids, "{lighting:?}");
         }
     }
 
-    /// Without texture coordinates, unlit and Gouraud lighting interpolate the colour alone
-    /// ([`ColorFragment`]): the same bits as the full varyings, with and without materials
-    /// (which then take their diffuse colour).
-    #[test]
-    fn color_varyings_draw_what_the_full_ones_draw() {
-        let mut mesh = crate::scene::sphere_mesh(3000).unwrap();
+    /// A sphere of `triangles` with vertex colours (alpha `alpha`) and vertex normals.
+    fn coloured_sphere(triangles: usize, alpha: f32) -> Mesh {
+        let mut mesh = crate::scene::sphere_mesh(triangles).unwrap();
         let n = mesh.positions.len();
         let wave = |i: usize, k: f32| (i as f32 * k).sin() * 0.5 + 0.5;
         mesh.colors =
-            Some((0..n).map(|i| [wave(i, 0.3), wave(i, 0.7), wave(i, 1.1), 0.8]).collect());
+            Some((0..n).map(|i| [wave(i, 0.3), wave(i, 0.7), wave(i, 1.1), alpha]).collect());
         with_vertex_normals(&mut mesh);
-        let mut with_materials = mesh.clone();
+        mesh
+    }
+
+    /// Unlit and Gouraud lighting interpolate only the texture coordinate and colour when the
+    /// target has no normal buffer ([`SurfaceVaryings`]), on a sphere with vertex colours,
+    /// texture coordinates and a textured material on half its triangles.
+    #[test]
+    fn surface_varyings_draw_what_the_full_ones_draw() {
+        let mut mesh = coloured_sphere(3000, 1.0);
+        let n = mesh.positions.len();
+        let wave = |i: usize, k: f32| (i as f32 * k).sin() * 0.5 + 0.5;
+        mesh.texcoords = Some((0..n).map(|i| [wave(i, 0.13), wave(i, 0.29)]).collect());
+        mesh.materials = vec![Material::default(), Material::default()];
+        mesh.triangle_materials = Some((0..mesh.triangles.len() as u32).map(|t| t % 2).collect());
+        let texels: Vec<u8> = (0..4 * 8 * 8).map(|k| (k * 37 % 251) as u8).collect();
+        let textures = MaterialTextures {
+            textures: vec![None, Some(Texture::from_srgba8(8, 8, &texels))],
+            warnings: Vec::new(),
+        };
+        assert_draws_as_with_full_varyings(&mesh, &textures);
+    }
+
+    /// Without texture coordinates, unlit and Gouraud lighting interpolate the colour alone
+    /// ([`ColorFragment`]), alpha included: the same bits as the full varyings, without
+    /// materials, with plain ones, and with a textured one (which, without coordinates, takes
+    /// its diffuse colour).
+    #[test]
+    fn color_varyings_draw_what_the_full_ones_draw() {
+        let mesh = coloured_sphere(3000, 0.8);
+        assert!(mesh.texcoords.is_none());
+        assert_draws_as_with_full_varyings(&mesh, &MaterialTextures::default());
+        let mut with_materials = mesh;
         let red = Material { diffuse: [0.9, 0.2, 0.1], ..Material::default() };
-        with_materials.materials = vec![Material::default(), red];
-        let count = mesh.triangles.len() as u32;
-        with_materials.triangle_materials = Some((0..count).map(|t| t % 2).collect());
-        let (centre, radius) = camera::bounding_sphere(&mesh.positions);
-        let projection = Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y };
-        let camera = Camera::framing_sphere(centre, radius, 0.4, 0.3, 1.5, projection);
-        for mesh in [&mesh, &with_materials] {
-            assert!(mesh.texcoords.is_none());
-            for lighting in [Lighting::Unlit, Lighting::Gouraud] {
-                let options = ModelOptions::default().with_lighting(lighting);
-                let draw = |target: Target| {
-                    let mut target = target.with_ids();
-                    let textures = MaterialTextures::default();
-                    let stats = render_mesh(&mut target, mesh, &camera, &options, &textures);
-                    assert!(stats.unwrap().fragments > 1000, "{lighting:?}: the sphere is drawn");
-                    target
-                };
-                let color = draw(Target::new(96, 64).unwrap());
-                let full = draw(Target::new(96, 64).unwrap().with_normals());
-                assert_eq!(color.color, full.color, "{lighting:?}");
-                assert_eq!(color.depth, full.depth, "{lighting:?}");
-                assert_eq!(color.ids, full.ids, "{lighting:?}");
-            }
-        }
+        with_materials.materials = vec![Material::default(), red.clone(), red];
+        let count = with_materials.triangles.len() as u32;
+        with_materials.triangle_materials = Some((0..count).map(|t| t % 3).collect());
+        let texels: Vec<u8> = (0..4 * 8 * 8).map(|k| (k * 37 % 251) as u8).collect();
+        let textures = MaterialTextures {
+            textures: vec![None, None, Some(Texture::from_srgba8(8, 8, &texels))],
+            warnings: Vec::new(),
+        };
+        assert_draws_as_with_full_varyings(&with_materials, &MaterialTextures::default());
+        assert_draws_as_with_full_varyings(&with_materials, &textures);
     }
 }

@@ -1,12 +1,14 @@
 //! Polygon triangulation: faces of meshes, and exact filling of 2D polygons.
 //!
-//! Every entry point turns a polygon into triangles over its own vertices that tile it (disjoint
-//! interiors, union the polygon) and are all wound like the polygon, so culling and normals
-//! see one consistent face:
+//! Every entry point turns a simple polygon into triangles over its own vertices that tile it
+//! (disjoint interiors, union the polygon) and are all wound like the polygon, so culling and
+//! normals see one consistent face:
 //! - strictly convex polygons without holes get the lectures' fan `(v0, vi, vi+1)`, which is
 //!   cheap and exact;
-//! - anything else goes to [earcut](https://github.com/georust/earcut), a maintained port of
-//!   mapbox/earcut (ear clipping with hole bridging).
+//! - other simple polygons go to [earcut](https://github.com/georust/earcut), a maintained port
+//!   of mapbox/earcut (ear clipping with hole bridging);
+//! - polygons through one point more than twice are not simple, and earcut's time on them
+//!   grows with the cube of their length: faces take the fan, 2D polygons give nothing.
 //!
 //! [`fill_polygon`] is the exact 2D fill. It snaps the vertices to the rasterizer's 1/256-pixel
 //! grid *first* and triangulates the snapped integers with exact predicates, so the triangles
@@ -48,8 +50,8 @@ const EARCUT_I32_HALF_RANGE: i64 = 1 << 19;
 /// Degenerate input never panics: fewer than 3 points give nothing; a zero or non-finite normal
 /// (collinear or repeated points, NaN, infinity) gives the fan, whose triangles the rasterizer
 /// then drops and counts as degenerate or non-finite. So does a face passing through one point
-/// more than twice (not a simple polygon), which earcut would take time cubic in
-/// its length to triangulate.
+/// more than twice (repeats next to each other counting once), which is not a simple polygon
+/// and would take earcut time cubic in its length.
 #[must_use]
 pub fn triangulate_face(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
     let n = points.len();
@@ -64,7 +66,8 @@ pub fn triangulate_face(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
     // Axes (k+1, k+2) keep the orientation: the projected signed area is `normal[k] / 2`.
     let (u, v) = ((k + 1) % 3, (k + 2) % 3);
     let ring: Vec<[f64; 2]> = points.iter().map(|p| [f64::from(p[u]), f64::from(p[v])]).collect();
-    if is_strictly_convex(&ring) || most_corners_at_one_point(&ring) > MAX_CORNERS_AT_ONE_POINT {
+    if is_strictly_convex(&ring) || most_corners_at_one_point(&ring, &[]) > MAX_CORNERS_AT_ONE_POINT
+    {
         return fan(n);
     }
     let tris = earcut_f64(&ring, &[], normal[k] > 0.0);
@@ -78,10 +81,9 @@ pub fn triangulate_face(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
 /// Triangles are wound like the outer ring. Rings must not cross or touch each other (holes
 /// strictly inside the outer ring, pairwise disjoint), and each must be simple; for other input
 /// the result is whatever earcut makes of it, except that rings passing through one point more
-/// than twice give no triangles (not a simple polygon). Non-finite coordinates give
-/// no triangles, holes
-/// with fewer than 3 points are ignored. For an exact triangulation of pixel coordinates, see
-/// [`triangulate_snapped`].
+/// than twice (repeats next to each other counting once) give no triangles. Non-finite
+/// coordinates give no triangles, holes with fewer than 3 points are ignored. For an exact
+/// triangulation of pixel coordinates, see [`triangulate_snapped`].
 #[must_use]
 pub fn triangulate_polygon(rings: &[Vec<[f64; 2]>]) -> Vec<[usize; 3]> {
     let Some(outer) = rings.first() else {
@@ -98,7 +100,7 @@ pub fn triangulate_polygon(rings: &[Vec<[f64; 2]>]) -> Vec<[usize; 3]> {
         return fan(outer.len());
     }
     let (data, holes, map) = flatten(rings, |ring| ring.len() >= 3);
-    if most_corners_at_one_point(&data) > MAX_CORNERS_AT_ONE_POINT {
+    if most_corners_at_one_point(&data, &holes) > MAX_CORNERS_AT_ONE_POINT {
         return Vec::new();
     }
     let tris = earcut_f64(&data, &holes, area > 0.0);
@@ -130,7 +132,7 @@ pub fn triangulate_snapped(rings: &[Vec<[i32; 2]>]) -> Vec<[usize; 3]> {
         return fan(outer.len());
     }
     let (data, holes, map) = flatten(rings, keep);
-    if most_corners_at_one_point(&as_f64(&data)) > MAX_CORNERS_AT_ONE_POINT {
+    if most_corners_at_one_point(&as_f64(&data), &holes) > MAX_CORNERS_AT_ONE_POINT {
         return Vec::new();
     }
     let (mut lo, mut hi) = ([i64::MAX; 2], [i64::MIN; 2]);
@@ -220,14 +222,27 @@ pub fn fill_polygon_with(
     draw(target, &triangles, options)
 }
 
-/// The fan `(0, i, i + 1)` over `n` corners: the triangulation of a convex polygon.
-/// How many of `points` lie on the most visited point (`-0.0` and `0.0` being one).
-fn most_corners_at_one_point(points: &[[f64; 2]]) -> usize {
-    let mut keys: Vec<[u64; 2]> = points.iter().map(|p| p.map(|c| (c + 0.0).to_bits())).collect();
+/// How many corners of the rings in `points` (the first, then one from each start in
+/// `holes`, as earcut takes them) lie on the most visited point, `-0.0` and `0.0` being one.
+/// A run of equal corners next to each other (round each ring) counts once: earcut drops such
+/// repeats itself, and they are common (flattened curves snapped to the grid, exporters'
+/// repeated indices).
+fn most_corners_at_one_point(points: &[[f64; 2]], holes: &[usize]) -> usize {
+    let key = |p: &[f64; 2]| p.map(|c| (c + 0.0).to_bits());
+    let mut bounds = vec![0];
+    bounds.extend_from_slice(holes);
+    bounds.push(points.len());
+    let mut keys: Vec<[u64; 2]> = Vec::with_capacity(points.len());
+    for ring in bounds.windows(2).map(|w| &points[w[0]..w[1]]) {
+        let previous = ring.iter().cycle().skip(ring.len().saturating_sub(1));
+        let kept = ring.iter().zip(previous).filter(|(p, q)| key(p) != key(q));
+        keys.extend(kept.map(|(p, _)| key(p)));
+    }
     keys.sort_unstable();
     keys.chunk_by(|a, b| a == b).map(<[_]>::len).max().unwrap_or(0)
 }
 
+/// The fan `(0, i, i + 1)` over `n` corners: the triangulation of a convex polygon.
 fn fan(n: usize) -> Vec<[usize; 3]> {
     (1..n.saturating_sub(1)).map(|i| [0, i, i + 1]).collect()
 }
@@ -433,7 +448,25 @@ mod tests {
         assert!(triangulate_snapped(&[snapped]).is_empty());
         // A point visited three times by otherwise distinct corners: `-0.0` is `0.0`.
         let thrice = [[0.0, 0.0], [4.0, 1.0], [-0.0, 0.0], [4.0, 3.0], [0.0, -0.0], [4.0, 5.0]];
-        assert_eq!(most_corners_at_one_point(&thrice), 3);
+        assert_eq!(most_corners_at_one_point(&thrice, &[]), 3);
+        // Repeats next to each other (round the ring, and per ring) count once: earcut drops
+        // them itself. An L of area 3 with a corner three times over and the first corner
+        // repeated at the end still goes to earcut and tiles.
+        let l = [[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [2.0, 1.0], [2.0, 1.0], [1.0, 1.0]];
+        let l: Vec<[f64; 2]> = l.into_iter().chain([[1.0, 2.0], [0.0, 2.0], [0.0, 0.0]]).collect();
+        assert_eq!(most_corners_at_one_point(&l, &[]), 1);
+        assert_eq!(most_corners_at_one_point(&[l.clone(), l.clone()].concat(), &[l.len()]), 2);
+        let face: Vec<[f32; 3]> = l.iter().map(|p| [p[0] as f32, p[1] as f32, 0.0]).collect();
+        let tris = triangulate_face(&face);
+        assert_ne!(tris, fan(l.len()), "earcut, not the fan");
+        let twice_area = |t: &[usize; 3]| {
+            let [a, b, c] = t.map(|i| l[i]);
+            (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
+        };
+        assert_eq!(tris.iter().map(twice_area).sum::<f64>(), 6.0);
+        let snapped: Vec<[i32; 2]> = l.iter().map(|p| p.map(|c| (c * 256.0) as i32)).collect();
+        assert_eq!(triangulate_snapped(&[snapped]).len(), 4);
+        assert_eq!(triangulate_polygon(&[l]).len(), 4);
 
         // A square with a square hole, bridged: the bridge's ends are visited twice. Earcut
         // tiles it: the triangles' areas sum to the polygon's.
@@ -449,7 +482,7 @@ mod tests {
             [2.0, 3.0],
             [0.0, 4.0],
         ];
-        assert_eq!(most_corners_at_one_point(&keyhole), 2);
+        assert_eq!(most_corners_at_one_point(&keyhole, &[]), 2);
         let face: Vec<[f32; 3]> = keyhole.iter().map(|p| [p[0] as f32, p[1] as f32, 0.0]).collect();
         let tris = triangulate_face(&face);
         assert_ne!(tris, fan(keyhole.len()), "earcut, not the fan");

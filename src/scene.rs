@@ -210,8 +210,8 @@ pub fn default_model() -> crate::mesh::Mesh {
     mesh
 }
 
-/// A UV sphere with about `triangles` triangles (at most 2^31, as its `u32` indices allow),
-/// counter-clockwise outside.
+/// A UV sphere with about `triangles` triangles (at most 2^31, so that its vertex and
+/// triangle counts, computed in `u32`, cannot wrap), counter-clockwise outside.
 ///
 /// Errors: [`Error::OutOfMemory`] when its arrays cannot be allocated (`triangles` is the
 /// caller's to choose: `trirast bench dense --dense-triangles`).

@@ -41,12 +41,14 @@ pub struct Texture {
     texels: Vec<Vec4>,
 }
 
-/// The largest texture side, in texels: what GPUs allow (16384 in Direct3D 11 and 12).
+/// The largest texture side, in texels, as in Direct3D 11 and 12; [`MAX_TEXELS`] bounds the
+/// area further, so a 16384 x 16384 (or 16384 x 8192) texture is refused while 16384 x 4096
+/// loads.
 pub const MAX_TEXTURE_SIDE: u32 = 16384;
 
 /// The most texels a texture may have: 2^26 (8192 x 8192), 1 GiB as linear `Vec4` texels plus
-/// 256 MiB decoded as RGBA8 while they are made. An 11000 x 11000 PNG of 494 KB had taken
-/// 2.9 GB.
+/// 256 MiB decoded as RGBA8 while they are made (textures are kept as `Vec4` so that sampling
+/// does no decoding). An 11000 x 11000 PNG of 494 KB had taken 2.9 GB.
 pub const MAX_TEXELS: u64 = 1 << 26;
 
 impl Texture {

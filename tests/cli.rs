@@ -862,7 +862,8 @@ fn impossible_thread_counts_are_usage_errors() {
         assert!(err.contains(&format!("{}={}", switch.0, switch.1)), "{err}");
         assert!(!dir.path("switch.png").exists(), "nothing is rendered");
     }
-    for switch in [("TRIRAST_SIMD", "scalar"), ("TRIRAST_SCHEDULE", "banded")] {
+    let known = [("TRIRAST_SIMD", "scalar"), ("TRIRAST_SCHEDULE", "banded")];
+    for switch in known.into_iter().chain([("TRIRAST_SCHEDULE", "auto"), ("TRIRAST_SIMD", "")]) {
         let out = trirast_with_env(&dir.0, args, switch);
         assert!(out.status.success(), "{switch:?}: {}", stderr_of(&out));
     }
@@ -934,15 +935,25 @@ fn outputs_that_are_inputs_or_each_other_are_refused() {
                  property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
     let quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
                 f 1/1 2/2 3/3 4/4\n";
-    let files = [("c.ply", cloud), ("m.obj", quad)];
+    let with_material = format!("mtllib m.mtl\nusemtl tex\n{quad}");
+    let files = [
+        ("c.ply", cloud),
+        ("m.obj", quad),
+        ("q.obj", &with_material),
+        ("m.mtl", "newmtl tex\nmap_Kd tex.png\n"),
+    ];
     for (name, text) in files {
         dir.write(name, text);
     }
     run_ok(&dir.0, ["render", "--size", "8x8", "-o", "t.png"]);
+    for copy in ["t_001.png", "tex.png"] {
+        fs::copy(dir.path("t.png"), dir.path(copy)).unwrap();
+    }
     run_ok(&dir.0, ["pack", "c.ply", "-o", "c.tsplat"]);
     let here = dir.0.file_name().unwrap().to_str().unwrap().to_string();
     let round_trip = format!("../{here}/x.npy");
-    let cases: [(&[&str], &str); 6] = [
+    let inputs = ["c.tsplat", "m.obj", "t.png", "t_001.png", "tex.png", "m.mtl"];
+    let cases: [(&[&str], &str); 9] = [
         (&["pack", "c.tsplat", "-o", "c.tsplat"], "is the input"),
         (&["pack", "c.tsplat", "-o", "./c.tsplat"], "is the input"),
         (&["sample", "m.obj", "-o", "./m.obj"], "is the input"),
@@ -952,23 +963,38 @@ fn outputs_that_are_inputs_or_each_other_are_refused() {
         ),
         (&["render", "--size", "8x8", "--ids", "x.npy", "--depth", &round_trip], "both name"),
         (&["sample", "m.obj", "-o", "m.png"], "written as .ply"),
+        // A material's texture, and a turntable's numbered frames.
+        (&["render", "q.obj", "--size", "8x8", "-o", "tex.png"], "is the input"),
+        (
+            &["render", "m.obj", "--texture", "t_001.png", "--turntable", "2", "-o", "t.png"],
+            "is the input",
+        ),
+        (&["render", "q.obj", "--size", "8x8", "-o", "m.mtl"], "written as .png"),
     ];
     for (args, refused) in cases {
-        let before: Vec<Vec<u8>> =
-            ["c.tsplat", "m.obj", "t.png"].map(|f| fs::read(dir.path(f)).unwrap()).into();
+        let before = inputs.map(|f| fs::read(dir.path(f)).unwrap());
         let err = run_err(&dir.0, args);
         assert!(err.contains(refused), "{args:?}: {err}");
-        let after: Vec<Vec<u8>> =
-            ["c.tsplat", "m.obj", "t.png"].map(|f| fs::read(dir.path(f)).unwrap()).into();
+        let after = inputs.map(|f| fs::read(dir.path(f)).unwrap());
         assert!(before == after, "{args:?}: an input was written");
         assert!(!dir.path("x.npy").exists(), "{args:?}: nothing is written");
     }
     #[cfg(unix)]
     {
         std::os::unix::fs::symlink(dir.path("c.tsplat"), dir.path("link.tsplat")).unwrap();
-        let err = run_err(&dir.0, ["pack", "c.tsplat", "-o", "link.tsplat"]);
-        assert!(err.contains("is the input"), "{err}");
+        fs::hard_link(dir.path("c.tsplat"), dir.path("hard.tsplat")).unwrap();
+        for output in ["link.tsplat", "hard.tsplat"] {
+            let err = run_err(&dir.0, ["pack", "c.tsplat", "-o", output]);
+            assert!(err.contains("is the input"), "{output}: {err}");
+        }
     }
+    // Accepted: the same name in another directory; a turntable whose frames are not the
+    // texture it reads (t.png itself is not written: its frames are t_000.png, t_001.png).
+    fs::create_dir(dir.path("sub")).unwrap();
+    run_ok(&dir.0, ["pack", "c.tsplat", "-o", "sub/c.tsplat"]);
+    let turntable = ["render", "m.obj", "--texture", "t.png", "--size", "8x8", "--turntable", "2"];
+    run_ok(&dir.0, [&turntable[..], &["-o", "t.png"]].concat());
+    assert!(dir.path("t_000.png").exists() && dir.path("sub/c.tsplat").exists());
 }
 
 /// Options are honoured or refused, never silently ignored: `--frames` times window

@@ -552,16 +552,17 @@ fn assert_consistent(c: &PointCloud, n: usize) {
     assert_eq!(c.radii.as_ref().map(Vec::len), Some(n));
 }
 
-/// More points than memory can hold are an error naming them, not an abort (`trirast sample
-/// --points 1073741824` under an 8 GB limit aborted in `vec!`). Here the size overflows, so
-/// nothing is allocated.
+/// Points whose arrays cannot be allocated are an error naming them and the bytes of all four
+/// arrays (12 + 12 + 3 + 4 per point), not an abort (`trirast sample --points 1073741824`
+/// under an 8 GB limit aborted in `vec!`). Here the size overflows, so nothing is allocated;
+/// an allocator's refusal takes the same path.
 #[test]
-fn sampling_more_points_than_memory_holds_is_an_error() {
+fn sampling_points_that_cannot_be_allocated_is_an_error() {
     let n = usize::MAX / 16;
     match sample_mesh(&tetrahedron(), &MaterialTextures::default(), n, 3) {
         Err(Error::OutOfMemory { what, bytes }) => {
             assert_eq!(what, format!("{n} sampled points"));
-            assert_eq!(bytes, n as u128 * 12, "the positions' bytes");
+            assert_eq!(bytes, n as u128 * 31, "the four arrays' bytes");
         }
         other => panic!("expected OutOfMemory, got {:?}", other.map(|c| c.len())),
     }

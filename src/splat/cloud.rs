@@ -467,10 +467,15 @@ fn sample(
             radii: Some(Vec::new()),
         });
     }
+    // The error names the bytes of all four arrays, whichever could not be had.
     let what = format!("{n} sampled points");
-    let mut positions = try_filled(n, [0.0f32; 3], &what)?;
-    let mut normals = try_filled(n, [0.0f32; 3], &what)?;
-    let mut colors = try_filled(n, [0u8; 3], &what)?;
+    let all = |e: Error| match e {
+        Error::OutOfMemory { what, .. } => Error::OutOfMemory { what, bytes: n as u128 * 31 },
+        e => e,
+    };
+    let mut positions = try_filled(n, [0.0f32; 3], &what).map_err(all)?;
+    let mut normals = try_filled(n, [0.0f32; 3], &what).map_err(all)?;
+    let mut colors = try_filled(n, [0u8; 3], &what).map_err(all)?;
     positions
         .par_chunks_mut(CHUNK)
         .zip(normals.par_chunks_mut(CHUNK))
@@ -487,7 +492,7 @@ fn sample(
         positions,
         normals: Some(normals),
         colors: Some(colors),
-        radii: Some(try_filled(n, radius, &what)?),
+        radii: Some(try_filled(n, radius, &what).map_err(all)?),
     })
 }
 
