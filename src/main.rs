@@ -742,6 +742,21 @@ fn model_options(args: &RenderArgs) -> Result<ModelOptions, Error> {
 }
 
 fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
+    // Options of the camera and of textures (the window projection has neither) were
+    // ignored in silence; refused before the file is read.
+    let camera_or_texture = [
+        ("--normals", args.normals.is_some()),
+        ("--turntable", args.turntable.is_some()),
+        ("--view", args.view.is_some()),
+        ("--eye", args.eye.is_some()),
+        ("--fov", args.fov.is_some()),
+        ("--texture", args.texture.is_some()),
+        ("--filter", args.filter.is_some()),
+        ("--wrap", args.wrap.is_some()),
+    ];
+    if let Some((option, _)) = camera_or_texture.iter().find(|(_, given)| *given) {
+        return Err(usage(format!("{option} needs a 3D projection")));
+    }
     let (width, height) = args.size;
     let (triangles, default_shading) = match &args.file {
         Some(path) => {
@@ -784,21 +799,6 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
             ));
         }
     };
-    // Options of the camera and of textures (the window projection has neither) were
-    // ignored in silence.
-    let camera_or_texture = [
-        ("--normals", args.normals.is_some()),
-        ("--turntable", args.turntable.is_some()),
-        ("--view", args.view.is_some()),
-        ("--eye", args.eye.is_some()),
-        ("--fov", args.fov.is_some()),
-        ("--texture", args.texture.is_some()),
-        ("--filter", args.filter.is_some()),
-        ("--wrap", args.wrap.is_some()),
-    ];
-    if let Some((option, _)) = camera_or_texture.iter().find(|(_, given)| *given) {
-        return Err(usage(format!("{option} needs a 3D projection")));
-    }
     let clear =
         args.background.map_or(trirast::target::DEFAULT_CLEAR_COLOR, |[r, g, b]| [r, g, b, 255]);
     let options = RenderOptions::default()
