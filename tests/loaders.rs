@@ -1020,6 +1020,32 @@ fn malformed_files_name_the_file_and_position() {
     assert!(e.contains("absent.ply"), "{e}");
 }
 
+/// OBJ and MTL files read the same whatever their line endings: LF, CR LF, CR alone (classic
+/// Mac OS, which was read as one line: "expected a number, found `v`") and CR CR LF; and an
+/// error names the same line in each.
+#[test]
+fn obj_and_mtl_line_endings_read_alike() {
+    let dir = scratch("line_endings");
+    let lines = ["mtllib m.mtl", "v 0 0 0", "v 1 0 0", "v 0 1 0", "usemtl red", "f 1 2 3"];
+    let mtl = ["newmtl red", "Kd 1 0 0"];
+    let mut meshes = Vec::new();
+    for (k, end) in ["\n", "\r\n", "\r", "\r\r\n"].into_iter().enumerate() {
+        let sub = dir.join(format!("e{k}"));
+        fs::create_dir_all(&sub).unwrap();
+        fs::write(sub.join("m.mtl"), mtl.join(end) + end).unwrap();
+        fs::write(sub.join("t.obj"), lines.join(end) + end).unwrap();
+        let mesh = mesh::load(&sub.join("t.obj")).unwrap();
+        assert!(mesh.warnings.is_empty(), "{end:?}: {:?}", mesh.warnings);
+        meshes.push((mesh.positions, mesh.triangles, mesh.materials));
+        let bad = ["v 0 0 0", "v 1 0 0", "v 0 oops 0"].join(end) + end;
+        fs::write(sub.join("bad.obj"), bad).unwrap();
+        let e = mesh::load(&sub.join("bad.obj")).unwrap_err().to_string();
+        assert!(e.contains("bad.obj:3:"), "{end:?}: {e}");
+    }
+    assert!(meshes.windows(2).all(|w| w[0] == w[1]));
+    assert_eq!(meshes[0].2[0].diffuse, [1.0, 0.0, 0.0]);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Mutation fuzz
 

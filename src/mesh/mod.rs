@@ -69,6 +69,14 @@ pub fn load(path: &Path) -> Result<Mesh, Error> {
     }
 }
 
+/// The lines of a text file: split at LF (a CR before it is trimmed with the other
+/// whitespace), or at CR in a file without LF (classic Mac OS), which was read as one line:
+/// "expected a number, found `v`" on line 1.
+pub(crate) fn text_lines(bytes: &[u8]) -> impl Iterator<Item = &[u8]> {
+    let end = if !bytes.contains(&b'\n') && bytes.contains(&b'\r') { b'\r' } else { b'\n' };
+    bytes.split(move |&b| b == end)
+}
+
 /// Converts a colour in [0, 1] (clamped) to `u8`, rounding to nearest.
 #[must_use]
 pub fn unorm8(c: f32) -> u8 {

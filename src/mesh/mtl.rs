@@ -46,7 +46,7 @@ pub fn read(path: &Path) -> Result<MaterialLibrary, Error> {
 /// `(line, message)`.
 pub fn parse(bytes: &[u8], dir: &Path) -> Result<MaterialLibrary, (usize, String)> {
     let mut lib = MaterialLibrary::default();
-    for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+    for (n, raw) in super::text_lines(bytes).enumerate() {
         let line = n + 1;
         let text = std::str::from_utf8(raw).map_err(|_| (line, "not valid UTF-8".to_string()))?;
         let text = text.split('#').next().unwrap_or("").trim();

@@ -165,7 +165,7 @@ pub fn parse(bytes: &[u8]) -> Result<ObjMesh, (usize, String)> {
     let mut max_ref: [(u32, usize); 3] = [(0, 0); 3];
     // A UTF-8 byte-order mark (some Windows tools write one) is not part of the first line.
     let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
-    for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+    for (n, raw) in super::text_lines(bytes).enumerate() {
         let line = n + 1;
         let text = std::str::from_utf8(raw).map_err(|_| (line, "not valid UTF-8".to_string()))?;
         let text = text.split('#').next().unwrap_or("").trim();
