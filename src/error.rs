@@ -24,9 +24,10 @@ pub enum Error {
         /// Samples per pixel.
         samples: usize,
     },
-    /// An array whose size the caller chose (points to sample, triangles to generate) could
-    /// not be allocated: an error to report rather than the abort of an infallible
-    /// allocation.
+    /// An array whose size the input chose (points to sample, triangles to generate, a file
+    /// to read) could not be allocated: an error to report rather than the abort of an
+    /// infallible allocation. With overcommit the allocation may succeed and the system stop
+    /// the process later; this is what the allocator refuses.
     #[error("not enough memory for {what}: {gib:.1} GiB", gib = *.bytes as f64 / f64::from(1 << 30))]
     OutOfMemory {
         /// What the memory was for.
