@@ -392,16 +392,13 @@ fn check_rayon_threads() -> Result<(), Error> {
 fn check_switches() -> Result<(), Error> {
     use trirast::simd::SimdLevel;
     if let Some(value) = std::env::var_os("TRIRAST_SIMD") {
-        let level = match value.to_str() {
-            // Empty: as unset, the best level.
-            Some("") => SimdLevel::detect(),
-            Some("scalar") => SimdLevel::Scalar,
-            Some("avx2") => SimdLevel::Avx2,
-            Some("avx512") => SimdLevel::Avx512,
-            _ => {
-                let value = value.to_string_lossy();
-                return Err(usage(format!("TRIRAST_SIMD={value}: scalar, avx2 or avx512")));
-            }
+        // Empty: as unset, the best level.
+        let name = value.to_str().unwrap_or("?");
+        let named =
+            if name.is_empty() { Some(SimdLevel::detect()) } else { SimdLevel::from_name(name) };
+        let Some(level) = named else {
+            let value = value.to_string_lossy();
+            return Err(usage(format!("TRIRAST_SIMD={value}: scalar, avx2 or avx512")));
         };
         if !level.is_available() {
             eprintln!(
@@ -412,7 +409,7 @@ fn check_switches() -> Result<(), Error> {
         }
     }
     if let Some(value) = std::env::var_os("TRIRAST_SCHEDULE")
-        && !matches!(value.to_str(), Some("" | "auto" | "binned" | "banded"))
+        && !value.to_str().is_some_and(|n| n.is_empty() || Schedule::from_name(n).is_some())
     {
         let value = value.to_string_lossy();
         return Err(usage(format!("TRIRAST_SCHEDULE={value}: auto, binned or banded")));

@@ -77,14 +77,20 @@ impl Schedule {
         }
     }
 
+    /// The schedule [`Schedule::name`] spells `name`.
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Self> {
+        [Self::Auto, Self::Binned, Self::Banded].into_iter().find(|s| s.name() == name)
+    }
+
     /// This schedule, or for [`Schedule::Auto`] the one named by the environment variable
     /// `TRIRAST_SCHEDULE` (`binned`, `banded`) when that is set (comparisons, as
     /// `TRIRAST_SIMD` for kernels).
     #[must_use]
     pub fn or_forced(self) -> Self {
-        match (self, std::env::var("TRIRAST_SCHEDULE").as_deref()) {
-            (Self::Auto, Ok("binned")) => Self::Binned,
-            (Self::Auto, Ok("banded")) => Self::Banded,
+        let forced = std::env::var("TRIRAST_SCHEDULE").ok().and_then(|n| Self::from_name(&n));
+        match (self, forced) {
+            (Self::Auto, Some(schedule)) => schedule,
             (schedule, _) => schedule,
         }
     }

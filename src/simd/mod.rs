@@ -49,15 +49,21 @@ impl SimdLevel {
     /// `TRIRAST_SIMD` (`scalar`, `avx2`, `avx512`) when that is set and available.
     #[must_use]
     pub fn detect() -> Self {
-        let forced = match std::env::var("TRIRAST_SIMD").as_deref() {
-            Ok("scalar") => Some(Self::Scalar),
-            Ok("avx2") => Some(Self::Avx2),
-            Ok("avx512") => Some(Self::Avx512),
-            _ => None,
-        };
+        let forced = std::env::var("TRIRAST_SIMD").ok().and_then(|n| Self::from_name(&n));
         match forced {
             Some(level) if level.is_available() => level,
             _ => Self::available().pop().unwrap_or(Self::Scalar),
+        }
+    }
+
+    /// The level `TRIRAST_SIMD` names `name` (`scalar`, `avx2`, `avx512`).
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "scalar" => Some(Self::Scalar),
+            "avx2" => Some(Self::Avx2),
+            "avx512" => Some(Self::Avx512),
+            _ => None,
         }
     }
 
