@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use crate::error::Error;
 use crate::setup::Vertex;
 
-pub use obj::{Corner, ObjMesh};
+pub use obj::{Corner, MaterialStatements, ObjMesh};
 
 /// A surface material: a diffuse colour, optionally modulated by a texture.
 #[derive(Clone, Debug, PartialEq)]
@@ -69,12 +69,37 @@ pub fn load(path: &Path) -> Result<Mesh, Error> {
     }
 }
 
-/// The lines of a text file: split at LF (a CR before it is trimmed with the other
-/// whitespace), or at CR in a file without LF (classic Mac OS), which was read as one line:
-/// "expected a number, found `v`" on line 1.
-pub(crate) fn text_lines(bytes: &[u8]) -> impl Iterator<Item = &[u8]> {
-    let end = if !bytes.contains(&b'\n') && bytes.contains(&b'\r') { b'\r' } else { b'\n' };
-    bytes.split(move |&b| b == end)
+/// Calls `line(text, number)` for each line of a text file read from `input` (numbered from
+/// 1), one line in memory at a time. Lines end at LF (a CR before it is left to the caller's
+/// whitespace trimming), or at CR in a file without LF (classic Mac OS), which had been read as
+/// one line: "expected a number, found `v`" on line 1. A UTF-8 byte-order mark (some Windows
+/// tools write one) is not part of the first line. `io` wraps a read error.
+pub(crate) fn read_lines<E>(
+    mut input: impl std::io::BufRead,
+    io: impl Fn(std::io::Error) -> E,
+    mut line: impl FnMut(&[u8], usize) -> Result<(), E>,
+) -> Result<(), E> {
+    let mut buffer = Vec::new();
+    let mut number = 0;
+    loop {
+        buffer.clear();
+        if input.read_until(b'\n', &mut buffer).map_err(&io)? == 0 {
+            return Ok(());
+        }
+        let mut text = &buffer[..];
+        if number == 0 {
+            text = text.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(text);
+            if !text.ends_with(b"\n") && text.contains(&b'\r') {
+                // This first read reached the end: the file has no LF.
+                for (n, piece) in text.split(|&b| b == b'\r').enumerate() {
+                    line(piece, n + 1)?;
+                }
+                return Ok(());
+            }
+        }
+        number += 1;
+        line(text.strip_suffix(b"\n").unwrap_or(text), number)?;
+    }
 }
 
 /// Converts a colour in [0, 1] (clamped) to `u8`, rounding to nearest.

@@ -16,7 +16,7 @@ use std::collections::HashMap;
 use std::io::ErrorKind;
 use std::path::{Path, PathBuf};
 
-use super::obj::ObjMesh;
+use super::obj::MaterialStatements;
 use super::{Material, Mesh};
 use crate::error::Error;
 use crate::texture::{MAX_TEXELS, MAX_TEXTURE_SIDE, Texture};
@@ -46,60 +46,69 @@ pub fn read(path: &Path) -> Result<MaterialLibrary, Error> {
 /// `(line, message)`.
 pub fn parse(bytes: &[u8], dir: &Path) -> Result<MaterialLibrary, (usize, String)> {
     let mut lib = MaterialLibrary::default();
-    for (n, raw) in super::text_lines(bytes).enumerate() {
-        let line = n + 1;
-        let text = std::str::from_utf8(raw).map_err(|_| (line, "not valid UTF-8".to_string()))?;
-        let text = text.split('#').next().unwrap_or("").trim();
-        let mut tokens = text.split_ascii_whitespace();
-        let Some(keyword) = tokens.next() else {
-            continue;
-        };
-        let args: Vec<&str> = tokens.collect();
-        // Keywords are matched case-insensitively (`map_kd` occurs in the wild).
-        let lower = keyword.to_ascii_lowercase();
-        if lower == "newmtl" {
-            if args.is_empty() {
-                return Err((line, "`newmtl` needs a material name".into()));
-            }
-            lib.materials.push(Material { name: args.join(" "), ..Material::default() });
-            continue;
-        }
-        if lower != "kd" && lower != "map_kd" {
-            continue;
-        }
-        let Some(material) = lib.materials.last_mut() else {
-            return Err((line, format!("`{keyword}` before any `newmtl`")));
-        };
-        if lower == "kd" {
-            if matches!(args.first(), Some(&("spectral" | "xyz"))) {
-                lib.warnings.push(format!(
-                    "line {line}: `Kd {}` is not supported; material `{}` keeps its default colour",
-                    args[0], material.name
-                ));
-                continue;
-            }
-            let mut rgb = [0.0f32; 3];
-            let f = args
-                .iter()
-                .map(|a| match a.parse::<f32>() {
-                    Ok(v) if v.is_finite() => Ok(v.clamp(0.0, 1.0)),
-                    _ => Err((line, format!("`Kd` expected a finite number, found `{a}`"))),
-                })
-                .collect::<Result<Vec<_>, _>>()?;
-            match f.len() {
-                1 => rgb = [f[0]; 3],
-                3 => rgb.copy_from_slice(&f),
-                k => return Err((line, format!("`Kd` takes r [g b], found {k} numbers"))),
-            }
-            material.diffuse = rgb;
-        } else {
-            let Some(file) = args.last() else {
-                return Err((line, "`map_Kd` needs a file name".into()));
-            };
-            material.diffuse_texture = Some(dir.join(file));
-        }
-    }
+    let io = |e: std::io::Error| (0, e.to_string());
+    super::read_lines(bytes, io, |raw, line| statement(&mut lib, raw, line, dir))?;
     Ok(lib)
+}
+
+/// One line of a `.mtl` file into `lib`.
+fn statement(
+    lib: &mut MaterialLibrary,
+    raw: &[u8],
+    line: usize,
+    dir: &Path,
+) -> Result<(), (usize, String)> {
+    let text = std::str::from_utf8(raw).map_err(|_| (line, "not valid UTF-8".to_string()))?;
+    let text = text.split('#').next().unwrap_or("").trim();
+    let mut tokens = text.split_ascii_whitespace();
+    let Some(keyword) = tokens.next() else {
+        return Ok(());
+    };
+    let args: Vec<&str> = tokens.collect();
+    // Keywords are matched case-insensitively (`map_kd` occurs in the wild).
+    let lower = keyword.to_ascii_lowercase();
+    if lower == "newmtl" {
+        if args.is_empty() {
+            return Err((line, "`newmtl` needs a material name".into()));
+        }
+        lib.materials.push(Material { name: args.join(" "), ..Material::default() });
+        return Ok(());
+    }
+    if lower != "kd" && lower != "map_kd" {
+        return Ok(());
+    }
+    let Some(material) = lib.materials.last_mut() else {
+        return Err((line, format!("`{keyword}` before any `newmtl`")));
+    };
+    if lower == "kd" {
+        if matches!(args.first(), Some(&("spectral" | "xyz"))) {
+            lib.warnings.push(format!(
+                "line {line}: `Kd {}` is not supported; material `{}` keeps its default colour",
+                args[0], material.name
+            ));
+            return Ok(());
+        }
+        let mut rgb = [0.0f32; 3];
+        let f = args
+            .iter()
+            .map(|a| match a.parse::<f32>() {
+                Ok(v) if v.is_finite() => Ok(v.clamp(0.0, 1.0)),
+                _ => Err((line, format!("`Kd` expected a finite number, found `{a}`"))),
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        match f.len() {
+            1 => rgb = [f[0]; 3],
+            3 => rgb.copy_from_slice(&f),
+            k => return Err((line, format!("`Kd` takes r [g b], found {k} numbers"))),
+        }
+        material.diffuse = rgb;
+    } else {
+        let Some(file) = args.last() else {
+            return Err((line, "`map_Kd` needs a file name".into()));
+        };
+        material.diffuse_texture = Some(dir.join(file));
+    }
+    Ok(())
 }
 
 /// Resolves an OBJ's materials: loads its `mtllib` files (relative to `obj_path`'s directory)
@@ -110,12 +119,12 @@ pub fn parse(bytes: &[u8], dir: &Path) -> Result<MaterialLibrary, (usize, String
 /// missing, not a regular file, too large or whose header cannot be decoded (its
 /// `diffuse_texture` is then `None`, leaving the `Kd` colour). Materials keep the default grey
 /// when undefined. A malformed library is an error naming the `.mtl` file and line.
-pub fn apply(mesh: &mut Mesh, obj: &ObjMesh, obj_path: &Path) -> Result<(), Error> {
+pub fn apply(mesh: &mut Mesh, obj: &MaterialStatements, obj_path: &Path) -> Result<(), Error> {
     let dir = obj_path.parent().unwrap_or_else(|| Path::new(""));
     let obj_name = obj_path.display();
     let mut defined: HashMap<String, (Material, PathBuf)> = HashMap::new();
     let mut missing_library = false;
-    for (argument, line) in &obj.material_libraries {
+    for (argument, line) in &obj.libraries {
         for file in library_files(dir, argument) {
             let lib = match read(&file) {
                 Ok(lib) => lib,
@@ -152,7 +161,7 @@ pub fn apply(mesh: &mut Mesh, obj: &ObjMesh, obj_path: &Path) -> Result<(), Erro
         }
     }
     let lines: HashMap<&str, u32> =
-        obj.material_names.iter().map(|(name, line)| (name.as_str(), *line)).collect();
+        obj.names.iter().map(|(name, line)| (name.as_str(), *line)).collect();
     for material in mesh.materials.iter_mut().filter(|m| !m.name.is_empty()) {
         let Some((found, library)) = defined.get(&material.name) else {
             if missing_library {
@@ -160,7 +169,7 @@ pub fn apply(mesh: &mut Mesh, obj: &ObjMesh, obj_path: &Path) -> Result<(), Erro
                 continue;
             }
             let line = lines.get(material.name.as_str()).copied().unwrap_or(0);
-            let why = if obj.material_libraries.is_empty() {
+            let why = if obj.libraries.is_empty() {
                 "the file has no `mtllib`"
             } else {
                 "no material library defines it"

@@ -6,8 +6,21 @@
 //! whose corners are `v`, `v/vt`, `v//vn` or `v/vt/vn`, with negative (relative) indices.
 //! `mtllib` and `usemtl` are recorded; [`read_mesh`] resolves them through [`super::mtl`].
 //! Other statements (`o`, `g`, `s`, `l`, `p`, ...) are skipped.
+//!
+//! Two readers share one statement parser ([`Statements`]):
+//! - [`parse`] keeps the file as written ([`ObjMesh`]: every element and face corner), which the
+//!   window projection reads and [`to_mesh`], the reference, turns into an indexed [`Mesh`];
+//! - [`parse_mesh`] (what [`read_mesh`] uses) builds the same [`Mesh`] while it reads, line by
+//!   line from a buffered file, without the file's bytes or its corners in memory (a face
+//!   whose corners are all read becomes triangles at once). A 37 MB OBJ of 1,000,000 triangles
+//!   had peaked at 254 MB through the two steps, for a mesh of 18 MB.
+//!
+//! Positive indices may refer forwards, to elements later in the file. [`parse_mesh`] keeps
+//! the faces from the first such one on as written and turns them into triangles at the end,
+//! so that the triangles stay in file order.
 
 use std::collections::HashMap;
+use std::io::BufRead;
 use std::path::Path;
 
 use super::{Material, Mesh};
@@ -22,6 +35,15 @@ pub struct Corner {
     pub texcoord: Option<u32>,
     /// Index into `normals`, when given.
     pub normal: Option<u32>,
+}
+
+/// An OBJ file's material statements, which [`super::mtl::apply`] resolves.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MaterialStatements {
+    /// The argument of each `mtllib` statement (one or more file names) with its line.
+    pub libraries: Vec<(String, u32)>,
+    /// Distinct `usemtl` names in order of first use, with the line of that first use.
+    pub names: Vec<(String, u32)>,
 }
 
 /// The contents of an OBJ file, faces in file order.
@@ -43,12 +65,10 @@ pub struct ObjMesh {
     pub face_starts: Vec<u32>,
     /// The 1-based line of each face.
     pub face_lines: Vec<u32>,
-    /// The argument of each `mtllib` statement (one or more file names) with its line.
-    pub material_libraries: Vec<(String, u32)>,
-    /// Distinct `usemtl` names in order of first use, with the line of that first use.
-    pub material_names: Vec<(String, u32)>,
-    /// For each face, the `usemtl` in force as an index into `material_names` (`None` before the
-    /// first `usemtl`).
+    /// The `mtllib` and `usemtl` statements.
+    pub materials: MaterialStatements,
+    /// For each face, the `usemtl` in force as an index into `materials.names` (`None` before
+    /// the first `usemtl`).
     pub face_materials: Vec<Option<u32>>,
 }
 
@@ -71,25 +91,45 @@ impl ObjMesh {
     }
 }
 
-/// Reads and parses an OBJ file.
+/// Reads and parses an OBJ file as written (see [`parse`]).
 pub fn read(path: &Path) -> Result<ObjMesh, Error> {
-    let bytes = crate::input::read(path)?;
-    parse(&bytes).map_err(|(line, message)| Error::Parse {
-        path: path.to_path_buf(),
-        line,
-        message,
-    })
+    let mut obj = ObjMesh { face_starts: vec![0], ..ObjMesh::default() };
+    obj.materials = read_statements(open(path)?, &mut obj).map_err(|f| f.at(path))?;
+    Ok(obj)
 }
 
 /// Reads an OBJ file as an indexed [`Mesh`]: corners with the same (v, vt, vn) share a vertex,
 /// faces are triangulated by [`crate::polygon::triangulate_face`] in file order. Materials
 /// come from the `mtllib` files (see [`super::mtl::apply`]); a missing library or texture is a
-/// warning in [`Mesh::warnings`].
+/// warning in [`Mesh::warnings`]. Read line by line (see [`parse_mesh`]).
 pub fn read_mesh(path: &Path) -> Result<Mesh, Error> {
-    let obj = read(path)?;
-    let mut mesh = to_mesh(&obj);
-    super::mtl::apply(&mut mesh, &obj, path)?;
+    let (mut mesh, materials) = build_mesh(open(path)?).map_err(|f| f.at(path))?;
+    super::mtl::apply(&mut mesh, &materials, path)?;
     Ok(mesh)
+}
+
+/// `path` through [`crate::input::open`], buffered for reading line by line.
+fn open(path: &Path) -> Result<std::io::BufReader<std::fs::File>, Error> {
+    Ok(std::io::BufReader::with_capacity(1 << 16, crate::input::open(path)?))
+}
+
+/// Parses OBJ text as written; an error is `(line, message)`.
+pub fn parse(bytes: &[u8]) -> Result<ObjMesh, (usize, String)> {
+    let mut obj = ObjMesh { face_starts: vec![0], ..ObjMesh::default() };
+    obj.materials = read_statements(bytes, &mut obj).map_err(|fail| match fail {
+        Fail::Parse(line, message) => (line, message),
+        // Not reached: a slice reads without error, and `ObjMesh` grows as usual.
+        Fail::Io(e) => (0, e.to_string()),
+        Fail::Error(e) => (0, e.to_string()),
+    })?;
+    Ok(obj)
+}
+
+/// Parses OBJ text into an indexed [`Mesh`] as [`read_mesh`] reads a file, without resolving
+/// the materials: the mesh [`to_mesh`] makes of [`parse`]'s result (it is the reference this
+/// is tested against), and the material statements. `path` only names the file in errors.
+pub fn parse_mesh(bytes: &[u8], path: &Path) -> Result<(Mesh, MaterialStatements), Error> {
+    build_mesh(bytes).map_err(|f| f.at(path))
 }
 
 /// Converts parsed OBJ data to an indexed [`Mesh`]. When the file has `usemtl`, `materials`
@@ -106,16 +146,11 @@ pub fn to_mesh(obj: &ObjMesh) -> Mesh {
     let mut face_vertices = Vec::new();
     let mut face_points = Vec::new();
     let mut triangle_materials = Vec::new();
-    let uses_materials = !obj.material_names.is_empty();
+    let uses_materials = !obj.materials.names.is_empty();
     let face_material = |f: usize| obj.face_materials.get(f).copied().flatten();
     let offset = u32::from((0..obj.face_count()).any(|f| face_material(f).is_none()));
     if uses_materials {
-        if offset == 1 {
-            mesh.materials.push(Material::default());
-        }
-        for (name, _) in &obj.material_names {
-            mesh.materials.push(Material { name: name.clone(), ..Material::default() });
-        }
+        mesh.materials = materials_of(&obj.materials.names, offset);
     }
     for (f, face) in obj.faces().enumerate() {
         face_vertices.clear();
@@ -156,116 +191,259 @@ pub fn to_mesh(obj: &ObjMesh) -> Mesh {
     mesh
 }
 
-/// Parses OBJ text; an error is `(line, message)`.
-pub fn parse(bytes: &[u8]) -> Result<ObjMesh, (usize, String)> {
-    let mut mesh = ObjMesh { face_starts: vec![0], ..ObjMesh::default() };
-    let mut material: Option<u32> = None;
-    let mut material_index: HashMap<String, u32> = HashMap::new();
-    // Positive indices may refer forwards; they are checked once the whole file is read.
-    let mut max_ref: [(u32, usize); 3] = [(0, 0); 3];
-    // A UTF-8 byte-order mark (some Windows tools write one) is not part of the first line.
-    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
-    for (n, raw) in super::text_lines(bytes).enumerate() {
-        let line = n + 1;
+/// The materials of a mesh whose file names `names` in `usemtl`: an unnamed default first
+/// when `offset` is 1 (some face has no `usemtl` in force), then one per name.
+fn materials_of(names: &[(String, u32)], offset: u32) -> Vec<Material> {
+    let default = (offset == 1).then(Material::default);
+    let named =
+        names.iter().map(|(name, _)| Material { name: name.clone(), ..Material::default() });
+    default.into_iter().chain(named).collect()
+}
+
+/// What stopped a read: a malformed line, or the file or the memory failing.
+enum Fail {
+    Parse(usize, String),
+    Io(std::io::Error),
+    Error(Error),
+}
+
+impl From<(usize, String)> for Fail {
+    fn from((line, message): (usize, String)) -> Self {
+        Self::Parse(line, message)
+    }
+}
+
+impl Fail {
+    /// The error, naming the file at `path`.
+    fn at(self, path: &Path) -> Error {
+        match self {
+            Self::Parse(line, message) => Error::Parse { path: path.to_path_buf(), line, message },
+            Self::Io(e) => Error::io(path, e),
+            Self::Error(e) => e,
+        }
+    }
+}
+
+/// Room for `n` more elements in `v` (amortised, as `push` grows), or [`Error::OutOfMemory`]
+/// naming `what`: [`parse_mesh`]'s arrays grow with the file, which is read in pieces, so no
+/// single reservation bounds them as one for the whole file did.
+fn reserve<'v, T>(v: &'v mut Vec<T>, n: usize, what: &str) -> Result<&'v mut Vec<T>, Fail> {
+    if v.try_reserve(n).is_err() {
+        let bytes = (v.len() as u128 + n as u128).max(2 * v.len() as u128) * size_of::<T>() as u128;
+        return Err(Fail::Error(Error::OutOfMemory { what: what.to_string(), bytes }));
+    }
+    Ok(v)
+}
+
+/// Marks an absent index (a corner without `vt` or `vn`; no vertex made yet). Element counts
+/// stop below it ([`Statements::count`]), so no index equals it.
+const NONE: u32 = u32::MAX;
+
+/// What the statements of an OBJ file hand on, in file order: [`ObjMesh`] keeps it as
+/// written, [`MeshBuilder`] makes triangles of it.
+trait Elements {
+    /// A `v` statement.
+    fn vertex(&mut self, xyz: [f32; 3], w: f32, color: Option<[f32; 3]>) -> Result<(), Fail>;
+    /// A `vt` statement.
+    fn texcoord(&mut self, uv: [f32; 2]) -> Result<(), Fail>;
+    /// A `vn` statement.
+    fn normal(&mut self, normal: [f32; 3]) -> Result<(), Fail>;
+    /// A face of three or more corners on `line`, with the `usemtl` in force. Its positive
+    /// indices may refer past the elements so far; [`Statements::finish`] checks them.
+    fn face(&mut self, corners: &[Corner], line: usize, material: Option<u32>) -> Result<(), Fail>;
+}
+
+impl Elements for ObjMesh {
+    fn vertex(&mut self, xyz: [f32; 3], w: f32, color: Option<[f32; 3]>) -> Result<(), Fail> {
+        self.positions.push(xyz);
+        self.w.push(w);
+        self.colors.push(color);
+        Ok(())
+    }
+
+    fn texcoord(&mut self, uv: [f32; 2]) -> Result<(), Fail> {
+        self.texcoords.push(uv);
+        Ok(())
+    }
+
+    fn normal(&mut self, normal: [f32; 3]) -> Result<(), Fail> {
+        self.normals.push(normal);
+        Ok(())
+    }
+
+    fn face(&mut self, corners: &[Corner], line: usize, material: Option<u32>) -> Result<(), Fail> {
+        self.corners.extend_from_slice(corners);
+        let end = u32::try_from(self.corners.len())
+            .map_err(|_| (line, "more than 2^32 face corners".to_string()))?;
+        self.face_starts.push(end);
+        self.face_lines.push(line as u32);
+        self.face_materials.push(material);
+        Ok(())
+    }
+}
+
+/// Reads `input` line by line (see [`super::read_lines`]), each statement to `elements`;
+/// returns the material statements.
+fn read_statements(
+    input: impl BufRead,
+    elements: &mut impl Elements,
+) -> Result<MaterialStatements, Fail> {
+    let mut statements = Statements::default();
+    super::read_lines(input, Fail::Io, |text, line| statements.line(text, line, elements))?;
+    statements.finish()
+}
+
+/// The statement parser both readers share: relative indices, the references checked at the
+/// end, the materials.
+#[derive(Default)]
+struct Statements {
+    /// `v`, `vt` and `vn` statements so far.
+    counts: [usize; 3],
+    /// Per kind, the largest index referred to and the last line referring to it: positive
+    /// indices may refer forwards, so they are checked once the whole file is read.
+    max_ref: [(u32, usize); 3],
+    /// The `usemtl` in force, as an index into `materials.names`.
+    material: Option<u32>,
+    /// `materials.names` by name.
+    material_index: HashMap<String, u32>,
+    materials: MaterialStatements,
+    /// The corners of the face being read.
+    corners: Vec<Corner>,
+}
+
+impl Statements {
+    /// One line's statement to `elements`.
+    fn line(&mut self, raw: &[u8], line: usize, elements: &mut impl Elements) -> Result<(), Fail> {
         let text = std::str::from_utf8(raw).map_err(|_| (line, "not valid UTF-8".to_string()))?;
         let text = text.split('#').next().unwrap_or("").trim();
         let mut tokens = text.split_ascii_whitespace();
-        let Some(keyword) = tokens.next() else { continue };
-        let args: Vec<&str> = tokens.collect();
+        let Some(keyword) = tokens.next() else { return Ok(()) };
         match keyword {
             "v" => {
-                let f = floats(&args, line)?;
-                let (xyz, w, color) = match f.len() {
+                let (f, k) = floats::<6>(tokens, line)?;
+                let (xyz, w, color) = match k {
                     3 => ([f[0], f[1], f[2]], 1.0, None),
                     4 => ([f[0], f[1], f[2]], f[3], None),
                     6 => ([f[0], f[1], f[2]], 1.0, Some([f[3], f[4], f[5]])),
                     k => {
-                        return Err((
-                            line,
-                            format!("`v` takes x y z [w] or x y z r g b, found {k} numbers"),
-                        ));
+                        let message =
+                            format!("`v` takes x y z [w] or x y z r g b, found {k} numbers");
+                        return Err(Fail::Parse(line, message));
                     }
                 };
                 if w == 0.0 {
-                    return Err((line, "`v` has w = 0".into()));
+                    return Err(Fail::Parse(line, "`v` has w = 0".into()));
                 }
-                mesh.positions.push(xyz);
-                mesh.w.push(w);
-                mesh.colors.push(color);
+                self.count(0, line)?;
+                elements.vertex(xyz, w, color)
             }
             "vt" => {
-                let f = floats(&args, line)?;
-                if !(1..=3).contains(&f.len()) {
-                    return Err((line, format!("`vt` takes u [v [w]], found {} numbers", f.len())));
-                }
-                mesh.texcoords.push([f[0], f.get(1).copied().unwrap_or(0.0)]);
-            }
-            "vn" => {
-                let f = floats(&args, line)?;
-                if f.len() != 3 {
-                    return Err((line, format!("`vn` takes x y z, found {} numbers", f.len())));
-                }
-                mesh.normals.push([f[0], f[1], f[2]]);
-            }
-            "f" => {
-                if args.len() < 3 {
-                    return Err((
+                let (f, k) = floats::<3>(tokens, line)?;
+                if !(1..=3).contains(&k) {
+                    return Err(Fail::Parse(
                         line,
-                        format!("a face needs 3 or more corners, found {}", args.len()),
+                        format!("`vt` takes u [v [w]], found {k} numbers"),
                     ));
                 }
-                let counts = [mesh.positions.len(), mesh.texcoords.len(), mesh.normals.len()];
-                for arg in &args {
-                    let corner = parse_corner(arg, counts, line)?;
+                self.count(1, line)?;
+                elements.texcoord([f[0], if k > 1 { f[1] } else { 0.0 }])
+            }
+            "vn" => {
+                let (f, k) = floats::<3>(tokens, line)?;
+                if k != 3 {
+                    return Err(Fail::Parse(line, format!("`vn` takes x y z, found {k} numbers")));
+                }
+                self.count(2, line)?;
+                elements.normal(f)
+            }
+            "f" => {
+                let n = tokens.clone().count();
+                if n < 3 {
+                    let message = format!("a face needs 3 or more corners, found {n}");
+                    return Err(Fail::Parse(line, message));
+                }
+                self.corners.clear();
+                for arg in tokens {
+                    let corner = parse_corner(arg, self.counts, line)?;
                     let refs = [Some(corner.position), corner.texcoord, corner.normal];
-                    for (slot, r) in max_ref.iter_mut().zip(refs) {
+                    for (slot, r) in self.max_ref.iter_mut().zip(refs) {
                         if let Some(r) = r.filter(|&r| r >= slot.0) {
                             *slot = (r, line);
                         }
                     }
-                    mesh.corners.push(corner);
+                    self.corners.push(corner);
                 }
-                let end = u32::try_from(mesh.corners.len())
-                    .map_err(|_| (line, "more than 2^32 face corners".to_string()))?;
-                mesh.face_starts.push(end);
-                mesh.face_lines.push(line as u32);
-                mesh.face_materials.push(material);
+                elements.face(&self.corners, line, self.material)
             }
-            "mtllib" if !args.is_empty() => {
-                mesh.material_libraries.push((args.join(" "), line as u32));
+            "mtllib" => {
+                let args: Vec<&str> = tokens.collect();
+                if !args.is_empty() {
+                    self.materials.libraries.push((args.join(" "), line as u32));
+                }
+                Ok(())
             }
             "usemtl" => {
-                let name = args.join(" ");
-                material = (!name.is_empty()).then(|| {
-                    let next = material_index.len() as u32;
-                    *material_index.entry(name.clone()).or_insert_with(|| {
-                        mesh.material_names.push((name, line as u32));
+                let name = tokens.collect::<Vec<&str>>().join(" ");
+                self.material = (!name.is_empty()).then(|| {
+                    let next = self.material_index.len() as u32;
+                    *self.material_index.entry(name.clone()).or_insert_with(|| {
+                        self.materials.names.push((name, line as u32));
                         next
                     })
                 });
+                Ok(())
             }
-            _ => {}
+            _ => Ok(()),
         }
     }
-    let counts = [mesh.positions.len(), mesh.texcoords.len(), mesh.normals.len()];
-    for (((max, line), count), what) in max_ref.iter().zip(counts).zip(["v", "vt", "vn"]) {
-        if *line > 0 && *max as usize >= count {
-            return Err((
-                *line,
-                format!(
+
+    /// Counts a `v` (`kind` 0), `vt` (1) or `vn` (2) statement; at most [`NONE`] of a kind,
+    /// as the mesh's `u32` indices reach them.
+    fn count(&mut self, kind: usize, line: usize) -> Result<(), Fail> {
+        if self.counts[kind] >= NONE as usize {
+            let what = ["v", "vt", "vn"][kind];
+            return Err(Fail::Parse(line, format!("more than {NONE} `{what}` statements")));
+        }
+        self.counts[kind] += 1;
+        Ok(())
+    }
+
+    /// The material statements, once every index referred to is checked against the file's
+    /// elements.
+    fn finish(self) -> Result<MaterialStatements, Fail> {
+        for (((max, line), count), what) in
+            self.max_ref.iter().zip(self.counts).zip(["v", "vt", "vn"])
+        {
+            if *line > 0 && *max as usize >= count {
+                let message = format!(
                     "index {} refers past the last `{what}` (the file has {count})",
                     u64::from(*max) + 1
-                ),
-            ));
+                );
+                return Err(Fail::Parse(*line, message));
+            }
         }
+        Ok(self.materials)
     }
-    Ok(mesh)
 }
 
-fn floats(args: &[&str], line: usize) -> Result<Vec<f32>, (usize, String)> {
-    args.iter()
-        .map(|a| a.parse::<f32>().map_err(|_| (line, format!("expected a number, found `{a}`"))))
-        .collect()
+/// Parses every token as a number, keeping the first `N`: returns them and how many there
+/// were (the statements' messages count them all).
+fn floats<'a, const N: usize>(
+    tokens: impl Iterator<Item = &'a str>,
+    line: usize,
+) -> Result<([f32; N], usize), Fail> {
+    let mut values = [0.0; N];
+    let mut count = 0;
+    for a in tokens {
+        let x = a
+            .parse::<f32>()
+            .map_err(|_| Fail::Parse(line, format!("expected a number, found `{a}`")))?;
+        if let Some(slot) = values.get_mut(count) {
+            *slot = x;
+        }
+        count += 1;
+    }
+    Ok((values, count))
 }
 
 /// Parses `v`, `v/vt`, `v//vn` or `v/vt/vn`; `counts` are the element counts so far (for
@@ -300,6 +478,229 @@ fn resolve(s: &str, count: usize, line: usize) -> Result<u32, (usize, String)> {
         return Err((line, format!("relative index {i} reaches before the first element")));
     }
     u32::try_from(zero_based).map_err(|_| (line, format!("index {i} is too large")))
+}
+
+/// Builds [`parse_mesh`]'s indexed [`Mesh`] while the file is read: the same mesh as
+/// [`to_mesh`] (vertices in order of first use, one per distinct (v, vt, vn), the same
+/// triangles, attributes and materials), but what [`to_mesh`] learns from the whole file (is
+/// there a texture coordinate, a normal, a colour, a `usemtl`?) is settled when the first one
+/// appears, filling in the defaults for what came before.
+#[derive(Default)]
+struct MeshBuilder {
+    mesh: Mesh,
+    /// The file's `v`, `vt` and `vn` so far.
+    positions: Vec<[f32; 3]>,
+    texcoords: Vec<[f32; 2]>,
+    normals: Vec<[f32; 3]>,
+    /// The `v` colours (white where absent), from the first `v` with one.
+    colors: Option<Vec<[f32; 3]>>,
+    /// Per `v`, the vertex first made of it ([`NONE`] until then)...
+    first_vertex: Vec<u32>,
+    /// ...and that vertex's `vt` and `vn` ([`NONE`] when absent), from the first corner
+    /// with either. Most files give each `v` one vertex, so the other keys are few.
+    first_key: Option<Vec<[u32; 2]>>,
+    /// The vertices made of other (v, vt, vn).
+    other_vertices: HashMap<[u32; 3], u32>,
+    /// Per triangle, the `usemtl` in force ([`NONE`] for none), from the first face with one.
+    materials: Option<Vec<u32>>,
+    /// Whether some face has no `usemtl` in force: the materials then start with a default.
+    face_without_material: bool,
+    /// The faces from the first one referring forwards on, as written, made into triangles
+    /// once the file is read.
+    deferred: Option<ObjMesh>,
+    /// The current face's vertices and positions.
+    face_vertices: Vec<u32>,
+    face_points: Vec<[f32; 3]>,
+}
+
+impl Elements for MeshBuilder {
+    fn vertex(&mut self, xyz: [f32; 3], _w: f32, color: Option<[f32; 3]>) -> Result<(), Fail> {
+        let k = self.positions.len();
+        if color.is_some() && self.colors.is_none() {
+            self.colors =
+                Some(crate::error::try_filled(k, [1.0; 3], "OBJ colours").map_err(Fail::Error)?);
+            let vertices = self.mesh.positions.len();
+            let white = crate::error::try_filled(vertices, [1.0; 4], "OBJ vertex colours");
+            self.mesh.colors = Some(white.map_err(Fail::Error)?);
+        }
+        reserve(&mut self.positions, 1, "OBJ positions")?.push(xyz);
+        reserve(&mut self.first_vertex, 1, "OBJ positions")?.push(NONE);
+        if let Some(keys) = &mut self.first_key {
+            reserve(keys, 1, "OBJ vertices")?.push([NONE; 2]);
+        }
+        if let Some(colors) = &mut self.colors {
+            reserve(colors, 1, "OBJ colours")?.push(color.unwrap_or([1.0; 3]));
+        }
+        Ok(())
+    }
+
+    fn texcoord(&mut self, uv: [f32; 2]) -> Result<(), Fail> {
+        reserve(&mut self.texcoords, 1, "OBJ texture coordinates")?.push(uv);
+        Ok(())
+    }
+
+    fn normal(&mut self, normal: [f32; 3]) -> Result<(), Fail> {
+        reserve(&mut self.normals, 1, "OBJ normals")?.push(normal);
+        Ok(())
+    }
+
+    fn face(&mut self, corners: &[Corner], line: usize, material: Option<u32>) -> Result<(), Fail> {
+        if self.deferred.is_none() {
+            let read = |i: Option<u32>, count: usize| i.is_none_or(|i| (i as usize) < count);
+            let all_read = corners.iter().all(|c| {
+                read(Some(c.position), self.positions.len())
+                    && read(c.texcoord, self.texcoords.len())
+                    && read(c.normal, self.normals.len())
+            });
+            if all_read {
+                return self.triangulate(corners, line, material);
+            }
+            self.deferred = Some(ObjMesh { face_starts: vec![0], ..ObjMesh::default() });
+        }
+        match &mut self.deferred {
+            Some(deferred) => deferred.face(corners, line, material),
+            None => Ok(()),
+        }
+    }
+}
+
+impl MeshBuilder {
+    /// The face's triangles, in order, with their vertices and material.
+    fn triangulate(
+        &mut self,
+        corners: &[Corner],
+        line: usize,
+        material: Option<u32>,
+    ) -> Result<(), Fail> {
+        self.face_vertices.clear();
+        self.face_points.clear();
+        for c in corners {
+            let v = self.vertex_of(c, line)?;
+            self.face_vertices.push(v);
+            self.face_points.push(self.positions[c.position as usize]);
+        }
+        let before = self.mesh.triangles.len();
+        let triangles = reserve(&mut self.mesh.triangles, 1, "OBJ triangles")?;
+        if let [a, b, c] = self.face_vertices[..] {
+            // `triangulate_face`'s answer for three corners, without its `Vec`.
+            triangles.push([a, b, c]);
+        } else {
+            for t in crate::polygon::triangulate_face(&self.face_points) {
+                reserve(triangles, 1, "OBJ triangles")?.push(t.map(|k| self.face_vertices[k]));
+            }
+        }
+        let after = self.mesh.triangles.len();
+        self.face_without_material |= material.is_none();
+        if material.is_some() && self.materials.is_none() {
+            let none = crate::error::try_filled(before, NONE, "OBJ triangle materials");
+            self.materials = Some(none.map_err(Fail::Error)?);
+        }
+        if let Some(materials) = &mut self.materials {
+            reserve(materials, after - before, "OBJ triangle materials")?;
+            materials.resize(after, material.unwrap_or(NONE));
+        }
+        self.mesh.polygon_count += 1;
+        Ok(())
+    }
+
+    /// The vertex of corner `c` (whose indices are all read), made if it is the first use of
+    /// its (v, vt, vn). `line` names the face in errors.
+    fn vertex_of(&mut self, c: &Corner, line: usize) -> Result<u32, Fail> {
+        let p = c.position as usize;
+        let key = [c.texcoord.unwrap_or(NONE), c.normal.unwrap_or(NONE)];
+        if key != [NONE; 2] && self.first_key.is_none() {
+            let keys = crate::error::try_filled(self.positions.len(), [NONE; 2], "OBJ vertices");
+            self.first_key = Some(keys.map_err(Fail::Error)?);
+        }
+        let first = self.first_vertex[p];
+        if first == NONE {
+            let v = self.new_vertex(c, line)?;
+            self.first_vertex[p] = v;
+            if let Some(keys) = &mut self.first_key {
+                keys[p] = key;
+            }
+            return Ok(v);
+        }
+        if self.first_key.as_ref().map_or([NONE; 2], |keys| keys[p]) == key {
+            return Ok(first);
+        }
+        let triple = [c.position, key[0], key[1]];
+        if let Some(&v) = self.other_vertices.get(&triple) {
+            return Ok(v);
+        }
+        let v = self.new_vertex(c, line)?;
+        self.other_vertices.insert(triple, v);
+        Ok(v)
+    }
+
+    /// A new vertex for corner `c`, with its attributes (the defaults where it has none).
+    fn new_vertex(&mut self, c: &Corner, line: usize) -> Result<u32, Fail> {
+        let mesh = &mut self.mesh;
+        let next = mesh.positions.len();
+        let v = match u32::try_from(next) {
+            Ok(v) if v < NONE => v,
+            _ => {
+                let message = format!("more than {NONE} vertices (distinct v/vt/vn corners)");
+                return Err(Fail::Parse(line, message));
+            }
+        };
+        let p = c.position as usize;
+        reserve(&mut mesh.positions, 1, "OBJ vertices")?.push(self.positions[p]);
+        if c.texcoord.is_some() && mesh.texcoords.is_none() {
+            let zeros = crate::error::try_filled(next, [0.0; 2], "OBJ texture coordinates");
+            mesh.texcoords = Some(zeros.map_err(Fail::Error)?);
+        }
+        if let Some(texcoords) = &mut mesh.texcoords {
+            let t = c.texcoord.map_or([0.0; 2], |t| self.texcoords[t as usize]);
+            reserve(texcoords, 1, "OBJ texture coordinates")?.push(t);
+        }
+        if c.normal.is_some() && mesh.normals.is_none() {
+            let zeros = crate::error::try_filled(next, [0.0; 3], "OBJ normals");
+            mesh.normals = Some(zeros.map_err(Fail::Error)?);
+        }
+        if let Some(normals) = &mut mesh.normals {
+            let n = c.normal.map_or([0.0; 3], |n| self.normals[n as usize]);
+            reserve(normals, 1, "OBJ normals")?.push(n);
+        }
+        if let (Some(colors), Some(raw)) = (&mut mesh.colors, &self.colors) {
+            let [r, g, b] = raw[p];
+            reserve(colors, 1, "OBJ vertex colours")?.push([r, g, b, 1.0]);
+        }
+        Ok(v)
+    }
+
+    /// The mesh, once the file is read (its indices checked): the deferred faces made into
+    /// triangles, the materials numbered as [`to_mesh`] numbers them.
+    fn finish(mut self, names: &[(String, u32)]) -> Result<Mesh, Fail> {
+        if let Some(deferred) = self.deferred.take() {
+            let faces = deferred.faces().zip(&deferred.face_lines).zip(&deferred.face_materials);
+            for ((face, &line), &material) in faces {
+                self.triangulate(face, line as usize, material)?;
+            }
+        }
+        let mut mesh = self.mesh;
+        if !names.is_empty() {
+            let offset = u32::from(self.face_without_material);
+            mesh.materials = materials_of(names, offset);
+            let materials = match self.materials {
+                Some(mut m) => {
+                    m.iter_mut().for_each(|k| *k = if *k == NONE { 0 } else { *k + offset });
+                    m
+                }
+                None => crate::error::try_filled(mesh.triangles.len(), 0, "OBJ triangle materials")
+                    .map_err(Fail::Error)?,
+            };
+            mesh.triangle_materials = Some(materials);
+        }
+        Ok(mesh)
+    }
+}
+
+/// [`parse_mesh`] on any buffered input.
+fn build_mesh(input: impl BufRead) -> Result<(Mesh, MaterialStatements), Fail> {
+    let mut builder = MeshBuilder::default();
+    let materials = read_statements(input, &mut builder)?;
+    Ok((builder.finish(&materials.names)?, materials))
 }
 
 #[cfg(test)]
