@@ -3,7 +3,7 @@
 //! Valid seed files are mutated (bit flips, byte and token insertions, deletions, truncations,
 //! line duplication, splices between seeds) with a fixed-seed xorshift generator, and every
 //! result must satisfy the reader's contract:
-//! - `parse` never panics;
+//! - `parse` never panics, and `parse_mesh` (the streamed reader) agrees with it;
 //! - an error names a line between 1 and the number of lines + 1, with a message;
 //! - an accepted mesh is consistent (every corner index in range, faces of 3+ corners, arrays
 //!   of equal length), `obj::to_mesh` gives in-range indices, and `window_triangles` and `draw`
@@ -15,11 +15,12 @@
 mod common;
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::Path;
 
 use common::xorshift::XorShift;
 
 use trirast::mesh::{ObjMesh, obj, window_triangles};
-use trirast::{Algorithm, RenderOptions, Target};
+use trirast::{Algorithm, Error, RenderOptions, Target};
 
 const DEFAULT_ITERS: usize = 20_000;
 const DEFAULT_SEED: u64 = 0x0b1e_c7f0_2257_a11d;
@@ -164,7 +165,9 @@ fn check(input: &[u8]) -> bool {
     // Lines end at LF, or at CR in a file without LF (classic Mac OS).
     let end = if input.contains(&b'\n') || !input.contains(&b'\r') { b'\n' } else { b'\r' };
     let lines = input.iter().filter(|&&b| b == end).count() + 1;
-    match obj::parse(input) {
+    let parsed = obj::parse(input);
+    same_as_streamed(input, &parsed);
+    match parsed {
         Err((line, message)) => {
             assert!(
                 (1..=lines + 1).contains(&line),
@@ -178,6 +181,23 @@ fn check(input: &[u8]) -> bool {
             check_mesh(&mesh, lines);
             true
         }
+    }
+}
+
+/// `obj::parse_mesh`, which builds the indexed mesh as it reads, gives what `obj::to_mesh` makes
+/// of `obj::parse`'s result (compared through `Debug`, so that NaN coordinates compare), or the
+/// same error.
+fn same_as_streamed(input: &[u8], parsed: &Result<ObjMesh, (usize, String)>) {
+    let streamed = obj::parse_mesh(input, Path::new("f.obj"));
+    match (parsed, streamed) {
+        (Ok(obj), Ok((mesh, materials))) => {
+            assert_eq!(format!("{mesh:?}"), format!("{:?}", obj::to_mesh(obj)), "streamed mesh");
+            assert_eq!(materials, obj.materials, "material statements");
+        }
+        (Err((line, message)), Err(Error::Parse { line: l, message: m, .. })) => {
+            assert_eq!((line, message), (&l, &m), "streamed error");
+        }
+        (parsed, streamed) => panic!("parse: {parsed:?}, parse_mesh: {streamed:?}"),
     }
 }
 

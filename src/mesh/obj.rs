@@ -705,6 +705,9 @@ fn build_mesh(input: impl BufRead) -> Result<(Mesh, MaterialStatements), Fail> {
 
 #[cfg(test)]
 mod tests {
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
+
     use super::*;
 
     #[test]
@@ -740,5 +743,131 @@ mod tests {
             assert_eq!(l, *line, "{msg}");
             assert!(msg.contains(needle), "{msg:?} should contain {needle:?}");
         }
+    }
+
+    /// A random OBJ text reaching every path of the streamed builder: colours, texture
+    /// coordinates and normals that first appear after vertices were made, one position with
+    /// several (vt, vn), relative and forward indices, faces of 3 to 6 corners (some concave),
+    /// `usemtl` before, between and after faces, comments and blank lines.
+    fn random_obj(rng: &mut SmallRng) -> Vec<u8> {
+        let mut text = String::new();
+        let (mut v, mut vt, mut vn) = (0i64, 0i64, 0i64);
+        let forward = rng.random_bool(0.3);
+        for _ in 0..rng.random_range(0..60) {
+            match rng.random_range(0..10) {
+                0..=2 => {
+                    let [x, y, z]: [f32; 3] = std::array::from_fn(|_| rng.random_range(-9.0..9.0));
+                    text += &match rng.random_range(0..6) {
+                        0 => format!("v {x} {y} {z} 0.5 0.25 1\n"),
+                        1 => format!("v {x} {y} {z} 2\n"),
+                        _ => format!("v {x} {y} {z}\n"),
+                    };
+                    v += 1;
+                }
+                3 => {
+                    text += &format!("vt {} {}\n", rng.random::<f32>(), rng.random::<f32>());
+                    vt += 1;
+                }
+                4 => {
+                    text += "vn 0 0.6 0.8\n";
+                    vn += 1;
+                }
+                5 => text += &format!("usemtl m{}\n", rng.random_range(0..3)),
+                6 => text += "# comment\n\n",
+                _ if v > 0 || forward => {
+                    let n = rng.random_range(3..7);
+                    text += "f";
+                    for _ in 0..n {
+                        // Up to two past the last element when referring forwards.
+                        let reach = |count: i64, rng: &mut SmallRng| {
+                            let last = if forward { count + 2 } else { count };
+                            match rng.random_range(0..4) {
+                                0 if count > 0 => -rng.random_range(1..=count),
+                                _ => rng.random_range(1..=last.max(1)),
+                            }
+                        };
+                        let p = reach(v, rng);
+                        text += &match rng.random_range(0..4) {
+                            0 if vt > 0 => format!(" {p}/{}", reach(vt, rng)),
+                            1 if vn > 0 => format!(" {p}//{}", reach(vn, rng)),
+                            2 if vt > 0 && vn > 0 => {
+                                format!(" {p}/{}/{}", reach(vt, rng), reach(vn, rng))
+                            }
+                            _ => format!(" {p}"),
+                        };
+                    }
+                    text += "\n";
+                }
+                _ => {}
+            }
+        }
+        // Forward references resolved at the end (or left dangling: an error both ways).
+        if forward {
+            for _ in 0..3 {
+                text += "v 1 2 3\nvt 0.5 0.5\nvn 1 0 0\n";
+            }
+        }
+        text.into_bytes()
+    }
+
+    /// The streamed reader builds exactly the mesh `to_mesh` makes of `parse`'s result, and
+    /// fails with the same error, on random files (LF, CRLF, and CR with a byte-order mark);
+    /// reading a file from disk gives the same mesh and materials.
+    #[test]
+    fn streamed_mesh_is_the_reference_mesh() {
+        let mut rng = SmallRng::seed_from_u64(7);
+        let path = Path::new("r.obj");
+        let (mut accepted, mut deferred) = (0, 0);
+        for round in 0..3000 {
+            let mut bytes = random_obj(&mut rng);
+            if round % 3 == 1 {
+                bytes = String::from_utf8(bytes).unwrap().replace('\n', "\r\n").into_bytes();
+            } else if round % 3 == 2 {
+                bytes = [&b"\xEF\xBB\xBF"[..], &bytes].concat();
+                bytes.iter_mut().filter(|b| **b == b'\n').for_each(|b| *b = b'\r');
+            }
+            let streamed = parse_mesh(&bytes, path);
+            match parse(&bytes) {
+                Ok(obj) => {
+                    let (mesh, materials) = streamed.unwrap();
+                    assert_eq!(mesh, to_mesh(&obj), "{}", String::from_utf8_lossy(&bytes));
+                    assert_eq!(materials, obj.materials);
+                    accepted += 1;
+                    // Faces referring past the `v`s before them (counted on LF files).
+                    if round % 3 == 0 {
+                        let lines: Vec<&[u8]> = bytes.split(|&b| b == b'\n').collect();
+                        let forward = obj.faces().zip(&obj.face_lines).any(|(face, &line)| {
+                            let before = &lines[..line as usize - 1];
+                            let v = before.iter().filter(|l| l.starts_with(b"v ")).count();
+                            face.iter().any(|c| c.position as usize >= v)
+                        });
+                        deferred += usize::from(forward);
+                    }
+                }
+                Err((line, message)) => match streamed {
+                    Err(Error::Parse { line: l, message: m, .. }) => {
+                        assert_eq!((l, m), (line, message));
+                    }
+                    other => panic!("{other:?} where parse failed at {line}: {message}"),
+                },
+            }
+        }
+        assert!(accepted > 1000 && deferred > 50, "{accepted} accepted, {deferred} deferred");
+        // From a file, through the buffered reader.
+        let dir = std::env::temp_dir().join(format!("trirast-obj-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("m.obj");
+        let bytes = loop {
+            let bytes = random_obj(&mut rng);
+            if parse(&bytes).is_ok_and(|obj| obj.face_count() > 5) {
+                break bytes;
+            }
+        };
+        std::fs::write(&file, &bytes).unwrap();
+        let mut mesh = to_mesh(&parse(&bytes).unwrap());
+        super::super::mtl::apply(&mut mesh, &parse(&bytes).unwrap().materials, &file).unwrap();
+        assert_eq!(read_mesh(&file).unwrap(), mesh);
+        assert_eq!(read(&file).unwrap(), parse(&bytes).unwrap());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
