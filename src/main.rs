@@ -1317,13 +1317,19 @@ fn info(path: &Path) -> Result<(), Error> {
     let (lo, hi) = finite.fold(([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]), |(lo, hi), p| {
         (std::array::from_fn(|k| lo[k].min(p[k])), std::array::from_fn(|k| hi[k].max(p[k])))
     });
-    let (centre, radius) = camera::bounding_sphere(&mesh.positions);
+    warn_about(&mesh);
     println!("file:       {}", path.display());
     println!("vertices:   {}", mesh.positions.len());
     println!("triangles:  {}", mesh.triangles.len());
     println!("polygons:   {}", mesh.polygon_count);
-    println!("bounds:     min {lo:?} max {hi:?}");
-    println!("sphere:     centre {:?} radius {radius}", centre.to_array());
+    if lo[0] <= hi[0] {
+        let (centre, radius) = camera::bounding_sphere(&mesh.positions);
+        println!("bounds:     min {lo:?} max {hi:?}");
+        println!("sphere:     centre {:?} radius {radius}", centre.to_array());
+    } else {
+        // Not the empty fold's infinities, nor the unit sphere framing falls back to.
+        println!("bounds:     none (no finite vertex)");
+    }
     let yes = |b: bool| if b { "yes" } else { "no" };
     println!("normals:    {}", yes(mesh.normals.is_some()));
     println!("texcoords:  {}", yes(mesh.texcoords.is_some()));

@@ -1148,3 +1148,32 @@ fn splat_warns_about_points_too_far_and_checks_the_size_first() {
     let err = run_err(&dir.0, ["splat", "near.ply", "--size", "0x32", "-o", "zero.png"]);
     assert!(err.contains("0x32") && !err.contains("hierarchy"), "{err}");
 }
+
+/// `info` prints a mesh's counts and bounds and the warnings `render` prints (a missing
+/// material library), and says there are no bounds rather than printing infinities when no
+/// face uses a vertex (an OBJ's mesh vertices are those its faces use).
+#[test]
+fn info_reports_counts_bounds_and_warnings() {
+    let dir = TempDir::new("info");
+    dir.write(
+        "quad.obj",
+        "mtllib gone.mtl\nv 0 0 0\nv 2 0 0\nv 2 1 0\nv 0 1 0\nv 9 9 9\nf 1 2 3 4\n",
+    );
+    let out = trirast_in(&dir.0, ["info", "quad.obj"]);
+    let (text, err) = (String::from_utf8_lossy(&out.stdout), stderr_of(&out));
+    assert!(out.status.success(), "{err}");
+    for line in [
+        "vertices:   4",
+        "triangles:  2",
+        "polygons:   1",
+        "min [0.0, 0.0, 0.0] max [2.0, 1.0, 0.0]",
+    ] {
+        assert!(text.contains(line), "{line:?} in {text}");
+    }
+    assert!(err.contains("gone.mtl was not found"), "{err}");
+    dir.write("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+    let out = trirast_in(&dir.0, ["info", "points.obj"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && text.contains("vertices:   0"), "{text}");
+    assert!(text.contains("bounds:     none") && !text.contains("inf"), "{text}");
+}
