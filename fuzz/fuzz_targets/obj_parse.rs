@@ -1,16 +1,31 @@
-//! Fuzzes the OBJ reader: `parse` must never panic, an error must name a real line, and a mesh
-//! it accepts must be safe to turn into triangles and draw.
+//! Fuzzes the OBJ reader: `parse` must never panic, an error must name a real line, a mesh it
+//! accepts must be safe to turn into triangles and draw, and the streamed reader
+//! (`parse_mesh`) must give the mesh `to_mesh` makes of it, or the same error.
 //!
 //! Run with a nightly toolchain: `cargo +nightly fuzz run obj_parse` (from the crate root).
 #![no_main]
 
+use std::path::Path;
+
 use libfuzzer_sys::fuzz_target;
 use trirast::mesh::{obj, window_triangles};
-use trirast::{RenderOptions, Target};
+use trirast::{Error, RenderOptions, Target};
 
 fuzz_target!(|data: &[u8]| {
-    let lines = data.iter().filter(|&&b| b == b'\n').count() + 1;
-    match obj::parse(data) {
+    // Lines end at LF, or at CR in a file without LF.
+    let end = if data.contains(&b'\n') || !data.contains(&b'\r') { b'\n' } else { b'\r' };
+    let lines = data.iter().filter(|&&b| b == end).count() + 1;
+    let parsed = obj::parse(data);
+    match (&parsed, obj::parse_mesh(data, Path::new("f.obj"))) {
+        (Ok(obj), Ok((mesh, _))) => {
+            assert_eq!(format!("{mesh:?}"), format!("{:?}", obj::to_mesh(obj)));
+        }
+        (Err((line, message)), Err(Error::Parse { line: l, message: m, .. })) => {
+            assert_eq!((line, message), (&l, &m));
+        }
+        (parsed, streamed) => panic!("parse: {parsed:?}, parse_mesh: {streamed:?}"),
+    }
+    match parsed {
         Err((line, message)) => {
             assert!((1..=lines).contains(&line), "error line {line} of {lines}: {message}");
             assert!(!message.is_empty());

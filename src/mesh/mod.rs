@@ -72,8 +72,9 @@ pub fn load(path: &Path) -> Result<Mesh, Error> {
 /// Calls `line(text, number)` for each line of a text file read from `input` (numbered from
 /// 1), one line in memory at a time. Lines end at LF (a CR before it is left to the caller's
 /// whitespace trimming), or at CR in a file without LF (classic Mac OS), which had been read as
-/// one line: "expected a number, found `v`" on line 1. A UTF-8 byte-order mark (some Windows
-/// tools write one) is not part of the first line. `io` wraps a read error.
+/// one line: "expected a number, found `v`" on line 1. Such a file is in memory whole, since
+/// only its end shows it has no LF. A UTF-8 byte-order mark (some Windows tools write one) is
+/// not part of the first line. `io` wraps a read error.
 pub(crate) fn read_lines<E>(
     mut input: impl std::io::BufRead,
     io: impl Fn(std::io::Error) -> E,

@@ -111,8 +111,9 @@ fn statement(
     Ok(())
 }
 
-/// Resolves an OBJ's materials: loads its `mtllib` files (relative to `obj_path`'s directory)
-/// and fills in the colour and texture of every named material in `mesh.materials` (as made by
+/// Resolves an OBJ's materials from its material statements `obj`: loads its `mtllib` files
+/// (relative to `obj_path`'s directory) and fills in the colour and texture of every named
+/// material in `mesh.materials` (as made by [`super::obj::parse_mesh`] or
 /// [`super::obj::to_mesh`]). Problems that do not stop rendering go to `mesh.warnings`: a
 /// missing or unreadable library or one that is not a regular file, a material no library
 /// defines (not reported when a library is missing: it was probably there), a texture that is

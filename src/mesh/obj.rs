@@ -11,13 +11,15 @@
 //! - [`parse`] keeps the file as written ([`ObjMesh`]: every element and face corner), which the
 //!   window projection reads and [`to_mesh`], the reference, turns into an indexed [`Mesh`];
 //! - [`parse_mesh`] (what [`read_mesh`] uses) builds the same [`Mesh`] while it reads, line by
-//!   line from a buffered file, without the file's bytes or its corners in memory (a face
-//!   whose corners are all read becomes triangles at once). A 37 MB OBJ of 1,000,000 triangles
-//!   had peaked at 254 MB through the two steps, for a mesh of 18 MB.
+//!   line from a buffered file (see [`super::read_lines`]): a face whose corners are all read
+//!   becomes triangles at once, so neither the file's bytes nor its corners are kept. A 37 MB
+//!   OBJ of 1,000,000 triangles had peaked at 254 MB through the two steps, for a mesh of 18
+//!   MB; now 61 MB.
 //!
 //! Positive indices may refer forwards, to elements later in the file. [`parse_mesh`] keeps
-//! the faces from the first such one on as written and turns them into triangles at the end,
-//! so that the triangles stay in file order.
+//! the faces from the first such one on as written (their corners in memory, as [`parse`]
+//! keeps them) and turns them into triangles at the end, so that the triangles stay in file
+//! order.
 
 use std::collections::HashMap;
 use std::io::BufRead;
@@ -229,14 +231,16 @@ impl Fail {
 /// single reservation bounds them as one for the whole file did.
 fn reserve<'v, T>(v: &'v mut Vec<T>, n: usize, what: &str) -> Result<&'v mut Vec<T>, Fail> {
     if v.try_reserve(n).is_err() {
-        let bytes = (v.len() as u128 + n as u128).max(2 * v.len() as u128) * size_of::<T>() as u128;
+        // What `Vec` asks for: room for `n` more, at least twice its capacity.
+        let elements = (v.len() as u128 + n as u128).max(2 * v.capacity() as u128);
+        let bytes = elements * size_of::<T>() as u128;
         return Err(Fail::Error(Error::OutOfMemory { what: what.to_string(), bytes }));
     }
     Ok(v)
 }
 
 /// Marks an absent index (a corner without `vt` or `vn`; no vertex made yet). Element counts
-/// stop below it ([`Statements::count`]), so no index equals it.
+/// stop at it ([`Statements::count`]), so every valid index is below it.
 const NONE: u32 = u32::MAX;
 
 /// What the statements of an OBJ file hand on, in file order: [`ObjMesh`] keeps it as
@@ -524,7 +528,7 @@ impl Elements for MeshBuilder {
             self.mesh.colors = Some(white.map_err(Fail::Error)?);
         }
         reserve(&mut self.positions, 1, "OBJ positions")?.push(xyz);
-        reserve(&mut self.first_vertex, 1, "OBJ positions")?.push(NONE);
+        reserve(&mut self.first_vertex, 1, "OBJ vertex indices")?.push(NONE);
         if let Some(keys) = &mut self.first_key {
             reserve(keys, 1, "OBJ vertices")?.push([NONE; 2]);
         }
