@@ -49,6 +49,22 @@ pub const TILE: u32 = 128;
 /// already.
 pub const BATCH: usize = 1 << 19;
 
+/// The most bytes of records a batch holds: [`BATCH`] window records of 64 bytes (32 MiB).
+/// A 3D triangle's record carries its vertices' varyings and takes 100 to 300 bytes, so
+/// batches of [`BATCH`] such records had made two batches in flight take 290 MB for a Phong
+/// mesh of a million triangles, and a single `trirast render` of it had spent a third of
+/// its 2.3 s having the system zero those pages.
+pub const BATCH_BYTES: usize = BATCH * 64;
+
+/// Triangles per batch for records of type `S`: [`BATCH`], or as many as [`BATCH_BYTES`]
+/// holds when `S` is larger than 64 bytes (a triangle makes one record unless it is clipped).
+#[must_use]
+pub const fn batch_for<S>() -> usize {
+    let size = if size_of::<S>() == 0 { 1 } else { size_of::<S>() };
+    let n = BATCH_BYTES / size;
+    if n < BATCH { if n == 0 { 1 } else { n } } else { BATCH }
+}
+
 /// The length of the batches [`pipelined`] cuts `items` items into: as many batches as
 /// batches of `max` would make, of equal length (the last one shorter by less than one item
 /// per batch). A mesh just over one batch (600k triangles) is cut in halves, not into 512k
@@ -1058,6 +1074,23 @@ mod tests {
     use std::sync::Mutex;
 
     use super::*;
+
+    /// Batches of records up to 64 bytes (window records, zero-sized ones) take [`BATCH`]
+    /// triangles; larger records fewer, their bytes at most [`BATCH_BYTES`] and within a
+    /// record of it; never none.
+    #[test]
+    fn batches_hold_a_bounded_number_of_bytes() {
+        assert_eq!(batch_for::<()>(), BATCH);
+        assert_eq!(batch_for::<[u8; 64]>(), BATCH);
+        assert_eq!(batch_for::<crate::render::WindowRecord>(), BATCH);
+        fn bytes<S>() -> (usize, usize) {
+            (batch_for::<S>(), batch_for::<S>() * size_of::<S>())
+        }
+        for (n, b) in [bytes::<[u8; 65]>(), bytes::<[u8; 272]>(), bytes::<[u64; 1000]>()] {
+            assert!(n < BATCH && b <= BATCH_BYTES && b + b / n > BATCH_BYTES, "{n} {b}");
+        }
+        assert_eq!(batch_for::<[u8; BATCH_BYTES + 1]>(), 1);
+    }
 
     /// `pipelined` hands each draw the batch prepared for it, draws every batch once and in
     /// order, whatever the count (none, one, several) and the thread count.

@@ -195,11 +195,10 @@ impl Pipeline {
         // triangles (below), so memory stays bounded whatever the mesh size.
         let whole = vertices.len() <= VERTEX_CACHE;
         let level = SimdLevel::detect();
-        // The batches `bin::pipelined` will cut.
-        let index_ranges: Vec<(u32, u32)> = triangles
-            .chunks(bin::even_batch_len(triangles.len(), bin::BATCH))
-            .map(|b| index_range(level, b))
-            .collect();
+        // The batches `bin::pipelined` will cut (given this length, it cuts the same).
+        let batch_len = bin::even_batch_len(triangles.len(), batch::<VS::Varyings>());
+        let index_ranges: Vec<(u32, u32)> =
+            triangles.chunks(batch_len).map(|b| index_range(level, b)).collect();
         let largest = index_ranges.iter().map(|r| r.1).max().unwrap_or(0);
         if largest as usize >= vertices.len()
             && let Some((t, &bad)) = triangles
@@ -355,8 +354,8 @@ impl Pipeline {
                     // window when it is compact (meshes are mostly stored with locality),
                     // otherwise each corner shaded where it is used.
                     let (lo, hi) = index_ranges[b];
-                    // A window of at most VERTEX_CACHE vertices: a batch of 512k triangles
-                    // of a mesh stored with locality spans fewer.
+                    // A window of at most VERTEX_CACHE vertices: a batch (at most 512k
+                    // triangles) of a mesh stored with locality spans fewer.
                     let windowed = !whole && (hi - lo) as usize <= VERTEX_CACHE;
                     // Only positions: most triangles of a large mesh stop at the corner
                     // tests, and the few that go on shade their three vertices again.
@@ -419,7 +418,7 @@ impl Pipeline {
                         fragment_shader.may_discard(),
                     );
                 };
-                bin::pipelined(triangles, bin::BATCH, prepared, prepare, draw);
+                bin::pipelined(triangles, batch_len, prepared, prepare, draw);
                 stats = stats.merged(&counts);
                 stats.fragments += fragments;
             }
@@ -454,6 +453,11 @@ impl<V> Default for Scratch<V> {
     fn default() -> Self {
         Self { shaded: Vec::new(), window: Vec::new(), prepared: Default::default() }
     }
+}
+
+/// Triangles per batch of the binned schedule, for varyings `V` (the records' size).
+const fn batch<V>() -> usize {
+    bin::batch_for::<Prepared<TriangleData<V>>>()
 }
 
 /// What the fragment stage needs of one (possibly clipped) triangle.

@@ -325,7 +325,8 @@ fn draw_tiled<C: WindowColor>(
             fragments += bin::draw_binned(target, prepared, test, kernel, window_fragment, false);
         }
     };
-    bin::pipelined(triangles, bin::BATCH, &mut pair, prepare, draw);
+    // Batches bounded by bytes: a perspective colour's record is 216 bytes.
+    bin::pipelined(triangles, bin::batch_for::<C::Record>(), &mut pair, prepare, draw);
     stats.fragments += fragments;
     target.keep_scratch(pair);
     stats
