@@ -7,11 +7,11 @@
 //! `mtllib` and `usemtl` are recorded; [`read_mesh`] resolves them through [`super::mtl`].
 //! Other statements (`o`, `g`, `s`, `l`, `p`, ...) are skipped.
 //!
-//! Two readers share one statement parser ([`Statements`]):
+//! Two readers share one statement parser (`Statements`):
 //! - [`parse`] keeps the file as written ([`ObjMesh`]: every element and face corner), which the
 //!   window projection reads and [`to_mesh`], the reference, turns into an indexed [`Mesh`];
 //! - [`parse_mesh`] (what [`read_mesh`] uses) builds the same [`Mesh`] while it reads, line by
-//!   line from a buffered file (see [`super::read_lines`]): a face whose corners are all read
+//!   line from a buffered file (see `mesh::read_lines`): a face whose corners are all read
 //!   becomes triangles at once, so neither the file's bytes nor its corners are kept. A 37 MB
 //!   OBJ of 1,000,000 triangles had peaked at 254 MB through the two steps, for a mesh of 18
 //!   MB; now 61 MB.
@@ -286,7 +286,7 @@ impl Elements for ObjMesh {
     }
 }
 
-/// Reads `input` line by line (see [`super::read_lines`]), each statement to `elements`;
+/// Reads `input` line by line (see `mesh::read_lines`), each statement to `elements`;
 /// returns the material statements.
 fn read_statements(
     input: impl BufRead,
