@@ -79,8 +79,6 @@ impl SplatTree {
     }
 }
 
-use rayon::prelude::*;
-
 use super::PointCloud;
 
 impl SplatTree {
@@ -108,39 +106,24 @@ impl SplatTree {
         if index.is_empty() {
             return Self::default();
         }
-        // Top-down: (start, len) of each node's range in `index`, breadth first.
+        // Top-down: (start, len) of each node's range in `index`, breadth first. A node's
+        // children's ranges follow from its own ([`children_of`]): a level's points are
+        // partitioned in place, in parallel, then the next level's ranges appended.
         let mut ranges: Vec<(u32, u32)> = vec![(0, index.len() as u32)];
-        let mut child_counts: Vec<u8> = Vec::new();
         let mut level_start = 0;
         while level_start < ranges.len() {
-            let level = ranges[level_start..].to_vec();
-            // Disjoint mutable slices of `index`, one per node of this level, in order.
-            let mut slices = Vec::with_capacity(level.len());
-            let mut rest: &mut [Item] = &mut index;
-            let mut offset = 0u32;
-            for &(start, len) in &level {
-                let (_, tail) = rest.split_at_mut((start - offset) as usize);
-                let (mine, tail) = tail.split_at_mut(len as usize);
-                slices.push(mine);
-                rest = tail;
-                offset = start + len;
+            let level_end = ranges.len();
+            partition_level(&mut index, 0, &ranges[level_start..level_end]);
+            for i in level_start..level_end {
+                ranges.extend_from_slice(children_of(ranges[i]).ranges());
             }
-            let splits: Vec<Vec<(u32, u32)>> = slices
-                .into_par_iter()
-                .zip(level.par_iter())
-                .with_min_len(64)
-                .map(|(slice, &(start, _))| split4(slice, start))
-                .collect();
-            level_start = ranges.len();
-            for children in splits {
-                child_counts.push(children.len() as u8);
-                ranges.extend(children);
-            }
+            level_start = level_end;
         }
         // Bottom-up: spheres, normals, cones, colours.
         let mut nodes: Vec<SplatNode> = Vec::with_capacity(ranges.len());
         let mut next_child = 1u32;
-        for &count in &child_counts {
+        for &range in &ranges {
+            let count = children_of(range).count;
             nodes.push(SplatNode {
                 centre: [0.0; 3],
                 radius: 0.0,
@@ -267,26 +250,84 @@ impl SplatTree {
 /// A point and its index in the cloud.
 type Item = ([f32; 3], u32);
 
-/// Splits the points of `slice` (starting at `start` in the index array) into up to 4 groups:
-/// the median of the longest axis, then again on each half; returns their ranges. A single
-/// point is a leaf (no groups).
-fn split4(slice: &mut [Item], start: u32) -> Vec<(u32, u32)> {
-    if slice.len() <= 1 {
-        return Vec::new();
+/// Nodes of a level partitioned one after another, below which [`partition_level`] stops
+/// splitting the level into parallel halves (as `with_min_len(64)` did).
+const SEQUENTIAL_NODES: usize = 64;
+
+/// Partitions the points of every node of `level` as [`split4`] does. `index` is the part of
+/// the index array from `offset` on, holding every node's range. The level is halved
+/// recursively, each half on its own part of `index`, in parallel: disjoint mutable slices
+/// without a vector of them (16 bytes per node of the level) nor one of their children's
+/// ranges (24 bytes per node, and a heap block per inner node).
+fn partition_level(index: &mut [Item], offset: u32, level: &[(u32, u32)]) {
+    if level.len() <= SEQUENTIAL_NODES {
+        for &(start, len) in level {
+            let from = (start - offset) as usize;
+            split4(&mut index[from..from + len as usize]);
+        }
+        return;
     }
-    let half = split2(slice);
-    let mut out = Vec::with_capacity(4);
-    let (a, b) = slice.split_at_mut(half);
-    for (part, offset) in [(a, 0usize), (b, half)] {
-        if part.len() >= 2 {
-            let q = split2(part);
-            out.push((start + offset as u32, q as u32));
-            out.push((start + (offset + q) as u32, (part.len() - q) as u32));
+    let (first, second) = level.split_at(level.len() / 2);
+    let at = second[0].0;
+    let (a, b) = index.split_at_mut((at - offset) as usize);
+    rayon::join(|| partition_level(a, offset, first), || partition_level(b, at, second));
+}
+
+/// The children of a node as [`split4`] makes them: `(start, len)` ranges of the index array.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Children {
+    ranges: [(u32, u32); 4],
+    count: u8,
+}
+
+impl Children {
+    fn push(&mut self, range: (u32, u32)) {
+        self.ranges[usize::from(self.count)] = range;
+        self.count += 1;
+    }
+
+    /// The children's ranges, in order.
+    fn ranges(&self) -> &[(u32, u32)] {
+        &self.ranges[..usize::from(self.count)]
+    }
+}
+
+/// The children of the node whose points are `(start, len)` in the index array: [`split4`]
+/// splits at `len / 2` and each half of two points or more at its own half, so where depends
+/// on the length alone, not on the points. None for a single point (a leaf); otherwise 2
+/// (two points), 3 (three) or 4.
+fn children_of((start, len): (u32, u32)) -> Children {
+    let mut out = Children::default();
+    if len <= 1 {
+        return out;
+    }
+    let half = len / 2;
+    for (offset, part) in [(0, half), (half, len - half)] {
+        if part >= 2 {
+            let q = part / 2;
+            out.push((start + offset, q));
+            out.push((start + offset + q, part - q));
         } else {
-            out.push((start + offset as u32, part.len() as u32));
+            out.push((start + offset, part));
         }
     }
     out
+}
+
+/// Splits the points of `slice` into up to 4 groups, in place: at the median of the longest
+/// axis, then each half of two points or more again; the groups are [`children_of`] its
+/// range. A single point is a leaf (no groups).
+fn split4(slice: &mut [Item]) {
+    if slice.len() <= 1 {
+        return;
+    }
+    let half = split2(slice);
+    let (a, b) = slice.split_at_mut(half);
+    for part in [a, b] {
+        if part.len() >= 2 {
+            split2(part);
+        }
+    }
 }
 
 /// Partitions `slice` at the median of the longest axis of its points' bounding box; returns
@@ -380,4 +421,34 @@ fn with_chains(nodes: Vec<SplatNode>) -> Vec<SplatNode> {
         level = next;
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The ranges [`children_of`] gives are the groups [`split4`] leaves: consecutive, covering
+    /// the node's range, half of it on each side of `len / 2`, each half split at its own half.
+    #[test]
+    fn children_cover_the_range_split_at_halves() {
+        for len in 0..200u32 {
+            let c = children_of((1000, len));
+            let lens: Vec<u32> = c.ranges().iter().map(|r| r.1).collect();
+            let expected: Vec<u32> = match len {
+                0 | 1 => vec![],
+                2 => vec![1, 1],
+                3 => vec![1, 1, 1],
+                _ => {
+                    let (a, b) = (len / 2, len - len / 2);
+                    vec![a / 2, a - a / 2, b / 2, b - b / 2]
+                }
+            };
+            assert_eq!(lens, expected, "{len}");
+            let mut at = 1000;
+            for &(start, l) in c.ranges() {
+                assert_eq!(start, at);
+                at += l;
+            }
+        }
+    }
 }
