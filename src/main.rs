@@ -1191,7 +1191,7 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
     } else {
         let cloud = trirast::splat::cloud::read_ply(file)?;
         let start = std::time::Instant::now();
-        let tree = trirast::splat::SplatTree::build(&cloud);
+        let tree = trirast::splat::SplatTree::build(&cloud)?;
         eprintln!(
             "built the hierarchy of {} points ({} nodes) in {:.0} ms",
             cloud.positions.len(),

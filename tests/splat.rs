@@ -57,7 +57,7 @@ fn every_point_lies_in_every_ancestor_sphere() {
     for &n in &[1usize, 2, 3, 5, 17, 1000, 20_000] {
         for radii in [false, true] {
             let cloud = random_cloud(&mut rng, n, radii);
-            let tree = SplatTree::build(&cloud);
+            let tree = SplatTree::build(&cloud).unwrap();
             assert_eq!(tree.leaf_count(), n, "one leaf per point");
             // Breadth-first layout: children after their parent, contiguous, at most 4.
             let mut expected_child = 1;
@@ -100,7 +100,7 @@ fn every_point_lies_in_every_ancestor_sphere() {
             }
         }
     }
-    assert!(SplatTree::build(&PointCloud::default()).nodes.is_empty());
+    assert!(SplatTree::build(&PointCloud::default()).unwrap().nodes.is_empty());
 }
 
 fn framing(cloud: &PointCloud, aspect: f32) -> Camera {
@@ -112,7 +112,7 @@ fn framing(cloud: &PointCloud, aspect: f32) -> Camera {
 fn threshold_zero_draws_every_leaf() {
     let mut rng = SmallRng::seed_from_u64(2);
     let cloud = random_cloud(&mut rng, 5000, false);
-    let tree = SplatTree::build(&cloud);
+    let tree = SplatTree::build(&cloud).unwrap();
     let camera = framing(&cloud, 1.5);
     let mut target = Target::new(150, 100).unwrap();
     let opts = SplatOptions::default().with_threshold(0.0).with_backface_cull(false);
@@ -128,7 +128,7 @@ fn threshold_zero_draws_every_leaf() {
 fn rendering_does_not_depend_on_threads_and_refinement_converges() {
     let mut rng = SmallRng::seed_from_u64(3);
     let cloud = random_cloud(&mut rng, 30_000, true);
-    let tree = SplatTree::build(&cloud);
+    let tree = SplatTree::build(&cloud).unwrap();
     let camera = framing(&cloud, 1.0);
     let frame = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
@@ -158,7 +158,7 @@ fn rendering_does_not_depend_on_threads_and_refinement_converges() {
 fn id_and_overdraw_buffers_do_not_change_the_image() {
     let mut rng = SmallRng::seed_from_u64(6);
     let cloud = random_cloud(&mut rng, 20_000, true);
-    let tree = SplatTree::build(&cloud);
+    let tree = SplatTree::build(&cloud).unwrap();
     let camera = framing(&cloud, 1.25);
     for shape in [SplatShape::Round, SplatShape::Square] {
         for threshold in [0.0, 1.0, 6.0] {
@@ -218,7 +218,7 @@ fn splat_sphere_covers_what_the_triangle_sphere_covers() {
         .collect();
     let cloud =
         PointCloud { normals: Some(positions.clone()), positions, colors: None, radii: None };
-    let tree = SplatTree::build(&cloud);
+    let tree = SplatTree::build(&cloud).unwrap();
     let mut splat_target = Target::new(w, h).unwrap().with_ids();
     let stats = render::render(&mut splat_target, &tree, &camera, &SplatOptions::default());
     // About 30 points per pixel: traversal must stop well above the leaves (the threshold

@@ -715,7 +715,7 @@ mod tests {
             colors,
             radii: Some((0..n).map(|_| rng.random_range(0.002..0.03)).collect()),
         };
-        let tree = SplatTree::build(&cloud);
+        let tree = SplatTree::build(&cloud).unwrap();
         let camera = Camera {
             eye: Vec3::new(0.0, 0.0, 2.0),
             target: Vec3::ZERO,
@@ -807,7 +807,7 @@ mod tests {
             .collect();
         let cloud =
             PointCloud { normals: Some(positions.clone()), positions, colors: None, radii: None };
-        let tree = SplatTree::build(&cloud);
+        let tree = SplatTree::build(&cloud).unwrap();
         let camera = Camera {
             eye: Vec3::new(0.0, 0.0, 2.2),
             target: Vec3::new(0.8, 0.0, 0.0),
