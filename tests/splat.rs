@@ -151,6 +151,35 @@ fn rendering_does_not_depend_on_threads_and_refinement_converges() {
     assert!(t.color == a.color && t.ids == a.ids);
 }
 
+/// A step whose splats are all leaves is the last: the threshold only decides where inner
+/// nodes stop refining, so finer levels would draw that image again. A tree of one node under
+/// `trirast splat --budget-ms` had stopped there saying "budget reached".
+#[test]
+fn progressive_refinement_ends_at_a_level_of_single_points() {
+    let cloud = PointCloud { positions: vec![[0.0; 3]], ..PointCloud::default() };
+    let tree = SplatTree::build(&cloud).unwrap();
+    let camera = Camera {
+        eye: Vec3::new(0.0, 0.0, 4.0),
+        target: Vec3::ZERO,
+        up: Vec3::Y,
+        projection: Projection::Perspective { fov_y: 0.8 },
+        near: 1.0,
+        far: 10.0,
+    };
+    let options = SplatOptions::default();
+    let mut p = Progressive::new(1.0);
+    let mut t = Target::new(32, 32).unwrap();
+    let (level, stats) = p.step(&mut t, &tree, &camera, &options, [0, 0, 0, 255]).unwrap();
+    assert_eq!(level, 64.0);
+    assert_eq!((stats.drawn, stats.leaves_drawn), (1, 1));
+    assert!(p.is_done() && p.next_threshold().is_none());
+    assert!(p.step(&mut t, &tree, &camera, &options, [0, 0, 0, 255]).is_none());
+    let mut direct = Target::new(32, 32).unwrap();
+    direct.clear([0, 0, 0, 255]);
+    render::render(&mut direct, &tree, &camera, &options);
+    assert!(t.color == direct.color);
+}
+
 /// Splats drawn into colour and depth alone take a row-slice loop; with id and overdraw
 /// buffers, a per-pixel one. Both write the same colour and depth, for both shapes, and the
 /// overdraw counts every pixel that was written (a written pixel was covered).
