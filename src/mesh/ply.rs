@@ -22,25 +22,26 @@
 //!
 //! Binary errors are [`Error::Parse`] with `line: 0` and a message starting `byte N:`.
 
+use std::io::Read;
 use std::path::Path;
 
 use ply_rs_bw::ply::{ElementDef, Property, PropertyType, ScalarType};
 
 use super::Mesh;
 use super::ply_common::{
-    At, COLOR_NAMES, Fail, Fields, NX, POSITION_NORMAL, Ply, RED, Sink, X, parse_error, scalar,
+    At, COLOR_NAMES, Fail, Fields, NX, POSITION_NORMAL, Ply, RED, Sink, Source, X, parse_with,
+    read_file, scalar,
 };
 use crate::error::Error;
 
-/// Reads a PLY file as a [`Mesh`].
+/// Reads a PLY file as a [`Mesh`], from the file as it goes (not whole into memory first).
 pub fn read(path: &Path) -> Result<Mesh, Error> {
-    let bytes = crate::input::read(path)?;
-    parse(&bytes, path)
+    read_file(path, parse_at)
 }
 
 /// Parses the contents of a PLY file; `path` is only used to name the file in errors.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, Error> {
-    parse_at(bytes).map_err(|fail| parse_error(path, fail))
+    parse_with(bytes, bytes.len() as u64, path, parse_at)
 }
 
 // Value slots of an element after the shared ones (`X`, `NX`, `RED`); the texture coordinate
@@ -147,13 +148,13 @@ enum Role {
     Skip,
 }
 
-fn parse_at(bytes: &[u8]) -> Result<Mesh, Fail> {
-    let ply = Ply::<Element>::read_header(bytes, |element, property, _| {
+fn parse_at<R: Read>(source: &mut Source<R>, len: u64) -> Result<Mesh, Fail> {
+    let ply = Ply::<Element>::read_header(source, len, |element, property, _| {
         format!("property `{property}` is declared twice in element `{element}`")
     })?;
     let layout = check_header(&ply)?;
     let mut body = Body { layout, ..Body::default() };
-    ply.read_body(&mut body)?;
+    ply.read_body(source, &mut body)?;
     body.into_mesh()
 }
 
@@ -470,5 +471,103 @@ mod tests {
         // A face with too many values after the bad one is the error (faces come last here).
         let e = err(&faces_and_vertices(false, "3 0 1 2\n3 0 2 5\n3 1 4 2 0\n", ""));
         assert!(e.starts_with("t.ply:17: `face` 2: found 5 values"), "{e}");
+    }
+
+    /// A file of another kind is refused from its first bytes: the crate reads a whole first
+    /// line before it refuses one, which in a binary file may be all of it (here it never
+    /// ends).
+    #[test]
+    fn a_file_of_another_kind_is_refused_from_its_first_bytes() {
+        let endless = std::io::repeat(b'x');
+        let e = parse_with(endless, u64::MAX, Path::new("t.ply"), parse_at).unwrap_err();
+        assert_eq!(e.to_string(), "t.ply:1: not a PLY file: expected `ply` on the first line");
+    }
+
+    /// Hands out its bytes a few at a time (1 to 13 a read), then, if `fail`, an I/O error.
+    struct Trickle<'a> {
+        rest: &'a [u8],
+        reads: usize,
+        fail: bool,
+    }
+
+    impl std::io::Read for Trickle<'_> {
+        fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
+            if self.rest.is_empty() && self.fail {
+                return Err(std::io::Error::other("the disk is on fire"));
+            }
+            self.reads += 1;
+            let n = (1 + self.reads % 13).min(out.len()).min(self.rest.len());
+            out[..n].copy_from_slice(&self.rest[..n]);
+            self.rest = &self.rest[n..];
+            Ok(n)
+        }
+    }
+
+    /// `src` parsed as it trickles in, a few bytes a read (`fail`: then an I/O error).
+    fn trickled(src: &[u8], fail: bool) -> Result<Mesh, Error> {
+        let reader = Trickle { rest: src, reads: 0, fail };
+        parse_with(reader, src.len() as u64, Path::new("t.ply"), parse_at)
+    }
+
+    /// A binary file whose second face has `corners` corners on a circle: with 20,000, 80 KB,
+    /// more than the reader's buffer holds at first.
+    fn big_face(format: &str, corners: u32) -> Vec<u8> {
+        let mut src = format!(
+            "ply\nformat {format} 1.0\nelement vertex {corners}\nproperty float x\n\
+             property float y\nproperty float z\nelement face 2\n\
+             property list uint int vertex_indices\nend_header\n"
+        )
+        .into_bytes();
+        let big = format.contains("big");
+        let mut put = |v: [u8; 4]| src.extend(if big { v } else { [v[3], v[2], v[1], v[0]] });
+        for k in 0..corners {
+            let a = f64::from(k) * std::f64::consts::TAU / f64::from(corners);
+            for c in [a.cos() as f32, a.sin() as f32, 0.0] {
+                put(c.to_be_bytes());
+            }
+        }
+        for face in [vec![0, 1, 2], (0..corners).collect()] {
+            put(u32::try_from(face.len()).unwrap().to_be_bytes());
+            for i in face {
+                put(i.to_be_bytes());
+            }
+        }
+        src
+    }
+
+    /// The file is read through a buffer, not whole: what is parsed does not depend on how
+    /// the reads fall (a few bytes each here, so every element is met cut short and read
+    /// again), an element larger than the buffer is read whole, a file ending inside one
+    /// names the byte where it starts, and an I/O error is reported as one.
+    #[test]
+    fn reading_does_not_depend_on_how_the_file_arrives() {
+        let n = 20_000;
+        for format in ["binary_little_endian", "binary_big_endian"] {
+            let src = big_face(format, n);
+            let whole = parse(&src, Path::new("t.ply")).unwrap();
+            assert_eq!((whole.polygon_count, whole.triangles.len()), (2, n as usize - 1));
+            assert_eq!(trickled(&src, false).unwrap(), whole);
+            // Cut inside the big face, which starts after the first (4 + 12 bytes).
+            let start = src.len() - 4 - 4 * n as usize;
+            let cut = &src[..src.len() - 5];
+            let e = trickled(cut, false).unwrap_err().to_string();
+            let expected = format!(
+                "t.ply: byte {start}: file ends inside `face` 1 of 2 (the file has {} bytes)",
+                cut.len()
+            );
+            assert!(e.starts_with(&expected), "{e}");
+            assert_eq!(e, parse(cut, Path::new("t.ply")).unwrap_err().to_string());
+            let e = trickled(cut, true).unwrap_err();
+            assert!(matches!(e, Error::Io { .. }), "{e:?}");
+            assert_eq!(e.to_string(), "t.ply: the disk is on fire");
+        }
+        let src = faces_and_vertices(false, "3 0 1 2\n3 0 2 3\n4 1 4 2 0\n", "");
+        assert_eq!(trickled(&src, false).unwrap(), parse(&src, Path::new("t.ply")).unwrap());
+        for cut in [5, 60, src.len() - 3] {
+            let e = trickled(&src[..cut], false).unwrap_err().to_string();
+            assert_eq!(e, parse(&src[..cut], Path::new("t.ply")).unwrap_err().to_string());
+            let e = trickled(&src[..cut], true).unwrap_err().to_string();
+            assert_eq!(e, "t.ply: the disk is on fire", "cut at {cut}");
+        }
     }
 }
