@@ -506,7 +506,7 @@ pub fn run_splats(points: usize, frames: usize) -> Result<SplatBenchResult, Erro
     };
     let cloud = cloud::sample_mesh(&mesh, &MaterialTextures::load(&mesh), points, 7)?;
     let start = Instant::now();
-    let tree = SplatTree::build(&cloud);
+    let tree = SplatTree::build(&cloud)?;
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
     let bytes = format::encode(&tree);
     let tree = format::decode(&bytes).map_err(|e| Error::Usage(format!("decoding: {e}")))?;

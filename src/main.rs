@@ -1191,7 +1191,7 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
     } else {
         let cloud = trirast::splat::cloud::read_ply(file)?;
         let start = std::time::Instant::now();
-        let tree = trirast::splat::SplatTree::build(&cloud);
+        let tree = trirast::splat::SplatTree::build(&cloud)?;
         eprintln!(
             "built the hierarchy of {} points ({} nodes) in {:.0} ms",
             cloud.positions.len(),
@@ -1295,12 +1295,18 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
         finest = Some((next, stats, last_ms));
     }
     if let Some((level, stats, ms)) = finest {
+        // A level of single points is the final image whatever its threshold (a tree of one
+        // node reported "budget reached" though nothing was left to refine).
+        let note = if level == threshold {
+            ""
+        } else if progressive.is_done() {
+            " (every splat a single point: nothing left to refine)"
+        } else {
+            " (coarser than --threshold: budget reached)"
+        };
         eprintln!(
-            "level {level} px: {} splats ({} points), {} nodes culled, {ms:.1} ms{}",
-            stats.drawn,
-            stats.leaves_drawn,
-            stats.culled,
-            if level == threshold { "" } else { " (coarser than --threshold: budget reached)" }
+            "level {level} px: {} splats ({} points), {} nodes culled, {ms:.1} ms{note}",
+            stats.drawn, stats.leaves_drawn, stats.culled,
         );
     }
     trirast::output::write_png(&args.output, &target)?;

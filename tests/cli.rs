@@ -1177,3 +1177,18 @@ fn info_reports_counts_bounds_and_warnings() {
     assert!(out.status.success() && text.contains("vertices:   0"), "{text}");
     assert!(text.contains("bounds:     none") && !text.contains("inf"), "{text}");
 }
+
+/// A budget that stops refinement at a level of single points says so, not that the budget
+/// was reached: there was nothing left to refine (a one-point cloud said "budget reached").
+#[test]
+fn splat_budget_on_a_single_point_says_nothing_was_left_to_refine() {
+    let dir = TempDir::new("one-point");
+    dir.write(
+        "one.ply",
+        "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+         property float z\nend_header\n0 0 0\n",
+    );
+    let args = ["splat", "one.ply", "--size", "32x32", "--budget-ms", "0.001", "-o", "o.png"];
+    let err = run_ok(&dir.0, args);
+    assert!(err.contains("nothing left to refine") && !err.contains("budget"), "{err}");
+}

@@ -57,7 +57,7 @@ fn every_point_lies_in_every_ancestor_sphere() {
     for &n in &[1usize, 2, 3, 5, 17, 1000, 20_000] {
         for radii in [false, true] {
             let cloud = random_cloud(&mut rng, n, radii);
-            let tree = SplatTree::build(&cloud);
+            let tree = SplatTree::build(&cloud).unwrap();
             assert_eq!(tree.leaf_count(), n, "one leaf per point");
             // Breadth-first layout: children after their parent, contiguous, at most 4.
             let mut expected_child = 1;
@@ -100,7 +100,7 @@ fn every_point_lies_in_every_ancestor_sphere() {
             }
         }
     }
-    assert!(SplatTree::build(&PointCloud::default()).nodes.is_empty());
+    assert!(SplatTree::build(&PointCloud::default()).unwrap().nodes.is_empty());
 }
 
 fn framing(cloud: &PointCloud, aspect: f32) -> Camera {
@@ -112,7 +112,7 @@ fn framing(cloud: &PointCloud, aspect: f32) -> Camera {
 fn threshold_zero_draws_every_leaf() {
     let mut rng = SmallRng::seed_from_u64(2);
     let cloud = random_cloud(&mut rng, 5000, false);
-    let tree = SplatTree::build(&cloud);
+    let tree = SplatTree::build(&cloud).unwrap();
     let camera = framing(&cloud, 1.5);
     let mut target = Target::new(150, 100).unwrap();
     let opts = SplatOptions::default().with_threshold(0.0).with_backface_cull(false);
@@ -128,7 +128,7 @@ fn threshold_zero_draws_every_leaf() {
 fn rendering_does_not_depend_on_threads_and_refinement_converges() {
     let mut rng = SmallRng::seed_from_u64(3);
     let cloud = random_cloud(&mut rng, 30_000, true);
-    let tree = SplatTree::build(&cloud);
+    let tree = SplatTree::build(&cloud).unwrap();
     let camera = framing(&cloud, 1.0);
     let frame = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
@@ -151,6 +151,35 @@ fn rendering_does_not_depend_on_threads_and_refinement_converges() {
     assert!(t.color == a.color && t.ids == a.ids);
 }
 
+/// A step whose splats are all leaves is the last: the threshold only decides where inner
+/// nodes stop refining, so finer levels would draw that image again. A tree of one node under
+/// `trirast splat --budget-ms` had stopped there saying "budget reached".
+#[test]
+fn progressive_refinement_ends_at_a_level_of_single_points() {
+    let cloud = PointCloud { positions: vec![[0.0; 3]], ..PointCloud::default() };
+    let tree = SplatTree::build(&cloud).unwrap();
+    let camera = Camera {
+        eye: Vec3::new(0.0, 0.0, 4.0),
+        target: Vec3::ZERO,
+        up: Vec3::Y,
+        projection: Projection::Perspective { fov_y: 0.8 },
+        near: 1.0,
+        far: 10.0,
+    };
+    let options = SplatOptions::default();
+    let mut p = Progressive::new(1.0);
+    let mut t = Target::new(32, 32).unwrap();
+    let (level, stats) = p.step(&mut t, &tree, &camera, &options, [0, 0, 0, 255]).unwrap();
+    assert_eq!(level, 64.0);
+    assert_eq!((stats.drawn, stats.leaves_drawn), (1, 1));
+    assert!(p.is_done() && p.next_threshold().is_none());
+    assert!(p.step(&mut t, &tree, &camera, &options, [0, 0, 0, 255]).is_none());
+    let mut direct = Target::new(32, 32).unwrap();
+    direct.clear([0, 0, 0, 255]);
+    render::render(&mut direct, &tree, &camera, &options);
+    assert!(t.color == direct.color);
+}
+
 /// Splats drawn into colour and depth alone take a row-slice loop; with id and overdraw
 /// buffers, a per-pixel one. Both write the same colour and depth, for both shapes, and the
 /// overdraw counts every pixel that was written (a written pixel was covered).
@@ -158,7 +187,7 @@ fn rendering_does_not_depend_on_threads_and_refinement_converges() {
 fn id_and_overdraw_buffers_do_not_change_the_image() {
     let mut rng = SmallRng::seed_from_u64(6);
     let cloud = random_cloud(&mut rng, 20_000, true);
-    let tree = SplatTree::build(&cloud);
+    let tree = SplatTree::build(&cloud).unwrap();
     let camera = framing(&cloud, 1.25);
     for shape in [SplatShape::Round, SplatShape::Square] {
         for threshold in [0.0, 1.0, 6.0] {
@@ -218,7 +247,7 @@ fn splat_sphere_covers_what_the_triangle_sphere_covers() {
         .collect();
     let cloud =
         PointCloud { normals: Some(positions.clone()), positions, colors: None, radii: None };
-    let tree = SplatTree::build(&cloud);
+    let tree = SplatTree::build(&cloud).unwrap();
     let mut splat_target = Target::new(w, h).unwrap().with_ids();
     let stats = render::render(&mut splat_target, &tree, &camera, &SplatOptions::default());
     // About 30 points per pixel: traversal must stop well above the leaves (the threshold

@@ -513,7 +513,7 @@ fn round_trip_of_the_crates_builder() {
         colors: Some(pts.iter().map(|p| p.color).collect()),
         radii: None,
     };
-    let tree = SplatTree::build(&cloud);
+    let tree = SplatTree::build(&cloud).unwrap();
     // Its leaves are the points: take them (with the builder's splat radius) as the input.
     let mut leaf_points = Vec::new();
     let mut leaf_point = Vec::new();
@@ -557,7 +557,7 @@ fn isolated_points_keep_their_splat_size_through_the_file() {
         colors: None,
         radii: Some(vec![0.0015; 40_030]),
     };
-    let tree = SplatTree::build(&cloud);
+    let tree = SplatTree::build(&cloud).unwrap();
     let decoded = format::decode(&format::encode(&tree)).unwrap();
     assert_eq!(decoded.nodes.len(), tree.nodes.len());
     let worst = tree

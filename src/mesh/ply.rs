@@ -22,25 +22,26 @@
 //!
 //! Binary errors are [`Error::Parse`] with `line: 0` and a message starting `byte N:`.
 
+use std::io::Read;
 use std::path::Path;
 
 use ply_rs_bw::ply::{ElementDef, Property, PropertyType, ScalarType};
 
 use super::Mesh;
 use super::ply_common::{
-    At, COLOR_NAMES, Fail, Fields, NX, POSITION_NORMAL, Ply, RED, Sink, X, parse_error, scalar,
+    At, COLOR_NAMES, Fail, Fields, NX, POSITION_NORMAL, Ply, RED, Sink, Source, X, parse_with,
+    read_file, scalar,
 };
 use crate::error::Error;
 
-/// Reads a PLY file as a [`Mesh`].
+/// Reads a PLY file as a [`Mesh`], from the file as it goes (not whole into memory first).
 pub fn read(path: &Path) -> Result<Mesh, Error> {
-    let bytes = crate::input::read(path)?;
-    parse(&bytes, path)
+    read_file(path, parse_at)
 }
 
 /// Parses the contents of a PLY file; `path` is only used to name the file in errors.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, Error> {
-    parse_at(bytes).map_err(|fail| parse_error(path, fail))
+    parse_with(bytes, bytes.len() as u64, path, parse_at)
 }
 
 // Value slots of an element after the shared ones (`X`, `NX`, `RED`); the texture coordinate
@@ -63,37 +64,57 @@ fn slot(name: &str) -> Option<usize> {
     }
 }
 
-/// What we keep of one element: the values we use, by slot, and the face indices.
+/// What we keep of one element: the values we use, by slot, and the face indices, as the
+/// crate's list (converted where they are used, [`index_values`]: a copy in `i64` was a second
+/// allocation per face).
 struct Element {
     values: [f32; SLOTS],
-    indices: Vec<i64>,
+    indices: Option<Property>,
 }
 
 impl Default for Element {
     fn default() -> Self {
         let mut values = [0.0; SLOTS];
         values[ALPHA] = 1.0;
-        Self { values, indices: Vec::new() }
+        Self { values, indices: None }
     }
 }
 
 impl Fields for Element {
     fn set(&mut self, name: &str, property: Property) -> bool {
         if INDEX_NAMES.contains(&name) {
-            self.indices = match property {
-                Property::ListChar(v) => v.into_iter().map(i64::from).collect(),
-                Property::ListUChar(v) => v.into_iter().map(i64::from).collect(),
-                Property::ListShort(v) => v.into_iter().map(i64::from).collect(),
-                Property::ListUShort(v) => v.into_iter().map(i64::from).collect(),
-                Property::ListInt(v) => v.into_iter().map(i64::from).collect(),
-                Property::ListUInt(v) => v.into_iter().map(i64::from).collect(),
-                _ => return false,
-            };
-            return true;
+            let integers = matches!(
+                property,
+                Property::ListChar(_)
+                    | Property::ListUChar(_)
+                    | Property::ListShort(_)
+                    | Property::ListUShort(_)
+                    | Property::ListInt(_)
+                    | Property::ListUInt(_)
+            );
+            if integers {
+                self.indices = Some(property);
+            }
+            return integers;
         }
         let Some(k) = slot(name) else { return false };
         let value = if (RED..=ALPHA).contains(&k) { color(&property) } else { scalar(&property) };
         value.map(|v| self.values[k] = v).is_some()
+    }
+}
+
+/// The values of an integer list `p` as `i64`, in `out` (cleared first); none for another
+/// property.
+fn index_values(p: Option<&Property>, out: &mut Vec<i64>) {
+    out.clear();
+    match p {
+        Some(Property::ListChar(v)) => out.extend(v.iter().map(|&i| i64::from(i))),
+        Some(Property::ListUChar(v)) => out.extend(v.iter().map(|&i| i64::from(i))),
+        Some(Property::ListShort(v)) => out.extend(v.iter().map(|&i| i64::from(i))),
+        Some(Property::ListUShort(v)) => out.extend(v.iter().map(|&i| i64::from(i))),
+        Some(Property::ListInt(v)) => out.extend(v.iter().map(|&i| i64::from(i))),
+        Some(Property::ListUInt(v)) => out.extend(v.iter().map(|&i| i64::from(i))),
+        _ => {}
     }
 }
 
@@ -127,13 +148,13 @@ enum Role {
     Skip,
 }
 
-fn parse_at(bytes: &[u8]) -> Result<Mesh, Fail> {
-    let ply = Ply::<Element>::read_header(bytes, |element, property, _| {
+fn parse_at<R: Read>(source: &mut Source<R>, len: u64) -> Result<Mesh, Fail> {
+    let ply = Ply::<Element>::read_header(source, len, |element, property, _| {
         format!("property `{property}` is declared twice in element `{element}`")
     })?;
     let layout = check_header(&ply)?;
     let mut body = Body { layout, ..Body::default() };
-    ply.read_body(&mut body)?;
+    ply.read_body(source, &mut body)?;
     body.into_mesh()
 }
 
@@ -179,18 +200,45 @@ fn check_header(ply: &Ply<Element>) -> Result<Layout, Fail> {
 }
 
 /// Accumulates the elements we use while the body is read.
+///
+/// Faces read after the vertices (the usual order) are checked and triangulated as they come,
+/// so that only the triangles are kept: their corners (`i64`), ends and positions in the file
+/// had taken 48 bytes a triangle beside its 12 (`trirast info` on a binary PLY of 1 M
+/// triangles: 127 MB peak). An index out of range is reported once the body has been read,
+/// so that a malformed element further on comes first, as when every face was checked at the
+/// end. Faces declared before the vertices are kept whole and triangulated at the end.
 #[derive(Default)]
 struct Body {
     layout: Layout,
     /// What the element being read is to us.
     role: Role,
+    /// Whether the `vertex` element has been read: every element is read whole before the
+    /// next one starts.
+    vertices_read: bool,
     positions: Vec<[f32; 3]>,
     normals: Vec<[f32; 3]>,
     colors: Vec<[f32; 4]>,
     texcoords: Vec<[f32; 2]>,
+    triangles: Vec<[u32; 3]>,
+    /// Faces read.
+    faces: usize,
+    /// The first face with an index out of range, once the vertices are known.
+    bad_face: Option<Fail>,
+    /// Faces read before the vertices: their corners, where each ends in `corners`, and where
+    /// each is in the file.
     corners: Vec<i64>,
     face_ends: Vec<usize>,
     face_at: Vec<At>,
+    /// Scratch for one face: its indices, vertex indices and corner positions.
+    scratch: Face,
+}
+
+/// The reusable buffers one face is triangulated with.
+#[derive(Default)]
+struct Face {
+    indices: Vec<i64>,
+    vertices: Vec<u32>,
+    points: Vec<[f32; 3]>,
 }
 
 impl Sink for Body {
@@ -204,6 +252,7 @@ impl Sink for Body {
         };
         match self.role {
             Role::Vertex => {
+                self.vertices_read = true;
                 self.positions.reserve(capacity);
                 if self.layout.normals {
                     self.normals.reserve(capacity);
@@ -215,6 +264,8 @@ impl Sink for Body {
                     self.texcoords.reserve(capacity);
                 }
             }
+            // At least a triangle per face, exactly one for a triangle mesh.
+            Role::Face if self.vertices_read => self.triangles.reserve(capacity),
             Role::Face => {
                 self.face_ends.reserve(capacity);
                 self.face_at.reserve(capacity);
@@ -243,18 +294,28 @@ impl Sink for Body {
                 }
             }
             Role::Face => {
-                if e.indices.len() < 3 {
+                let mut indices = std::mem::take(&mut self.scratch.indices);
+                index_values(e.indices.as_ref(), &mut indices);
+                if indices.len() < 3 {
                     return Err((
                         at,
                         format!(
                             "face {index} has {} vertex indices; a face needs 3 or more",
-                            e.indices.len()
+                            indices.len()
                         ),
                     ));
                 }
-                self.corners.extend_from_slice(&e.indices);
-                self.face_ends.push(self.corners.len());
-                self.face_at.push(at);
+                self.faces += 1;
+                if !self.vertices_read {
+                    self.corners.extend_from_slice(&indices);
+                    self.face_ends.push(self.corners.len());
+                    self.face_at.push(at);
+                } else if self.bad_face.is_none()
+                    && let Err(fail) = self.triangulate(&indices, index, at)
+                {
+                    self.bad_face = Some(fail);
+                }
+                self.scratch.indices = indices;
             }
             Role::Skip => {}
         }
@@ -263,44 +324,63 @@ impl Sink for Body {
 }
 
 impl Body {
-    fn into_mesh(self) -> Result<Mesh, Fail> {
+    /// Appends the triangles of face `f`, whose corners are `indices` and which is at `at`,
+    /// or names its first index out of range.
+    fn triangulate(&mut self, indices: &[i64], f: usize, at: At) -> Result<(), Fail> {
+        let n = self.positions.len();
+        let Face { vertices, points, .. } = &mut self.scratch;
+        vertices.clear();
+        points.clear();
+        for &i in indices {
+            let Some(v) = u32::try_from(i).ok().filter(|&v| (v as usize) < n) else {
+                return Err((
+                    at,
+                    format!(
+                        "face {f}: vertex index {i} is out of range (the file has {n} vertices)"
+                    ),
+                ));
+            };
+            vertices.push(v);
+            points.push(self.positions[v as usize]);
+        }
+        for t in crate::polygon::triangulate_face(points) {
+            if let (Some(&a), Some(&b), Some(&c)) =
+                (vertices.get(t[0]), vertices.get(t[1]), vertices.get(t[2]))
+            {
+                self.triangles.push([a, b, c]);
+            }
+        }
+        Ok(())
+    }
+
+    fn into_mesh(mut self) -> Result<Mesh, Fail> {
         let n = self.positions.len();
         if u32::try_from(n).is_err() {
             return Err((At::Line(1), format!("{n} vertices are more than 2^32")));
         }
-        let mut mesh = Mesh { polygon_count: self.face_ends.len(), ..Mesh::default() };
-        let mut start = 0;
-        let mut face = Vec::new();
-        let mut points = Vec::new();
-        for (f, (&end, &at)) in self.face_ends.iter().zip(&self.face_at).enumerate() {
-            face.clear();
-            points.clear();
-            for &i in &self.corners[start..end] {
-                let Some(v) = u32::try_from(i).ok().filter(|&v| (v as usize) < n) else {
-                    return Err((
-                        at,
-                        format!(
-                            "face {f}: vertex index {i} is out of range (the file has {n} vertices)"
-                        ),
-                    ));
-                };
-                face.push(v);
-                points.push(self.positions[v as usize]);
-            }
-            start = end;
-            for t in crate::polygon::triangulate_face(&points) {
-                if let (Some(&a), Some(&b), Some(&c)) =
-                    (face.get(t[0]), face.get(t[1]), face.get(t[2]))
-                {
-                    mesh.triangles.push([a, b, c]);
-                }
-            }
+        if let Some(fail) = self.bad_face.take() {
+            return Err(fail);
         }
-        mesh.normals = self.layout.normals.then_some(self.normals);
-        mesh.colors = self.layout.colors.then_some(self.colors);
-        mesh.texcoords = self.layout.uv.is_some().then_some(self.texcoords);
-        mesh.positions = self.positions;
-        Ok(mesh)
+        // Faces declared before the vertices.
+        let (corners, face_ends, face_at) = (
+            std::mem::take(&mut self.corners),
+            std::mem::take(&mut self.face_ends),
+            std::mem::take(&mut self.face_at),
+        );
+        let mut start = 0;
+        for (f, (&end, &at)) in face_ends.iter().zip(&face_at).enumerate() {
+            self.triangulate(&corners[start..end], f, at)?;
+            start = end;
+        }
+        Ok(Mesh {
+            polygon_count: self.faces,
+            triangles: self.triangles,
+            normals: self.layout.normals.then_some(self.normals),
+            colors: self.layout.colors.then_some(self.colors),
+            texcoords: self.layout.uv.is_some().then_some(self.texcoords),
+            positions: self.positions,
+            ..Mesh::default()
+        })
     }
 }
 
@@ -346,5 +426,148 @@ mod tests {
         assert!(e.starts_with("t.ply:1: not a PLY file"), "{e}");
         let e = err(b"ply\nformat ascii 1.0\nelement vertex x\n");
         assert!(e.starts_with("t.ply:3: expected a PLY header line"), "{e}");
+    }
+
+    /// A square of two triangles and a quad over 5 vertices, with faces declared `first` or
+    /// after the vertices, and `tail` after the last face.
+    fn faces_and_vertices(first: bool, faces: &str, tail: &str) -> Vec<u8> {
+        let vertex = "element vertex 5\nproperty float x\nproperty float y\nproperty float z\n";
+        let face = "element face 3\nproperty list uchar int vertex_indices\n";
+        let vertices = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n2 2 0\n";
+        let (header, body) = if first {
+            (format!("{face}{vertex}"), format!("{faces}{vertices}"))
+        } else {
+            (format!("{vertex}{face}"), format!("{vertices}{faces}"))
+        };
+        format!("ply\nformat ascii 1.0\n{header}end_header\n{body}{tail}").into_bytes()
+    }
+
+    /// Faces after the vertices are triangulated as they are read, faces before them at the
+    /// end: the same mesh either way.
+    #[test]
+    fn faces_before_the_vertices_give_the_same_mesh() {
+        let faces = "3 0 1 2\n3 0 2 3\n4 1 4 2 0\n";
+        let read = |first| parse(&faces_and_vertices(first, faces, ""), Path::new("t.ply"));
+        let (after, before) = (read(false).unwrap(), read(true).unwrap());
+        assert_eq!(after.triangles.len(), 4);
+        assert_eq!(after.polygon_count, 3);
+        assert_eq!(after, before);
+    }
+
+    /// An index out of range names its face and line once the body has been read, so that a
+    /// malformed element further on is reported first (as when every face was checked after
+    /// the body), whichever element comes first.
+    #[test]
+    fn an_index_out_of_range_is_reported_after_the_body() {
+        let faces = "3 0 1 2\n3 0 2 5\n4 1 4 2 0\n";
+        for first in [false, true] {
+            // `end_header` is line 9: face 1 is line 11 when faces come first, else 16.
+            let line = if first { 11 } else { 16 };
+            let e = err(&faces_and_vertices(first, faces, ""));
+            let expected =
+                format!("t.ply:{line}: face 1: vertex index 5 is out of range (the file has 5 ");
+            assert!(e.starts_with(&expected), "{first}: {e}");
+        }
+        // A face with too many values after the bad one is the error (faces come last here).
+        let e = err(&faces_and_vertices(false, "3 0 1 2\n3 0 2 5\n3 1 4 2 0\n", ""));
+        assert!(e.starts_with("t.ply:17: `face` 2: found 5 values"), "{e}");
+    }
+
+    /// A file of another kind is refused from its first bytes: the crate reads a whole first
+    /// line before it refuses one, which in a binary file may be all of it (here it never
+    /// ends).
+    #[test]
+    fn a_file_of_another_kind_is_refused_from_its_first_bytes() {
+        let endless = std::io::repeat(b'x');
+        let e = parse_with(endless, u64::MAX, Path::new("t.ply"), parse_at).unwrap_err();
+        assert_eq!(e.to_string(), "t.ply:1: not a PLY file: expected `ply` on the first line");
+    }
+
+    /// Hands out its bytes a few at a time (1 to 13 a read), then, if `fail`, an I/O error.
+    struct Trickle<'a> {
+        rest: &'a [u8],
+        reads: usize,
+        fail: bool,
+    }
+
+    impl std::io::Read for Trickle<'_> {
+        fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
+            if self.rest.is_empty() && self.fail {
+                return Err(std::io::Error::other("the disk is on fire"));
+            }
+            self.reads += 1;
+            let n = (1 + self.reads % 13).min(out.len()).min(self.rest.len());
+            out[..n].copy_from_slice(&self.rest[..n]);
+            self.rest = &self.rest[n..];
+            Ok(n)
+        }
+    }
+
+    /// `src` parsed as it trickles in, a few bytes a read (`fail`: then an I/O error).
+    fn trickled(src: &[u8], fail: bool) -> Result<Mesh, Error> {
+        let reader = Trickle { rest: src, reads: 0, fail };
+        parse_with(reader, src.len() as u64, Path::new("t.ply"), parse_at)
+    }
+
+    /// A binary file whose second face has `corners` corners on a circle: with 20,000, 80 KB,
+    /// more than the reader's buffer holds at first.
+    fn big_face(format: &str, corners: u32) -> Vec<u8> {
+        let mut src = format!(
+            "ply\nformat {format} 1.0\nelement vertex {corners}\nproperty float x\n\
+             property float y\nproperty float z\nelement face 2\n\
+             property list uint int vertex_indices\nend_header\n"
+        )
+        .into_bytes();
+        let big = format.contains("big");
+        let mut put = |v: [u8; 4]| src.extend(if big { v } else { [v[3], v[2], v[1], v[0]] });
+        for k in 0..corners {
+            let a = f64::from(k) * std::f64::consts::TAU / f64::from(corners);
+            for c in [a.cos() as f32, a.sin() as f32, 0.0] {
+                put(c.to_be_bytes());
+            }
+        }
+        for face in [vec![0, 1, 2], (0..corners).collect()] {
+            put(u32::try_from(face.len()).unwrap().to_be_bytes());
+            for i in face {
+                put(i.to_be_bytes());
+            }
+        }
+        src
+    }
+
+    /// The file is read through a buffer, not whole: what is parsed does not depend on how
+    /// the reads fall (a few bytes each here, so every element is met cut short and read
+    /// again), an element larger than the buffer is read whole, a file ending inside one
+    /// names the byte where it starts, and an I/O error is reported as one.
+    #[test]
+    fn reading_does_not_depend_on_how_the_file_arrives() {
+        let n = 20_000;
+        for format in ["binary_little_endian", "binary_big_endian"] {
+            let src = big_face(format, n);
+            let whole = parse(&src, Path::new("t.ply")).unwrap();
+            assert_eq!((whole.polygon_count, whole.triangles.len()), (2, n as usize - 1));
+            assert_eq!(trickled(&src, false).unwrap(), whole);
+            // Cut inside the big face, which starts after the first (4 + 12 bytes).
+            let start = src.len() - 4 - 4 * n as usize;
+            let cut = &src[..src.len() - 5];
+            let e = trickled(cut, false).unwrap_err().to_string();
+            let expected = format!(
+                "t.ply: byte {start}: file ends inside `face` 1 of 2 (the file has {} bytes)",
+                cut.len()
+            );
+            assert!(e.starts_with(&expected), "{e}");
+            assert_eq!(e, parse(cut, Path::new("t.ply")).unwrap_err().to_string());
+            let e = trickled(cut, true).unwrap_err();
+            assert!(matches!(e, Error::Io { .. }), "{e:?}");
+            assert_eq!(e.to_string(), "t.ply: the disk is on fire");
+        }
+        let src = faces_and_vertices(false, "3 0 1 2\n3 0 2 3\n4 1 4 2 0\n", "");
+        assert_eq!(trickled(&src, false).unwrap(), parse(&src, Path::new("t.ply")).unwrap());
+        for cut in [5, 60, src.len() - 3] {
+            let e = trickled(&src[..cut], false).unwrap_err().to_string();
+            assert_eq!(e, parse(&src[..cut], Path::new("t.ply")).unwrap_err().to_string());
+            let e = trickled(&src[..cut], true).unwrap_err().to_string();
+            assert_eq!(e, "t.ply: the disk is on fire", "cut at {cut}");
+        }
     }
 }

@@ -34,7 +34,7 @@
 //! capped by what the rest of the file can hold, so `element vertex 4000000000` in a small
 //! file allocates nothing and fails where the data ends.
 
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Read, Write};
 use std::path::Path;
 
 use glam::{DVec2, DVec3, Vec2};
@@ -46,7 +46,8 @@ use rayon::prelude::*;
 use crate::color::{linear_to_srgb8, srgb_decode};
 use crate::error::{Error, try_filled};
 use crate::mesh::ply_common::{
-    At, COLOR_NAMES, Fail, Fields, NX, POSITION_NORMAL, Ply, RED, Sink, X, parse_error, scalar,
+    At, COLOR_NAMES, Fail, Fields, NX, POSITION_NORMAL, Ply, RED, Sink, Source, X, parse_with,
+    read_file, scalar,
 };
 use crate::mesh::{Mesh, unorm8};
 use crate::model::MaterialTextures;
@@ -128,8 +129,7 @@ impl PointCloud {
 /// regular file (see [`crate::input`]); [`Error::Parse`] naming the file and the line
 /// (header, ASCII body) or byte offset (binary body) of the first problem.
 pub fn read_ply(path: &Path) -> Result<PointCloud, Error> {
-    let bytes = crate::input::read(path)?;
-    parse_ply(&bytes, path)
+    read_file(path, parse_at)
 }
 
 /// Parses the contents of a PLY file as [`read_ply`] does; `path` only names the file in errors.
@@ -138,7 +138,7 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, Error> {
 /// # Errors
 /// [`Error::Parse`] naming `path` and the line or byte offset of the first problem.
 pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<PointCloud, Error> {
-    parse_at(bytes).map_err(|fail| parse_error(path, fail))
+    parse_with(bytes, bytes.len() as u64, path, parse_at)
 }
 
 // Value slots of a vertex after the shared ones (`X`, `NX`, `RED`).
@@ -195,13 +195,13 @@ struct Layout {
     radii: bool,
 }
 
-fn parse_at(bytes: &[u8]) -> Result<PointCloud, Fail> {
-    let ply = Ply::<Point>::read_header(bytes, |element, property, first| {
+fn parse_at<R: Read>(source: &mut Source<R>, len: u64) -> Result<PointCloud, Fail> {
+    let ply = Ply::<Point>::read_header(source, len, |element, property, first| {
         format!("element `{element}` has two properties `{property}` (first at line {first})")
     })?;
     let layout = check_header(&ply)?;
     let mut body = Body { layout, ..Body::default() };
-    ply.read_body(&mut body)?;
+    ply.read_body(source, &mut body)?;
     Ok(body.into_cloud())
 }
 

@@ -628,7 +628,9 @@ fn draw_splat(
 
 /// Incremental refinement: each step renders a complete frame one level finer (thresholds
 /// 64, 16, 4 and 1 times the final one), so a viewer shows a coarse image at once and the
-/// full-detail image after the last step.
+/// full-detail image after the last step. A step whose splats are all leaves (single points)
+/// is the last: the threshold only decides where inner nodes stop refining, so every finer
+/// level would draw the same image (a tree of one node, or a cloud seen up close).
 #[derive(Clone, Debug)]
 pub struct Progressive {
     thresholds: Vec<f32>,
@@ -645,7 +647,8 @@ impl Progressive {
         Self { thresholds, next: 0 }
     }
 
-    /// True once the final level has been drawn.
+    /// True once the final level has been drawn, or a level whose splats were all leaves
+    /// (whose image the final level would only draw again).
     #[must_use]
     pub fn is_done(&self) -> bool {
         self.next >= self.thresholds.len()
@@ -662,7 +665,9 @@ impl Progressive {
         self.next += 1;
     }
 
-    /// Clears `target` to `clear` and renders the next level; `None` when already done.
+    /// Clears `target` to `clear` and renders the next level; `None` when already done. When
+    /// every splat drawn is a leaf (`stats.drawn == stats.leaves_drawn`: no node stood for
+    /// several points), that image is the final one and the levels left are dropped.
     pub fn step(
         &mut self,
         target: &mut Target,
@@ -674,7 +679,11 @@ impl Progressive {
         let threshold = self.next_threshold()?;
         self.next += 1;
         target.clear(clear);
-        Some((threshold, render(target, tree, camera, &options.with_threshold(threshold))))
+        let stats = render(target, tree, camera, &options.with_threshold(threshold));
+        if stats.drawn == stats.leaves_drawn {
+            self.next = self.thresholds.len();
+        }
+        Some((threshold, stats))
     }
 }
 
@@ -715,7 +724,7 @@ mod tests {
             colors,
             radii: Some((0..n).map(|_| rng.random_range(0.002..0.03)).collect()),
         };
-        let tree = SplatTree::build(&cloud);
+        let tree = SplatTree::build(&cloud).unwrap();
         let camera = Camera {
             eye: Vec3::new(0.0, 0.0, 2.0),
             target: Vec3::ZERO,
@@ -807,7 +816,7 @@ mod tests {
             .collect();
         let cloud =
             PointCloud { normals: Some(positions.clone()), positions, colors: None, radii: None };
-        let tree = SplatTree::build(&cloud);
+        let tree = SplatTree::build(&cloud).unwrap();
         let camera = Camera {
             eye: Vec3::new(0.0, 0.0, 2.2),
             target: Vec3::new(0.8, 0.0, 0.0),

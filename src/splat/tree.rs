@@ -79,9 +79,42 @@ impl SplatTree {
     }
 }
 
-use rayon::prelude::*;
-
 use super::PointCloud;
+use crate::error::Error;
+
+/// What a build is for, to name it in [`Error::OutOfMemory`].
+#[derive(Clone, Copy)]
+struct Building {
+    /// Points in the cloud.
+    points: usize,
+}
+
+impl Building {
+    /// Reserves exactly `n` more elements in `v`, or [`Error::OutOfMemory`] naming the
+    /// hierarchy, `part` of it and the bytes of the whole array asked for (`v`'s elements and
+    /// the `n` more). The build's arrays are proportional to the point count, and a cloud
+    /// that fits in memory may have a hierarchy that does not.
+    fn reserve<T>(self, v: &mut Vec<T>, n: usize, part: &str) -> Result<(), Error> {
+        // Tests refuse a chosen allocation by asking for more than any allocator gives.
+        #[cfg(test)]
+        let ask =
+            if n > v.capacity() - v.len() && tests::refuse_this_one() { usize::MAX } else { n };
+        #[cfg(not(test))]
+        let ask = n;
+        v.try_reserve_exact(ask).map_err(|_| Error::OutOfMemory {
+            what: format!("the splat hierarchy of {} points ({part})", self.points),
+            bytes: (v.len() as u128 + n as u128) * size_of::<T>() as u128,
+        })
+    }
+
+    /// `n` copies of `value`, or [`Error::OutOfMemory`] as for [`Building::reserve`].
+    fn filled<T: Clone>(self, n: usize, value: T, part: &str) -> Result<Vec<T>, Error> {
+        let mut v = Vec::new();
+        self.reserve(&mut v, n, part)?;
+        v.resize(n, value);
+        Ok(v)
+    }
+}
 
 impl SplatTree {
     /// Builds the hierarchy over `cloud`, level by level: each node's points (a contiguous
@@ -94,53 +127,58 @@ impl SplatTree {
     /// Leaf radii come from the cloud; a cloud without radii gets one radius for all points,
     /// estimated from the spacing (three quarters of the typical radius of the nodes just
     /// above the leaves), so splats of neighbouring points overlap.
-    #[must_use]
-    pub fn build(cloud: &PointCloud) -> Self {
+    ///
+    /// # Errors
+    /// [`Error::OutOfMemory`] when an array of the build (each proportional to the number of
+    /// points: the points with their indices, node ranges, the nodes, per-node weights, the
+    /// nodes again while chains are inserted and each level's list of them) cannot be allocated,
+    /// naming it and its bytes. The hierarchy of a cloud that fits in memory may not, and an
+    /// infallible allocation would abort the process instead. (With overcommit the system may
+    /// still stop the process later; this is what the allocator refuses.)
+    pub fn build(cloud: &PointCloud) -> Result<Self, Error> {
+        let building = Building { points: cloud.len() };
         // Points travel with their indices, so partitioning reads memory in order instead of
         // chasing an index into the cloud (which made building 15 M points cache-miss bound).
-        let mut index: Vec<Item> = cloud
-            .positions
-            .iter()
-            .enumerate()
-            .filter(|(_, p)| p.iter().all(|c| c.is_finite()))
-            .map(|(i, p)| (*p, i as u32))
-            .collect();
+        let mut index: Vec<Item> = Vec::new();
+        building.reserve(&mut index, cloud.len(), "points with their indices")?;
+        index.extend(
+            cloud
+                .positions
+                .iter()
+                .enumerate()
+                .filter(|(_, p)| p.iter().all(|c| c.is_finite()))
+                .map(|(i, p)| (*p, i as u32)),
+        );
         if index.is_empty() {
-            return Self::default();
+            return Ok(Self::default());
         }
-        // Top-down: (start, len) of each node's range in `index`, breadth first.
-        let mut ranges: Vec<(u32, u32)> = vec![(0, index.len() as u32)];
-        let mut child_counts: Vec<u8> = Vec::new();
+        // Top-down: (start, len) of each node's range in `index`, breadth first. A node's
+        // children's ranges follow from its own ([`children_of`]): a level's points are
+        // partitioned in place, in parallel, then the next level's ranges appended.
+        let mut ranges: Vec<(u32, u32)> = Vec::new();
+        building.reserve(&mut ranges, 1, "node ranges")?;
+        ranges.push((0, index.len() as u32));
         let mut level_start = 0;
         while level_start < ranges.len() {
-            let level = ranges[level_start..].to_vec();
-            // Disjoint mutable slices of `index`, one per node of this level, in order.
-            let mut slices = Vec::with_capacity(level.len());
-            let mut rest: &mut [Item] = &mut index;
-            let mut offset = 0u32;
-            for &(start, len) in &level {
-                let (_, tail) = rest.split_at_mut((start - offset) as usize);
-                let (mine, tail) = tail.split_at_mut(len as usize);
-                slices.push(mine);
-                rest = tail;
-                offset = start + len;
+            let level_end = ranges.len();
+            partition_level(&mut index, 0, &ranges[level_start..level_end]);
+            // Exactly the next level: levels grow about fourfold, so the array is copied about
+            // a third of its final size in all (doubling copied up to all of it), and holds
+            // nothing spare.
+            let next: usize =
+                ranges[level_start..].iter().map(|&r| usize::from(children_of(r).count)).sum();
+            building.reserve(&mut ranges, next, "node ranges")?;
+            for i in level_start..level_end {
+                ranges.extend_from_slice(children_of(ranges[i]).ranges());
             }
-            let splits: Vec<Vec<(u32, u32)>> = slices
-                .into_par_iter()
-                .zip(level.par_iter())
-                .with_min_len(64)
-                .map(|(slice, &(start, _))| split4(slice, start))
-                .collect();
-            level_start = ranges.len();
-            for children in splits {
-                child_counts.push(children.len() as u8);
-                ranges.extend(children);
-            }
+            level_start = level_end;
         }
         // Bottom-up: spheres, normals, cones, colours.
-        let mut nodes: Vec<SplatNode> = Vec::with_capacity(ranges.len());
+        let mut nodes: Vec<SplatNode> = Vec::new();
+        building.reserve(&mut nodes, ranges.len(), "nodes")?;
         let mut next_child = 1u32;
-        for &count in &child_counts {
+        for &range in &ranges {
+            let count = children_of(range).count;
             nodes.push(SplatNode {
                 centre: [0.0; 3],
                 radius: 0.0,
@@ -154,24 +192,28 @@ impl SplatTree {
         }
         let uniform = cloud.radii.is_none();
         let mut tree = Self { nodes, min_leaf_radius: 0.0 };
-        tree.fill_bottom_up(cloud, &index, &ranges, |i| cloud.radii.as_ref().map_or(0.0, |r| r[i]));
+        let radius_of = |i| cloud.radii.as_ref().map_or(0.0, |r: &Vec<f32>| r[i]);
+        tree.fill_bottom_up(building, cloud, &index, &ranges, radius_of)?;
         if uniform {
-            let radius = tree.estimate_spacing();
-            tree.fill_bottom_up(cloud, &index, &ranges, |_| radius);
+            let radius = tree.estimate_spacing(building)?;
+            tree.fill_bottom_up(building, cloud, &index, &ranges, |_| radius)?;
         }
-        Self::new(with_chains(tree.nodes))
+        // The work arrays go before the chained copy of the nodes is made.
+        drop((index, ranges));
+        Ok(Self::new(with_chains(building, tree.nodes)?))
     }
 
     /// Computes every node from its children (or, for a leaf, its point), last node first.
     fn fill_bottom_up(
         &mut self,
+        building: Building,
         cloud: &PointCloud,
         index: &[Item],
         ranges: &[(u32, u32)],
         leaf_radius: impl Fn(usize) -> f32,
-    ) {
+    ) -> Result<(), Error> {
         // Point counts per node, for weighting averages.
-        let mut weight = vec![0u32; self.nodes.len()];
+        let mut weight = building.filled(self.nodes.len(), 0u32, "point counts per node")?;
         for i in (0..self.nodes.len()).rev() {
             let node = self.nodes[i];
             if node.child_count == 0 {
@@ -237,6 +279,7 @@ impl SplatTree {
             };
             weight[i] = total;
         }
+        Ok(())
     }
 
     /// A splat radius for clouds without radii: 3/2 of the median radius of the nodes whose
@@ -246,47 +289,110 @@ impl SplatTree {
     /// random disks leave about e^-9 of the surface uncovered. Disks that cover the surface
     /// are what lets traversal stop at pixel-sized nodes without holes: a pixel centre inside
     /// some point's disk is inside the disk of every node above that point.
-    fn estimate_spacing(&self) -> f32 {
-        let mut radii: Vec<f32> = (0..self.nodes.len())
-            .filter(|&i| {
-                let c = self.children(i);
-                !c.is_empty() && c.clone().all(|k| self.nodes[k].child_count == 0)
-            })
-            .map(|i| self.nodes[i].radius)
-            .filter(|r| *r > 0.0)
-            .collect();
+    fn estimate_spacing(&self, building: Building) -> Result<f32, Error> {
+        // Room for every such node: each inner node of a built tree (before chains) has at
+        // least two children, so there are at most half as many inner nodes as nodes.
+        let mut radii: Vec<f32> = Vec::new();
+        building.reserve(&mut radii, self.nodes.len() / 2, "radii of the nodes above leaves")?;
+        radii.extend(
+            (0..self.nodes.len())
+                .filter(|&i| {
+                    let c = self.children(i);
+                    !c.is_empty() && c.clone().all(|k| self.nodes[k].child_count == 0)
+                })
+                .map(|i| self.nodes[i].radius)
+                .filter(|r| *r > 0.0),
+        );
         if radii.is_empty() {
-            return self.nodes.first().map_or(0.0, |r| r.radius * 0.01);
+            return Ok(self.nodes.first().map_or(0.0, |r| r.radius * 0.01));
         }
         let mid = radii.len() / 2;
         let (_, m, _) = radii.select_nth_unstable_by(mid, f32::total_cmp);
-        *m * 1.5
+        Ok(*m * 1.5)
     }
 }
 
 /// A point and its index in the cloud.
 type Item = ([f32; 3], u32);
 
-/// Splits the points of `slice` (starting at `start` in the index array) into up to 4 groups:
-/// the median of the longest axis, then again on each half; returns their ranges. A single
-/// point is a leaf (no groups).
-fn split4(slice: &mut [Item], start: u32) -> Vec<(u32, u32)> {
-    if slice.len() <= 1 {
-        return Vec::new();
+/// Nodes of a level partitioned one after another, below which [`partition_level`] stops
+/// splitting the level into parallel halves (as `with_min_len(64)` did).
+const SEQUENTIAL_NODES: usize = 64;
+
+/// Partitions the points of every node of `level` as [`split4`] does. `index` is the part of
+/// the index array from `offset` on, holding every node's range. The level is halved
+/// recursively, each half on its own part of `index`, in parallel: disjoint mutable slices
+/// without a vector of them (16 bytes per node of the level) nor one of their children's
+/// ranges (24 bytes per node, and a heap block per inner node).
+fn partition_level(index: &mut [Item], offset: u32, level: &[(u32, u32)]) {
+    if level.len() <= SEQUENTIAL_NODES {
+        for &(start, len) in level {
+            let from = (start - offset) as usize;
+            split4(&mut index[from..from + len as usize]);
+        }
+        return;
     }
-    let half = split2(slice);
-    let mut out = Vec::with_capacity(4);
-    let (a, b) = slice.split_at_mut(half);
-    for (part, offset) in [(a, 0usize), (b, half)] {
-        if part.len() >= 2 {
-            let q = split2(part);
-            out.push((start + offset as u32, q as u32));
-            out.push((start + (offset + q) as u32, (part.len() - q) as u32));
+    let (first, second) = level.split_at(level.len() / 2);
+    let at = second[0].0;
+    let (a, b) = index.split_at_mut((at - offset) as usize);
+    rayon::join(|| partition_level(a, offset, first), || partition_level(b, at, second));
+}
+
+/// The children of a node as [`split4`] makes them: `(start, len)` ranges of the index array.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Children {
+    ranges: [(u32, u32); 4],
+    count: u8,
+}
+
+impl Children {
+    fn push(&mut self, range: (u32, u32)) {
+        self.ranges[usize::from(self.count)] = range;
+        self.count += 1;
+    }
+
+    /// The children's ranges, in order.
+    fn ranges(&self) -> &[(u32, u32)] {
+        &self.ranges[..usize::from(self.count)]
+    }
+}
+
+/// The children of the node whose points are `(start, len)` in the index array: [`split4`]
+/// splits at `len / 2` and each half of two points or more at its own half, so where depends
+/// on the length alone, not on the points. None for a single point (a leaf); otherwise 2
+/// (two points), 3 (three) or 4.
+fn children_of((start, len): (u32, u32)) -> Children {
+    let mut out = Children::default();
+    if len <= 1 {
+        return out;
+    }
+    let half = len / 2;
+    for (offset, part) in [(0, half), (half, len - half)] {
+        if part >= 2 {
+            let q = part / 2;
+            out.push((start + offset, q));
+            out.push((start + offset + q, part - q));
         } else {
-            out.push((start + offset as u32, part.len() as u32));
+            out.push((start + offset, part));
         }
     }
     out
+}
+
+/// Splits the points of `slice` into up to 4 groups, in place: at the median of the longest
+/// axis, then each half of two points or more again; the groups are [`children_of`] its
+/// range. A single point is a leaf (no groups).
+fn split4(slice: &mut [Item]) {
+    if slice.len() <= 1 {
+        return;
+    }
+    let half = split2(slice);
+    let (a, b) = slice.split_at_mut(half);
+    for part in [a, b] {
+        if part.len() >= 2 {
+            split2(part);
+        }
+    }
 }
 
 /// Partitions `slice` at the median of the longest axis of its points' bounding box; returns
@@ -344,8 +450,11 @@ fn chain_length(ratio: f32) -> u8 {
 /// and so does everything below it, a leaf being drawn whatever its size: blobs. With every
 /// step at most 4x (usually 2x in a built tree), decoded sizes stay within a small factor.
 /// The inserted spheres contain every point below them, as the invariant asks.
-fn with_chains(nodes: Vec<SplatNode>) -> Vec<SplatNode> {
-    let mut chain = vec![0u8; nodes.len()];
+///
+/// Its arrays (the chain lengths, the new nodes, each level's work list) are allocated
+/// fallibly, as [`SplatTree::build`]'s are.
+fn with_chains(building: Building, nodes: Vec<SplatNode>) -> Result<Vec<SplatNode>, Error> {
+    let mut chain = building.filled(nodes.len(), 0u8, "chain lengths")?;
     for n in &nodes {
         for k in n.children() {
             if nodes[k].radius > 0.0 {
@@ -355,13 +464,19 @@ fn with_chains(nodes: Vec<SplatNode>) -> Vec<SplatNode> {
     }
     let extra: usize = chain.iter().map(|&c| usize::from(c)).sum();
     if extra == 0 {
-        return nodes;
+        return Ok(nodes);
     }
     // Level by level over (node, chain nodes still to emit above it).
-    let mut out: Vec<SplatNode> = Vec::with_capacity(nodes.len() + extra);
+    let mut out: Vec<SplatNode> = Vec::new();
+    building.reserve(&mut out, nodes.len() + extra, "nodes with chains")?;
     let mut level = vec![(0usize, 0u8)];
     while !level.is_empty() {
+        let entries = level
+            .iter()
+            .map(|&(i, pending)| if pending > 0 { 1 } else { usize::from(nodes[i].child_count) })
+            .sum();
         let mut next = Vec::new();
+        building.reserve(&mut next, entries, "a level of nodes with chains")?;
         let mut next_first = (out.len() + level.len()) as u32;
         for &(i, pending) in &level {
             let n = nodes[i];
@@ -379,5 +494,149 @@ fn with_chains(nodes: Vec<SplatNode>) -> Vec<SplatNode> {
         }
         level = next;
     }
-    out
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::cell::Cell;
+
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
+
+    use super::*;
+
+    /// The ranges [`children_of`] gives are the groups [`split4`] leaves: consecutive, covering
+    /// the node's range, half of it on each side of `len / 2`, each half split at its own half.
+    #[test]
+    fn children_cover_the_range_split_at_halves() {
+        for len in 0..200u32 {
+            let c = children_of((1000, len));
+            let lens: Vec<u32> = c.ranges().iter().map(|r| r.1).collect();
+            let expected: Vec<u32> = match len {
+                0 | 1 => vec![],
+                2 => vec![1, 1],
+                3 => vec![1, 1, 1],
+                _ => {
+                    let (a, b) = (len / 2, len - len / 2);
+                    vec![a / 2, a - a / 2, b / 2, b - b / 2]
+                }
+            };
+            assert_eq!(lens, expected, "{len}");
+            let mut at = 1000;
+            for &(start, l) in c.ranges() {
+                assert_eq!(start, at);
+                at += l;
+            }
+        }
+    }
+
+    thread_local! {
+        /// Allocations [`Building::reserve`] lets through before it refuses one (`None`:
+        /// none refused). Per thread, so tests running side by side do not see each other's;
+        /// the build reserves on the calling thread only.
+        static REFUSE: Cell<Option<usize>> = const { Cell::new(None) };
+    }
+
+    /// Whether the reservation being made is the one to refuse.
+    pub(super) fn refuse_this_one() -> bool {
+        REFUSE.with(|r| match r.get() {
+            Some(0) => {
+                r.set(None);
+                true
+            }
+            Some(k) => {
+                r.set(Some(k - 1));
+                false
+            }
+            None => false,
+        })
+    }
+
+    /// Each of the build's reservations, refused in turn as an allocator refuses a request
+    /// too large for it, is an [`Error::OutOfMemory`] naming the hierarchy, the array and its
+    /// bytes, not an abort (`trirast splat-bench --points 60000000` under `ulimit -v 4000000`
+    /// sampled its points, then aborted building). Once none is refused the tree is the
+    /// usual one. The cloud has no radii (so the spacing is estimated) and a few points far
+    /// from a clump (so chains are inserted): every array the build has is asked for.
+    #[test]
+    fn every_refused_reservation_is_an_error_naming_the_array() {
+        let mut rng = SmallRng::seed_from_u64(4);
+        let n = 3000;
+        let positions: Vec<[f32; 3]> = (0..n)
+            .map(|i| {
+                let spread = if i % 500 == 0 { 100.0 } else { 1.0 };
+                std::array::from_fn(|_| rng.random_range(-spread..spread))
+            })
+            .collect();
+        let cloud = PointCloud { positions, ..PointCloud::default() };
+        let whole = SplatTree::build(&cloud).unwrap();
+        assert!(whole.nodes.iter().any(|n| n.child_count == 1), "no chains");
+        // Per array, in the order first refused: refusals, and the largest request's bytes.
+        let mut parts: Vec<(String, usize, u128)> = Vec::new();
+        for k in 0.. {
+            REFUSE.set(Some(k));
+            let built = SplatTree::build(&cloud);
+            REFUSE.set(None);
+            let (what, bytes) = match built {
+                Ok(tree) => {
+                    assert!(tree == whole, "refusing allocation {k} and after");
+                    break;
+                }
+                Err(Error::OutOfMemory { what, bytes }) => (what, bytes),
+                Err(e) => panic!("allocation {k}: {e}"),
+            };
+            let part = what
+                .strip_prefix(&format!("the splat hierarchy of {n} points ("))
+                .and_then(|w| w.strip_suffix(')'))
+                .unwrap_or_else(|| panic!("allocation {k}: {what}"));
+            match parts.iter_mut().find(|p| p.0 == part) {
+                Some(p) => (p.1, p.2) = (p.1 + 1, p.2.max(bytes)),
+                None => parts.push((part.to_string(), 1, bytes)),
+            }
+        }
+        // Built trees have no single-child nodes but the chains.
+        let nodes = whole.nodes.iter().filter(|n| n.child_count != 1).count();
+        let bytes = |count: usize, size: usize| (count * size) as u128;
+        let all = [
+            ("points with their indices", 1, bytes(n, size_of::<Item>())),
+            // The root's, then one per level but the last, which has no children.
+            ("node ranges", levels_of(n), bytes(nodes, 8)),
+            ("nodes", 1, bytes(nodes, size_of::<SplatNode>())),
+            ("point counts per node", 2, bytes(nodes, 4)),
+            ("radii of the nodes above leaves", 1, bytes(nodes / 2, 4)),
+            ("chain lengths", 1, bytes(nodes, 1)),
+            ("nodes with chains", 1, bytes(whole.nodes.len(), size_of::<SplatNode>())),
+        ];
+        for (k, (part, refusals, most)) in all.iter().enumerate() {
+            assert_eq!(parts[k], (part.to_string(), *refusals, *most), "{part}");
+        }
+        // Then one per level of the tree with chains but the last.
+        let last = &parts[all.len()..];
+        assert_eq!(last.len(), 1, "{parts:?}");
+        assert_eq!(last[0].0, "a level of nodes with chains");
+        assert_eq!(last[0].1, depth(&whole) - 1);
+    }
+
+    /// Levels of the tree over `n` points before chains are inserted.
+    fn levels_of(n: usize) -> usize {
+        let mut level = vec![(0, n as u32)];
+        let mut levels = 0;
+        while !level.is_empty() {
+            levels += 1;
+            level = level.iter().flat_map(|&r| children_of(r).ranges().to_vec()).collect();
+        }
+        levels
+    }
+
+    /// Levels of `tree`.
+    fn depth(tree: &SplatTree) -> usize {
+        let mut level = vec![0];
+        let mut levels = 0;
+        while !level.is_empty() {
+            levels += 1;
+            level = level.iter().flat_map(|&i| tree.children(i)).collect();
+        }
+        levels
+    }
 }
