@@ -158,14 +158,7 @@ fn rendering_does_not_depend_on_threads_and_refinement_converges() {
 fn progressive_refinement_ends_at_a_level_of_single_points() {
     let cloud = PointCloud { positions: vec![[0.0; 3]], ..PointCloud::default() };
     let tree = SplatTree::build(&cloud).unwrap();
-    let camera = Camera {
-        eye: Vec3::new(0.0, 0.0, 4.0),
-        target: Vec3::ZERO,
-        up: Vec3::Y,
-        projection: Projection::Perspective { fov_y: 0.8 },
-        near: 1.0,
-        far: 10.0,
-    };
+    let camera = front_camera();
     let options = SplatOptions::default();
     let mut p = Progressive::new(1.0);
     let mut t = Target::new(32, 32).unwrap();
@@ -213,14 +206,7 @@ fn id_and_overdraw_buffers_do_not_change_the_image() {
 #[test]
 fn splat_sphere_covers_what_the_triangle_sphere_covers() {
     let (w, h) = (160u32, 120u32);
-    let camera = Camera {
-        eye: Vec3::new(0.0, 0.0, 4.0),
-        target: Vec3::ZERO,
-        up: Vec3::Y,
-        projection: Projection::Perspective { fov_y: 0.8 },
-        near: 1.0,
-        far: 10.0,
-    };
+    let camera = front_camera();
     // Triangles: a fine UV sphere.
     let mesh = trirast::scene::sphere_mesh(40_000).unwrap();
     let vp = camera.view_projection(w as f32 / h as f32);
@@ -276,4 +262,16 @@ fn splat_sphere_covers_what_the_triangle_sphere_covers() {
     }
     assert!(inside > 3000, "{inside}");
     assert!(differ < inside / 10, "{differ} of {inside}");
+}
+
+/// A perspective camera 4 units in front of the origin, looking at it.
+fn front_camera() -> Camera {
+    Camera {
+        eye: Vec3::new(0.0, 0.0, 4.0),
+        target: Vec3::ZERO,
+        up: Vec3::Y,
+        projection: Projection::Perspective { fov_y: 0.8 },
+        near: 1.0,
+        far: 10.0,
+    }
 }

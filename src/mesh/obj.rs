@@ -650,22 +650,14 @@ impl MeshBuilder {
         };
         let p = c.position as usize;
         reserve(&mut mesh.positions, 1, "OBJ vertices")?.push(self.positions[p]);
-        if c.texcoord.is_some() && mesh.texcoords.is_none() {
-            let zeros = crate::error::try_filled(next, [0.0; 2], "OBJ texture coordinates");
-            mesh.texcoords = Some(zeros.map_err(Fail::Error)?);
-        }
-        if let Some(texcoords) = &mut mesh.texcoords {
-            let t = c.texcoord.map_or([0.0; 2], |t| self.texcoords[t as usize]);
-            reserve(texcoords, 1, "OBJ texture coordinates")?.push(t);
-        }
-        if c.normal.is_some() && mesh.normals.is_none() {
-            let zeros = crate::error::try_filled(next, [0.0; 3], "OBJ normals");
-            mesh.normals = Some(zeros.map_err(Fail::Error)?);
-        }
-        if let Some(normals) = &mut mesh.normals {
-            let n = c.normal.map_or([0.0; 3], |n| self.normals[n as usize]);
-            reserve(normals, 1, "OBJ normals")?.push(n);
-        }
+        push_attribute(
+            &mut mesh.texcoords,
+            c.texcoord,
+            &self.texcoords,
+            next,
+            "OBJ texture coordinates",
+        )?;
+        push_attribute(&mut mesh.normals, c.normal, &self.normals, next, "OBJ normals")?;
         if let (Some(colors), Some(raw)) = (&mut mesh.colors, &self.colors) {
             let [r, g, b] = raw[p];
             reserve(colors, 1, "OBJ vertex colours")?.push([r, g, b, 1.0]);
@@ -698,6 +690,25 @@ impl MeshBuilder {
         }
         Ok(mesh)
     }
+}
+
+/// A new vertex's attribute from `raw` at `index` (zero when absent) onto `out`, which is made
+/// at the first vertex with one, zero for the `next` vertices before it.
+fn push_attribute<T: Copy + Default>(
+    out: &mut Option<Vec<T>>,
+    index: Option<u32>,
+    raw: &[T],
+    next: usize,
+    what: &str,
+) -> Result<(), Fail> {
+    if index.is_some() && out.is_none() {
+        *out = Some(crate::error::try_filled(next, T::default(), what).map_err(Fail::Error)?);
+    }
+    if let Some(out) = out {
+        let value = index.map_or(T::default(), |i| raw[i as usize]);
+        reserve(out, 1, what)?.push(value);
+    }
+    Ok(())
 }
 
 /// [`parse_mesh`] on any buffered input.
