@@ -59,10 +59,8 @@ pub const BATCH_BYTES: usize = BATCH * 64;
 /// Triangles per batch for records of type `S`: [`BATCH`], or as many as [`BATCH_BYTES`]
 /// holds when `S` is larger than 64 bytes (a triangle makes one record unless it is clipped).
 #[must_use]
-pub const fn batch_for<S>() -> usize {
-    let size = if size_of::<S>() == 0 { 1 } else { size_of::<S>() };
-    let n = BATCH_BYTES / size;
-    if n < BATCH { if n == 0 { 1 } else { n } } else { BATCH }
+pub fn batch_for<S>() -> usize {
+    (BATCH_BYTES / size_of::<S>().max(1)).clamp(1, BATCH)
 }
 
 /// The length of the batches [`pipelined`] cuts `items` items into: as many batches as

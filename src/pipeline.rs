@@ -456,7 +456,7 @@ impl<V> Default for Scratch<V> {
 }
 
 /// Triangles per batch of the binned schedule, for varyings `V` (the records' size).
-const fn batch<V>() -> usize {
+fn batch<V>() -> usize {
     bin::batch_for::<Prepared<TriangleData<V>>>()
 }
 
