@@ -770,9 +770,11 @@ pub(crate) fn shade_prepared<T, F: TriangleFragments<T>>(
 
 /// The fastest of the (identical) rasterizers for a triangle: scanline spans cost a few
 /// divisions per row however wide the row, edge stepping a few additions per pixel of the
-/// bounding box; narrow triangles are cheaper to step, as branch-free row masks.
+/// bounding box; narrow triangles are cheaper to step, as branch-free row masks, and tall
+/// thin ones to walk by columns (both [`Algorithm::EdgeMasks`]).
 pub(crate) fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
-    if setup.bounds.x1 - setup.bounds.x0 < crate::raster::edge::NARROW {
+    let b = &setup.bounds;
+    if b.x1 - b.x0 < crate::raster::edge::NARROW || crate::raster::column::is_tall(b) {
         Algorithm::EdgeMasks
     } else {
         Algorithm::Scanline

@@ -18,6 +18,7 @@
 //! interpolated in 0..=255 units and rounded half to even.
 
 use crate::fixed;
+use crate::raster::column::ColumnWalk;
 use crate::raster::{self, Algorithm, Span};
 use crate::sample::{MAX_SAMPLES, SampleCount};
 use crate::setup::{
@@ -690,10 +691,65 @@ pub fn shade_triangle(
             }
             return pixels.covered;
         }
+        if kernel.is_none() && raster::column::is_tall(&r) {
+            let numerators = setup.numerators();
+            let pixels =
+                SamplePixels::new(setup, numerators, samples, depth, (depth_test, id), fragment);
+            return sample_columns(target, clip, pixels);
+        }
     }
     let numerators = setup.numerators();
     let pixels = SamplePixels::new(setup, numerators, samples, depth, (depth_test, id), fragment);
-    sample_spans(target, algorithm, clip, kernel, pixels)
+    sample_spans(target, tiled_fallback(algorithm), clip, kernel, pixels)
+}
+
+/// The pixels of `clip` with covered samples, a column at a time: each sample's
+/// [`ColumnWalk`] stepped side by side, for tall thin triangles, whose rows are mostly empty
+/// (the side of a cylinder at 4x spent most of its frame walking rows and sorting spans).
+fn sample_columns<S: FragmentStage>(
+    target: &mut TargetBand<'_>,
+    clip: &PixelRect,
+    mut pixels: SamplePixels<'_, S>,
+) -> u64 {
+    let (setup, n, samples) = (pixels.setup, pixels.n, target.samples());
+    let mut walks: [Option<ColumnWalk>; MAX_SAMPLES] = std::array::from_fn(|s| {
+        (s < n).then(|| ColumnWalk::new(setup, clip, samples.offset(s))).flatten()
+    });
+    let columns = walks.iter().flatten().map(ColumnWalk::columns);
+    let Some(all) = columns.reduce(|a, b| *a.start().min(b.start())..=*a.end().max(b.end())) else {
+        return 0;
+    };
+    for x in all {
+        let mut runs = [(0, 0); MAX_SAMPLES];
+        let (mut lo, mut hi) = (i32::MAX, i32::MIN);
+        for (run, walk) in runs.iter_mut().zip(&mut walks).take(n) {
+            // A sample's walk is stepped once for each column of its own, in order.
+            if let Some(walk) = walk.as_mut().filter(|w| w.columns().contains(&x)) {
+                *run = walk.next_rows();
+                if run.0 < run.1 {
+                    (lo, hi) = (lo.min(run.0), hi.max(run.1));
+                }
+            }
+        }
+        for py in lo..hi {
+            let mask = runs.iter().take(n).enumerate().fold(0u32, |m, (s, &(y0, y1))| {
+                if (y0..y1).contains(&py) { m | (1 << s) } else { m }
+            });
+            if mask != 0 {
+                pixels.pixel(target, x, py, mask);
+            }
+        }
+    }
+    pixels.covered
+}
+
+/// The rasterizer for a box [`Algorithm::EdgeMasks`]' paths do not take: the scanline walk,
+/// whose cost grows with rows, not with the box's pixels.
+fn tiled_fallback(algorithm: Algorithm) -> Algorithm {
+    match algorithm {
+        Algorithm::EdgeMasks => Algorithm::Scanline,
+        other => other,
+    }
 }
 
 /// The narrow kernels' job for box `r` of a triangle (at most [`simd::NARROW_COLUMNS`]
@@ -954,13 +1010,16 @@ fn shade_single_sample(
     // and zeroing one is 16 stores per triangle.
     if algorithm == Algorithm::EdgeMasks {
         let Some(r) = setup.bounds.intersect(clip) else { return 0 };
-        let columns = (r.x1 - r.x0 + 1) as usize;
-        if columns <= simd::NARROW_COLUMNS {
+        let narrow = (r.x1 - r.x0 + 1) as usize <= simd::NARROW_COLUMNS;
+        if let Some((level, color)) = kernel.filter(|_| narrow) {
+            let job = narrow_job(target, &setup.edges(), &r, depth, (depth_test, id), color);
+            return simd::shade_narrow(level, job);
+        }
+        if kernel.is_none() && raster::column::is_tall(&r) {
+            return shade_columns(target, setup, &r, depth, (depth_test, id), fragment);
+        }
+        if narrow {
             let edges = setup.edges();
-            if let Some((level, color)) = kernel {
-                let job = narrow_job(target, &edges, &r, depth, (depth_test, id), color);
-                return simd::shade_narrow(level, job);
-            }
             let mut queue = LaneQueue::new(fragment, id);
             let covered = narrow_pixels(target, &edges, &r, |target, at, f1, f2| {
                 queue.pixel(target, depth, depth_test, at, f1, f2);
@@ -969,6 +1028,8 @@ fn shade_single_sample(
             return covered;
         }
     }
+    // Boxes the masks are not for take the scanline walk.
+    let algorithm = tiled_fallback(algorithm);
     let mut queue = LaneQueue::new(fragment, id);
     let mut covered = 0u64;
     let (right, _) = setup.pixel_steps();
@@ -1005,6 +1066,35 @@ fn shade_single_sample(
     } else {
         raster::rasterize(algorithm, setup, clip, shade_span);
     }
+    queue.flush(target);
+    covered
+}
+
+/// The pixels of box `r` a triangle covers, a column at a time ([`raster::column`]), through
+/// a [`LaneQueue`]: for tall thin triangles, whose rows are mostly empty.
+fn shade_columns(
+    target: &mut TargetBand<'_>,
+    setup: &TriangleSetup,
+    r: &PixelRect,
+    depth: &PlaneEquation,
+    (depth_test, id): (DepthTest, i32),
+    fragment: impl FragmentStage,
+) -> u64 {
+    let mut queue = LaneQueue::new(fragment, id);
+    let mut covered = 0u64;
+    let (_, down) = setup.pixel_steps();
+    raster::column::rasterize(setup, r, [0, 0], |run| {
+        covered += (run.y_end - run.y_start) as u64;
+        let (mut e1, mut e2) = setup
+            .barycentric_numerators(fixed::pixel_centre(run.x), fixed::pixel_centre(run.y_start));
+        for py in run.y_start..run.y_end {
+            let (f1, f2) = (e1 as f64, e2 as f64);
+            e1 += down[1];
+            e2 += down[2];
+            let at = (target.index(run.x, py), run.x, py);
+            queue.pixel(target, depth, depth_test, at, f1, f2);
+        }
+    });
     queue.flush(target);
     covered
 }

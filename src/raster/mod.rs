@@ -11,6 +11,7 @@
 //! describes coverage completely. Spans come out top to bottom, never empty, clipped to the
 //! caller's rectangle.
 
+pub mod column;
 pub mod edge;
 pub mod scanline;
 
@@ -51,8 +52,10 @@ pub enum Algorithm {
     /// Scanline edge walking.
     Scanline,
     /// Edge equations over the bounding box as per-row bit masks, without branches inside a
-    /// row (the fast path for narrow triangles; boxes wider than [`edge::NARROW`] pixels
-    /// fall back to [`Algorithm::EdgeFunctions`]).
+    /// row (the fast path for narrow triangles; as spans, boxes wider than [`edge::NARROW`]
+    /// pixels fall back to [`Algorithm::EdgeFunctions`]). The tiled backend's choice for
+    /// narrow and for tall boxes: `shade::shade_triangle` walks a tall box by columns
+    /// ([`column`]) when no SIMD span kernel takes it, and other wide boxes by scanline.
     EdgeMasks,
 }
 

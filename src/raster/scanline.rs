@@ -97,10 +97,10 @@ fn walk_row(
 /// incremental division: the bound is `q` with the remainder `r` carried along (`0 <= r < s`),
 /// so a run of rows costs two divisions per edge instead of two per row.
 #[derive(Clone, Copy, Debug)]
-struct EdgeWalker {
+pub(super) struct EdgeWalker {
     /// `floor(n / s)` on the current row: a right edge's upper bound on `px`, the negated
     /// lower bound of a left edge.
-    q: i64,
+    pub(super) q: i64,
     /// Remainder of the bound's division, `0 <= r < s`.
     r: i64,
     /// Divisor: `|a| * 256`.
@@ -111,8 +111,13 @@ struct EdgeWalker {
 }
 
 impl EdgeWalker {
+    /// The bound `q` on every row (or column).
+    pub(super) const fn constant(q: i64) -> Self {
+        Self { q, r: 0, s: 1, dq: 0, dr: 0 }
+    }
+
     /// `floor(n / s)` for `s > 0`, stepped by `n += d` per row.
-    fn floor_of(n: i64, s: i64, d: i64) -> Self {
+    pub(super) fn floor_of(n: i64, s: i64, d: i64) -> Self {
         let q = fixed::floor_div(n, s);
         let dq = fixed::floor_div(d, s);
         Self { q, r: n - q * s, s, dq, dr: d - dq * s }
@@ -120,7 +125,7 @@ impl EdgeWalker {
 
     /// Steps to the next row: `n + d = (q + dq) * s + (r + dr)`, carried without a branch.
     #[inline]
-    fn step(&mut self) {
+    pub(super) fn step(&mut self) {
         self.q += self.dq;
         self.r += self.dr;
         let carry = i64::from(self.r >= self.s);
