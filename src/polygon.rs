@@ -7,6 +7,10 @@
 //!   cheap and exact;
 //! - other simple polygons go to [earcut](https://github.com/georust/earcut), a maintained port
 //!   of mapbox/earcut (ear clipping with hole bridging);
+//! - a twisted face can project onto a degenerate ring (two corners on one point, the ring
+//!   crossing itself) of which earcut leaves corners out, a hole in the mesh: it is projected
+//!   again, along its Newell normal and then the other axes, until earcut uses every corner,
+//!   and takes the fan if it never does;
 //! - polygons through one point more than twice are not simple, and earcut's time on them
 //!   grows with the cube of their length: faces take the fan, 2D polygons give nothing.
 //!
@@ -39,13 +43,22 @@ const MAX_CORNERS_AT_ONE_POINT: usize = 2;
 /// Half the side of the square [`EarcutI32`] accepts: coordinates must lie in `[-2^19, 2^19]`.
 const EARCUT_I32_HALF_RANGE: i64 = 1 << 19;
 
-/// Triangulates one planar face given its corner positions in order; returns triangles as
-/// indices into `points`, keeping the face's winding.
+/// Triangulates one face given its corner positions in order; returns triangles as indices
+/// into `points`, keeping the face's winding.
 ///
 /// The face is projected onto the coordinate plane its Newell normal is most aligned with (so
 /// the projection is as little foreshortened as possible), keeping the orientation: every
 /// output triangle's normal points the same way as the face's Newell normal. A strictly convex
 /// face gives exactly the fan `(0, i, i + 1)`; other faces are triangulated by earcut.
+///
+/// A twisted (non-planar) face can project onto a degenerate ring (two corners on one point,
+/// the ring touching or crossing itself), of which earcut leaves corners out: a hole in the
+/// mesh. So a twisted face keeps earcut's triangles only if there are `n - 2` of them (every
+/// corner used); otherwise it is projected onto the plane perpendicular to its Newell normal,
+/// then onto the other coordinate planes, and takes the first projection earcut gives `n - 2`
+/// triangles for, the fan if none does. A planar face (up to rounding) projects one-to-one and
+/// keeps earcut's answer, which leaves out only corners repeated or on the line through their
+/// neighbours.
 ///
 /// Degenerate input never panics: fewer than 3 points give nothing; a zero or non-finite normal
 /// (collinear or repeated points, NaN, infinity) gives the fan, whose triangles the rasterizer
@@ -62,17 +75,88 @@ pub fn triangulate_face(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
     if !normal.iter().all(|c| c.is_finite()) || normal == [0.0; 3] {
         return fan(n);
     }
-    let k = (0..3).max_by(|&a, &b| normal[a].abs().total_cmp(&normal[b].abs())).unwrap_or(2);
-    // Axes (k+1, k+2) keep the orientation: the projected signed area is `normal[k] / 2`.
-    let (u, v) = ((k + 1) % 3, (k + 2) % 3);
-    let ring: Vec<[f64; 2]> = points.iter().map(|p| [f64::from(p[u]), f64::from(p[v])]).collect();
-    if is_strictly_convex(&ring) || most_corners_at_one_point(&ring, &[]) > MAX_CORNERS_AT_ONE_POINT
-    {
+    // Most aligned first (the last of equals), then the others.
+    let mut axes = [0, 1, 2];
+    axes.sort_by(|&a, &b| normal[b].abs().total_cmp(&normal[a].abs()).then(b.cmp(&a)));
+    let along = |k: usize| -> (Vec<[f64; 2]>, bool) {
+        // Axes (k+1, k+2) keep the orientation: the projected signed area is `normal[k] / 2`.
+        let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+        let ring = points.iter().map(|p| [f64::from(p[u]), f64::from(p[v])]).collect();
+        (ring, normal[k] > 0.0)
+    };
+    let (ring, ccw) = along(axes[0]);
+    if is_strictly_convex(&ring) {
         return fan(n);
     }
-    let tris = earcut_f64(&ring, &[], normal[k] > 0.0);
-    // Earcut gives up on some self-intersecting faces; a fan still draws something sensible.
-    if tris.is_empty() { fan(n) } else { tris }
+    let simple = most_corners_at_one_point(&ring, &[]) <= MAX_CORNERS_AT_ONE_POINT;
+    let tris = if simple { earcut_f64(&ring, &[], ccw) } else { Vec::new() };
+    if tris.len() == n - 2 || is_planar(points, normal) {
+        // Earcut gives up on some self-intersecting faces; a fan still draws something sensible.
+        return if tris.is_empty() { fan(n) } else { tris };
+    }
+    let retries = std::iter::once_with(|| (newell_plane(points, normal), true))
+        .chain(axes[1..].iter().filter(|&&k| normal[k] != 0.0).map(|&k| along(k)));
+    for (ring, ccw) in retries {
+        if is_strictly_convex(&ring) {
+            return fan(n);
+        }
+        if most_corners_at_one_point(&ring, &[]) <= MAX_CORNERS_AT_ONE_POINT {
+            let tris = earcut_f64(&ring, &[], ccw);
+            if tris.len() == n - 2 {
+                return tris;
+            }
+        }
+    }
+    fan(n)
+}
+
+/// Whether every corner lies on the plane through the first perpendicular to `normal`, up to
+/// 2^-20 of the largest coordinate (16 times the rounding of `f32` coordinates). Corners of a
+/// face that flat which a projection puts on one point lie within a few times that of each
+/// other: what earcut leaves out is too thin to see.
+fn is_planar(points: &[[f32; 3]], normal: [f64; 3]) -> bool {
+    let len = dot(normal, normal).sqrt();
+    let largest = points.iter().flatten().fold(0.0f64, |m, &c| m.max(f64::from(c).abs()));
+    let o = points[0].map(f64::from);
+    points.iter().all(|p| {
+        let d = [0, 1, 2].map(|k| f64::from(p[k]) - o[k]);
+        dot(d, normal).abs() <= len * largest / f64::from(1 << 20)
+    })
+}
+
+/// The face's corners in an orthonormal basis `(e1, e2)` of the plane perpendicular to its
+/// Newell normal, with `e1 x e2` along the normal (so the ring is counter-clockwise): the
+/// projection along the normal, which separates corners unless their difference is parallel
+/// to it, where dropping a coordinate merges corners that differ only in that coordinate.
+fn newell_plane(points: &[[f32; 3]], normal: [f64; 3]) -> Vec<[f64; 2]> {
+    let unit = |v: [f64; 3]| {
+        let len = dot(v, v).sqrt();
+        v.map(|c| c / len)
+    };
+    let n = unit(normal);
+    // The axis least aligned with the normal is far from parallel to it.
+    let j = (0..3).min_by(|&a, &b| n[a].abs().total_cmp(&n[b].abs())).unwrap_or(0);
+    let mut axis = [0.0; 3];
+    axis[j] = 1.0;
+    let e1 = unit(cross(n, axis));
+    let e2 = cross(n, e1);
+    // Relative to the first corner, for precision far from the origin.
+    let o = points[0].map(f64::from);
+    points
+        .iter()
+        .map(|p| {
+            let d = [0, 1, 2].map(|k| f64::from(p[k]) - o[k]);
+            [dot(d, e1), dot(d, e2)]
+        })
+        .collect()
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
 /// Triangulates a 2D polygon with holes: `rings[0]` is the outer boundary, the other rings are
@@ -417,6 +501,73 @@ mod tests {
                 assert!(nx * n[0] > 0.0, "{t:?} flips the winding");
             }
         }
+    }
+
+    /// Planar concave faces keep earcut's triangles: these are the ones `triangulate_face`
+    /// gave before twisted faces were retried, for the faces in the plane z = 0, reversed, and
+    /// tilted into the plane z = x + 2y (projected along y there).
+    #[test]
+    fn planar_concave_faces_triangulate_as_before() {
+        let l = [[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [1.0, 1.0], [1.0, 2.0], [0.0, 2.0]];
+        let arrow =
+            [[0.0, 1.0], [3.0, 1.0], [3.0, 0.0], [5.0, 2.0], [3.0, 4.0], [3.0, 3.0], [0.0, 3.0]];
+        // An L with a corner halfway along an edge.
+        let l7 =
+            [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [2.0, 1.0], [1.0, 1.0], [1.0, 2.0], [0.0, 2.0]];
+        let u =
+            [[0.0, 0.0], [3.0, 0.0], [3.0, 3.0], [2.0, 3.0], [2.0, 1.0], [1.0, 1.0], [1.0, 3.0]];
+        let u: Vec<[f32; 2]> = u.into_iter().chain([[0.0, 3.0]]).collect();
+        // The triangles for the face in the plane z = 0, reversed, and tilted.
+        let check = |ring: &[[f32; 2]], flat: &[_], reversed: &[_], tilted: &[[usize; 3]]| {
+            let face: Vec<[f32; 3]> = ring.iter().map(|&[x, y]| [x, y, 0.0]).collect();
+            assert_eq!(triangulate_face(&face), flat);
+            let face: Vec<[f32; 3]> = face.into_iter().rev().collect();
+            assert_eq!(triangulate_face(&face), reversed);
+            let face: Vec<[f32; 3]> = ring.iter().map(|&[x, y]| [x, y, x + 2.0 * y]).collect();
+            assert!(is_planar(&face, newell_normal(&face)));
+            assert_eq!(triangulate_face(&face), tilted);
+        };
+        check(
+            &l,
+            &[[4, 5, 0], [0, 1, 2], [0, 2, 3], [0, 3, 4]],
+            &[[1, 5, 0], [5, 3, 4], [5, 2, 3], [5, 1, 2]],
+            &[[0, 4, 5], [0, 3, 4], [0, 2, 3], [0, 1, 2]],
+        );
+        check(
+            &arrow,
+            &[[5, 6, 0], [5, 0, 1], [1, 2, 3], [3, 4, 5], [3, 5, 1]],
+            &[[1, 6, 0], [1, 5, 6], [5, 3, 4], [3, 1, 2], [3, 5, 1]],
+            &[[1, 6, 0], [1, 5, 6], [5, 3, 4], [3, 1, 2], [3, 5, 1]],
+        );
+        check(
+            &l7,
+            &[[5, 6, 0], [1, 2, 3], [1, 3, 4], [4, 5, 0], [4, 0, 1]],
+            &[[1, 6, 0], [5, 3, 4], [5, 2, 3], [2, 6, 1], [2, 5, 6]],
+            &[[1, 6, 0], [6, 4, 5], [4, 2, 3], [4, 1, 2], [4, 6, 1]],
+        );
+        check(
+            &u,
+            &[[6, 7, 0], [1, 2, 3], [1, 3, 4], [1, 4, 5], [5, 6, 0], [5, 0, 1]],
+            &[[1, 7, 0], [6, 4, 5], [6, 3, 4], [6, 2, 3], [2, 7, 1], [2, 6, 7]],
+            &[[0, 6, 7], [0, 5, 6], [0, 4, 5], [4, 2, 3], [4, 1, 2], [4, 0, 1]],
+        );
+    }
+
+    #[test]
+    fn planarity() {
+        let quad = [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 1.0, 0.0], [0.0, 1.0, -4.0]];
+        assert!(!is_planar(&quad, newell_normal(&quad)));
+        // A square rotated 30 degrees about x and rounded to f32 is planar up to rounding.
+        let (s, c) = 30f64.to_radians().sin_cos();
+        let square: Vec<[f32; 3]> = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
+            .iter()
+            .map(|&[x, y]: &[f64; 2]| [x as f32, (y * c + 100.0) as f32, (y * s) as f32])
+            .collect();
+        assert!(is_planar(&square, newell_normal(&square)));
+        let mut bent = square.clone();
+        bent[2][0] += 0.01;
+        bent[2][2] += 0.01;
+        assert!(!is_planar(&bent, newell_normal(&bent)));
     }
 
     #[test]

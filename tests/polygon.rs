@@ -1,6 +1,7 @@
 //! Polygon properties: triangulations tile random simple polygons (convex and not, with and
 //! without holes) exactly, the 2D fill lights exactly the pixel centres inside the snapped
-//! polygon (each once), and mesh faces keep their winding.
+//! polygon (each once), mesh faces keep their winding, and twisted faces give `n - 2` triangles
+//! using every corner even where a projection puts two corners on one point.
 //!
 //! Polygons are generated on the 1/256-pixel grid (so snapping is the identity and the
 //! oracle sees exactly the vertices the rasterizer sees), often with vertices and axis-aligned
@@ -637,5 +638,133 @@ fn faces_under_float_rotations() {
             "area {total} != {} for {face:?}",
             norm(n)
         );
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// (d) Twisted faces: a face of n corners gives n - 2 triangles bounded by its ring, even where
+// projecting it along an axis puts two corners on one point.
+
+/// Twice the vector area of a ring: the sum of its corners' cross products.
+fn newell3(p: &[[i128; 3]]) -> [i128; 3] {
+    (0..p.len()).fold([0; 3], |acc, j| {
+        let c = cross3(p[j], p[(j + 1) % p.len()]);
+        [acc[0] + c[0], acc[1] + c[1], acc[2] + c[2]]
+    })
+}
+
+/// Checks that `tris` triangulate a face of `n` corners: `n - 2` triangles of three distinct
+/// valid indices, using every corner.
+fn assert_n_minus_2(tris: &[[usize; 3]], n: usize, face: &[[f32; 3]]) {
+    assert_eq!(tris.len(), n - 2, "{tris:?} for {face:?}");
+    for t in tris {
+        assert!(t.iter().all(|&i| i < n), "{t:?} out of range for {face:?}");
+        assert!(t[0] != t[1] && t[1] != t[2] && t[0] != t[2], "{t:?} repeats a corner");
+    }
+    let mut used: Vec<usize> = tris.iter().flatten().copied().collect();
+    used.sort_unstable();
+    used.dedup();
+    assert_eq!(used, (0..n).collect::<Vec<_>>(), "{tris:?} leaves out corners of {face:?}");
+}
+
+/// Do two distinct corners of `face` fall on one point when it is projected along the axis its
+/// Newell normal is most aligned with (the last of equals)?
+fn projection_merges_corners(face: &[[f32; 3]]) -> bool {
+    let p: Vec<[f64; 3]> = face.iter().map(|v| v.map(f64::from)).collect();
+    let n = (0..p.len()).fold([0.0f64; 3], |acc, j| {
+        let (a, b) = (p[j], p[(j + 1) % p.len()]);
+        [
+            acc[0] + a[1] * b[2] - a[2] * b[1],
+            acc[1] + a[2] * b[0] - a[0] * b[2],
+            acc[2] + a[0] * b[1] - a[1] * b[0],
+        ]
+    });
+    let k = (0..3).max_by(|&a, &b| n[a].abs().total_cmp(&n[b].abs())).unwrap();
+    let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+    (0..p.len()).any(|i| (0..i).any(|j| p[i] != p[j] && p[i][u] == p[j][u] && p[i][v] == p[j][v]))
+}
+
+#[test]
+fn twisted_quad_gives_two_triangles() {
+    // Along y (the normal's largest component), corners 1 and 2 fall on one point: earcut
+    // alone returned the one triangle (2, 3, 0).
+    let quad = [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 1.0, 0.0], [0.0, 1.0, -4.0]];
+    assert!(projection_merges_corners(&quad));
+    let tris = triangulate_face(&quad);
+    assert_n_minus_2(&tris, 4, &quad);
+    let p: Vec<[i128; 3]> = quad.iter().map(|v| v.map(|c| c as i128)).collect();
+    let sum = tris.iter().fold([0; 3], |acc, t| {
+        let c = cross3(sub3(p[t[1]], p[t[0]]), sub3(p[t[2]], p[t[0]]));
+        [acc[0] + c[0], acc[1] + c[1], acc[2] + c[2]]
+    });
+    assert_eq!(sum, newell3(&p));
+}
+
+/// A chevron (concave at corner 1) with a step up at its notch: along z, corners 1 and 2 fall
+/// on one point and earcut alone left out corner 1. The fan from corner 0 folds (its triangle
+/// (0, 2, 3) faces down); the face's projection along its normal does not.
+#[test]
+fn stepped_chevron_is_not_fanned() {
+    let face =
+        [[0.0, 0.0, 0.0], [2.0, 1.0, 0.0], [2.0, 1.0, 1.0], [4.0, 0.0, 0.0], [2.0, 3.0, 0.0]];
+    assert!(projection_merges_corners(&face));
+    let tris = triangulate_face(&face);
+    assert_n_minus_2(&tris, 5, &face);
+    let p: Vec<[i128; 3]> = face.iter().map(|v| v.map(|c| c as i128)).collect();
+    let n = newell3(&p);
+    for t in &tris {
+        let c = cross3(sub3(p[t[1]], p[t[0]]), sub3(p[t[2]], p[t[0]]));
+        let dot: i128 = (0..3).map(|k| c[k] * n[k]).sum();
+        assert!(dot > 0, "{t:?} folds against the face's normal {n:?}: {tris:?}");
+    }
+}
+
+#[test]
+fn twisted_faces_give_n_minus_2_triangles() {
+    let mut rng = SmallRng::seed_from_u64(0x7_415_7ed);
+    let mut merged = [0; 7];
+    for i in 0..6000 {
+        let n = 4 + i % 3;
+        // Small integer corners: axis-parallel edges and diagonals, hence corners merged by
+        // the projection, are common. No three corners collinear (nor two equal), and not
+        // planar: every corner is needed, and none can be dropped without leaving area out.
+        let p: Vec<[i128; 3]> = loop {
+            let p: Vec<[i128; 3]> =
+                (0..n).map(|_| [(); 3].map(|_| rng.random_range(-2i128..=2))).collect();
+            let collinear = (0..n).any(|a| {
+                (0..a).any(|b| (0..b).any(|c| cross3(sub3(p[b], p[a]), sub3(p[c], p[a])) == [0; 3]))
+            });
+            let normal = cross3(sub3(p[1], p[0]), sub3(p[2], p[0]));
+            let planar =
+                p.iter().all(|&q| (0..3).map(|k| normal[k] * (q[k] - p[0][k])).sum::<i128>() == 0);
+            if !collinear && !planar && newell3(&p) != [0; 3] {
+                break p;
+            }
+        };
+        let face: Vec<[f32; 3]> = p.iter().map(|v| v.map(|c| c as f32)).collect();
+        merged[n] += usize::from(projection_merges_corners(&face));
+        let tris = triangulate_face(&face);
+        assert_n_minus_2(&tris, n, &face);
+        // Bounded by the face's ring: the triangles' vector areas add up to the face's.
+        let sum = tris.iter().fold([0; 3], |acc, t| {
+            let c = cross3(sub3(p[t[1]], p[t[0]]), sub3(p[t[2]], p[t[0]]));
+            [acc[0] + c[0], acc[1] + c[1], acc[2] + c[2]]
+        });
+        assert_eq!(sum, newell3(&p), "{tris:?} not bounded by {face:?}");
+    }
+    // The point of the exercise: many faces whose axis projection merges corners.
+    assert!(merged[4..].iter().all(|&m| m > 100), "only {merged:?} merged projections");
+
+    // Random float corners, one made to differ from another in a single coordinate.
+    for i in 0..3000 {
+        let n = 4 + i % 3;
+        let mut face: Vec<[f32; 3]> =
+            (0..n).map(|_| [(); 3].map(|_| rng.random_range(-1.0f32..1.0))).collect();
+        let (a, b) = (rng.random_range(0..n), rng.random_range(1..n));
+        let (b, k) = ((a + b) % n, rng.random_range(0..3));
+        face[b] = face[a];
+        face[b][k] = rng.random_range(-1.0..1.0);
+        let tris = triangulate_face(&face);
+        assert_n_minus_2(&tris, n, &face);
     }
 }
