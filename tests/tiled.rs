@@ -188,7 +188,7 @@ fn slivers_across_many_tiles_match_the_reference() {
 /// seven rows of tiles. The tiled backend (which walks such boxes by columns when no span
 /// kernel takes them: perspective colour, and the 3D pipeline) reaches every pixel the
 /// trapezoid's two triangles cover once, and no other, at 1x; and writes what the reference
-/// writes, on 1, 2 and 7 threads, binned and banded, at 1x and 4x.
+/// writes, on 1, 2 and 7 threads, binned and banded, at 1x, 4x and 8x.
 #[test]
 fn tall_slivers_tile_their_trapezoid_once() {
     let (w, h) = (400u32, 900u32);
@@ -213,7 +213,7 @@ fn tall_slivers_tile_their_trapezoid_once() {
     assert!(expected.iter().all(|&o| o <= 1) && expected.iter().sum::<u32>() > 150_000);
 
     let options = RenderOptions::default().with_shading(Shading::Perspective);
-    for samples in [SampleCount::X1, SampleCount::X4] {
+    for samples in [SampleCount::X1, SampleCount::X4, SampleCount::X8] {
         let fresh = || Target::multisampled(w, h, samples).unwrap().with_ids().with_overdraw();
         for schedule in SCHEDULES {
             let options = options.with_schedule(schedule);
