@@ -508,8 +508,13 @@ pub fn run_splats(points: usize, frames: usize) -> Result<SplatBenchResult, Erro
     let start = Instant::now();
     let tree = SplatTree::build(&cloud)?;
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
-    let bytes = format::encode(&tree);
-    let tree = format::decode(&bytes).map_err(|e| Error::Usage(format!("decoding: {e}")))?;
+    let bytes = format::encode(&tree)?;
+    let tree = format::decode(&bytes).map_err(|e| match e.kind {
+        format::FormatErrorKind::OutOfMemory { nodes, part, bytes } => {
+            Error::OutOfMemory { what: format!("the {nodes} decoded nodes ({part})"), bytes }
+        }
+        _ => Error::Usage(format!("decoding: {e}")),
+    })?;
     let Some(root) = tree.nodes.first() else {
         return Err(Error::Usage(format!("no points to time: {points} sampled")));
     };

@@ -167,9 +167,65 @@ pub(crate) fn try_reserve<T>(v: &mut Vec<T>, n: usize, what: &str) -> Result<(),
     })
 }
 
+/// Reserves exactly `n` more elements in `v`, or [`Error::OutOfMemory`] naming what `what`
+/// returns (called only then) and the bytes of the whole array asked for (`v`'s elements and
+/// the `n` more). For the arrays of one job named by their part in it (the splat hierarchy's,
+/// the `.tsplat` encoder's and decoder's), which `refusals` can refuse in unit tests.
+pub(crate) fn try_reserve_named<T>(
+    v: &mut Vec<T>,
+    n: usize,
+    what: impl FnOnce() -> String,
+) -> Result<(), Error> {
+    // Tests refuse a chosen allocation by asking for more than any allocator gives.
+    #[cfg(test)]
+    let ask =
+        if n > v.capacity() - v.len() && refusals::refuse_this_one() { usize::MAX } else { n };
+    #[cfg(not(test))]
+    let ask = n;
+    v.try_reserve_exact(ask).map_err(|_| Error::OutOfMemory {
+        what: what(),
+        bytes: (v.len() as u128 + n as u128) * size_of::<T>() as u128,
+    })
+}
+
 impl Error {
     /// Wraps an I/O error with the path it concerns.
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Self::Io { path: path.into(), source }
+    }
+}
+
+/// A test hook: [`try_reserve_named`] refuses the reservation the test chooses, so that a test
+/// can refuse each of a job's allocations in turn and check that each is an
+/// [`Error::OutOfMemory`] naming the array, not an abort.
+#[cfg(test)]
+pub(crate) mod refusals {
+    use std::cell::Cell;
+
+    thread_local! {
+        /// Reservations that allocate to let through before one is refused (`None`: none
+        /// refused). Per thread, so tests running side by side do not see each other's; the
+        /// jobs tested reserve on the calling thread only.
+        static REFUSE: Cell<Option<usize>> = const { Cell::new(None) };
+    }
+
+    /// Lets `k` reservations that allocate through, then refuses one; `None` refuses none.
+    pub(crate) fn refuse_after(k: Option<usize>) {
+        REFUSE.set(k);
+    }
+
+    /// Whether the reservation being made is the one to refuse.
+    pub(super) fn refuse_this_one() -> bool {
+        REFUSE.with(|r| match r.get() {
+            Some(0) => {
+                r.set(None);
+                true
+            }
+            Some(k) => {
+                r.set(Some(k - 1));
+                false
+            }
+            None => false,
+        })
     }
 }

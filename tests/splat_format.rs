@@ -239,7 +239,7 @@ fn subtrees(tree: &SplatTree) -> (Vec<usize>, Vec<usize>) {
 
 /// Encodes and decodes, and checks everything the format promises.
 fn round_trip(pts: &[Point], tree: &SplatTree, leaf_point: &[usize]) -> Stats {
-    let bytes = format::encode(tree);
+    let bytes = format::encode(tree).unwrap();
     let n = tree.nodes.len();
     assert_eq!(bytes.len(), HEADER_BYTES + BYTES_PER_NODE * n);
     check_header(&bytes, tree);
@@ -347,7 +347,7 @@ fn round_trip(pts: &[Point], tree: &SplatTree, leaf_point: &[usize]) -> Stats {
 
     // Re-encoding the decoded tree keeps structure and colours exactly and normals up to
     // rounding (a few directions have two codes, one on each side of the octahedron's fold).
-    let again = format::decode(&format::encode(&decoded)).unwrap();
+    let again = format::decode(&format::encode(&decoded).unwrap()).unwrap();
     for (a, b) in decoded.nodes.iter().zip(&again.nodes) {
         assert_eq!((a.color, a.child_count), (b.color, b.child_count));
         assert!(angle(f64s(a.normal), f64s(b.normal)) < 1e-5);
@@ -466,7 +466,7 @@ fn golden_two_node_file() {
     .chunks(2)
     .map(|h| u8::from_str_radix(std::str::from_utf8(h).unwrap(), 16).unwrap())
     .collect();
-    let bytes = format::encode(&tree);
+    let bytes = format::encode(&tree).unwrap();
     assert_eq!(bytes, expected);
     // Exact values survive exactly (except the cones, which become bucket 0: pi / 32).
     let mut want = tree.clone();
@@ -474,6 +474,60 @@ fn golden_two_node_file() {
         n.cone = CONE_BUCKETS[0];
     }
     assert_eq!(format::decode(&bytes).unwrap(), want);
+}
+
+/// The bytes of a few trees, pinned by their length and a CRC-32 of the whole file (recorded
+/// before the encoder's allocations became fallible, which changed no byte): the test's own
+/// trees, the crate's builder with chains, a tree without normals or colours, a malformed tree
+/// and the empty one. Re-encoding a decoded tree gives a file of the same shape, flags,
+/// counts and root centre.
+#[test]
+fn encoded_bytes_are_pinned() {
+    let (_, ours, _) = tree_of(1000, 11);
+    let pts = points(5000, 12);
+    let cloud = PointCloud {
+        positions: pts.iter().map(|p| p.position).collect(),
+        normals: Some(pts.iter().map(|p| p.normal).collect()),
+        colors: Some(pts.iter().map(|p| p.color).collect()),
+        radii: None,
+    };
+    let built = SplatTree::build(&cloud).unwrap();
+    assert!(built.nodes.iter().any(|n| n.child_count == 1), "no chains");
+    let (_, mut plain, _) = tree_of(200, 21);
+    for n in &mut plain.nodes {
+        (n.normal, n.cone, n.color) = ([0.0; 3], std::f32::consts::PI, [255; 3]);
+    }
+    let bad = |centre: [f32; 3], radius: f32, first_child: u32, child_count: u8| SplatNode {
+        centre,
+        radius,
+        normal: [f32::NAN, 0.0, 1.0],
+        cone: f32::NAN,
+        color: [1, 2, 3],
+        first_child,
+        child_count,
+    };
+    let malformed = SplatTree::new(vec![
+        bad([0.0; 3], 1.0, 0, 9),
+        bad([1e30, 0.0, 0.0], f32::INFINITY, 7, 200),
+        bad([f32::MAX, -f32::MAX, 0.0], f32::MAX, u32::MAX, 255),
+    ]);
+    let trees = [ours, built, plain, malformed, SplatTree::default()];
+    let mut got = Vec::new();
+    for tree in &trees {
+        let bytes = format::encode(tree).unwrap();
+        let again = format::encode(&format::decode(&bytes).unwrap()).unwrap();
+        // Same header up to the root's radius (which may grow: the decoded spheres are larger).
+        assert_eq!((again.len(), &again[..44]), (bytes.len(), &bytes[..44]));
+        got.push((bytes.len(), crc32(&[&bytes])));
+    }
+    let want = [
+        (10210, 0x5023_78f2),
+        (43894, 0x9c3e_203c),
+        (2086, 0x5667_e045),
+        (70, 0xdabb_e47a),
+        (52, 0x2144_df1c),
+    ];
+    assert_eq!(got, want);
 }
 
 #[test]
@@ -558,7 +612,7 @@ fn isolated_points_keep_their_splat_size_through_the_file() {
         radii: Some(vec![0.0015; 40_030]),
     };
     let tree = SplatTree::build(&cloud).unwrap();
-    let decoded = format::decode(&format::encode(&tree)).unwrap();
+    let decoded = format::decode(&format::encode(&tree).unwrap()).unwrap();
     assert_eq!(decoded.nodes.len(), tree.nodes.len());
     let worst = tree
         .nodes
@@ -578,7 +632,7 @@ fn duplicates_and_zero_radii() {
     let pts = vec![p; 300];
     let (tree, leaves) = build(&pts, 7);
     round_trip(&pts, &tree, &leaves);
-    let decoded = format::decode(&format::encode(&tree)).unwrap();
+    let decoded = format::decode(&format::encode(&tree).unwrap()).unwrap();
     assert!(decoded.nodes.iter().all(|n| n.centre == p.position && n.radius == 0.0));
 }
 
@@ -590,7 +644,7 @@ fn flags_without_normals_or_colours() {
         n.cone = std::f32::consts::PI;
         n.color = [255; 3];
     }
-    let bytes = format::encode(&tree);
+    let bytes = format::encode(&tree).unwrap();
     check_header(&bytes, &tree);
     assert_eq!(u32_at(&bytes, 12), 0);
     let decoded = format::decode(&bytes).unwrap();
@@ -605,7 +659,7 @@ fn flags_without_normals_or_colours() {
 fn a_zero_normal_in_a_tree_with_normals_round_trips_as_zero() {
     let (_, mut tree, _) = tree_of(50, 22);
     tree.nodes[3].normal = [0.0; 3];
-    let decoded = format::decode(&format::encode(&tree)).unwrap();
+    let decoded = format::decode(&format::encode(&tree).unwrap()).unwrap();
     assert_eq!(decoded.nodes[3].normal, [0.0; 3]);
     assert_eq!(decoded.nodes[3].cone, CONE_BUCKETS[3]);
     assert_ne!(decoded.nodes[4].normal, [0.0; 3]);
@@ -634,15 +688,18 @@ fn encoder_never_panics_on_bad_trees() {
         SplatTree::new((0..10).map(|i| node([i as f32, 0.0, 0.0], 0.5, i + 1, 6)).collect()),
     ];
     for tree in &trees {
-        let bytes = format::encode(tree);
+        let bytes = format::encode(tree).unwrap();
         let decoded = format::decode(&bytes).expect("an encoded tree always decodes");
         check_structure(&decoded);
         assert_eq!(bytes.len(), HEADER_BYTES + BYTES_PER_NODE * decoded.nodes.len());
     }
-    assert_eq!(format::encode(&SplatTree::default()).len(), HEADER_BYTES);
-    assert_eq!(format::decode(&format::encode(&SplatTree::default())).unwrap().nodes.len(), 0);
+    assert_eq!(format::encode(&SplatTree::default()).unwrap().len(), HEADER_BYTES);
+    assert_eq!(
+        format::decode(&format::encode(&SplatTree::default()).unwrap()).unwrap().nodes.len(),
+        0
+    );
     // Non-finite values are replaced; the root keeps its finite parts.
-    let d = format::decode(&format::encode(&trees[1])).unwrap();
+    let d = format::decode(&format::encode(&trees[1]).unwrap()).unwrap();
     assert_eq!((d.nodes[0].centre, d.nodes[0].radius), ([0.0, 1.0, 0.0], 0.0));
 }
 
@@ -662,7 +719,7 @@ fn check_structure(tree: &SplatTree) {
 
 fn small_file() -> Vec<u8> {
     let (_, tree, _) = tree_of(5, 3);
-    format::encode(&tree)
+    format::encode(&tree).unwrap()
 }
 
 fn check_message(e: &FormatError, len: usize) {
@@ -819,7 +876,7 @@ fn read_and_write_files() {
     let (pts, tree, leaves) = tree_of(300, 31);
     format::write(&path, &tree).unwrap();
     let read = format::read(&path).unwrap();
-    assert_eq!(read, format::decode(&format::encode(&tree)).unwrap());
+    assert_eq!(read, format::decode(&format::encode(&tree).unwrap()).unwrap());
     round_trip(&pts, &tree, &leaves);
 
     let mut bytes = std::fs::read(&path).unwrap();
@@ -842,7 +899,7 @@ fn read_and_write_files() {
 fn mutation_fuzz_never_panics() {
     let seeds: Vec<Vec<u8>> = [(1, 41), (5, 42), (40, 43), (200, 44)]
         .iter()
-        .map(|&(count, seed)| format::encode(&tree_of(count, seed).1))
+        .map(|&(count, seed)| format::encode(&tree_of(count, seed).1).unwrap())
         .collect();
     let mut rng = Rng::new(0x7591_a7f0_0d15_ea5e);
     let (mut accepted, mut rejected) = (0, 0);

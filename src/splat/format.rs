@@ -19,18 +19,21 @@
 //! true sphere of every node in its subtree (measured exactly, not through bounds of bounds),
 //! so the decoded tree bounds every point and every leaf splat. The parent's decoded sphere
 //! itself is always such a sphere (it contains the parent's whole subtree), and it has a code
-//! of its own, which is why encoding cannot fail. Normal cones are rounded up by the normal's
+//! of its own, which is why every node has one. Normal cones are rounded up by the normal's
 //! quantization error, so culling stays conservative too.
 //!
-//! [`decode`] never panics and never allocates more than the input's length justifies; its
-//! errors ([`FormatError`]) carry the byte offset of the problem.
+//! [`encode`] allocates fallibly: an array the allocator refuses (they are proportional to the
+//! node count, and the encoder's work arrays take about three times the tree's own memory) is
+//! [`Error::OutOfMemory`] naming it, not an abort. [`decode`] never panics and never allocates
+//! more than the input's length justifies, and reports a refused allocation too; its errors
+//! ([`FormatError`]) carry the byte offset of the problem.
 
 use std::f32::consts::PI;
 use std::fmt;
 use std::path::Path;
 
 use super::tree::{SplatNode, SplatTree};
-use crate::error::Error;
+use crate::error::{Error, try_reserve_named};
 
 /// Bytes per stored node (48 bits).
 pub const BYTES_PER_NODE: usize = 6;
@@ -170,6 +173,21 @@ pub enum FormatErrorKind {
         /// Nodes with no children.
         actual: u64,
     },
+    /// An array of the decoded tree could not be allocated: the file's length holds its node
+    /// count, but the memory available does not hold the tree. Reported at the node count
+    /// (offset 16), which sizes the arrays; [`read`] reports it as [`Error::OutOfMemory`].
+    #[error(
+        "not enough memory to decode {nodes} nodes ({part}): {gib:.1} GiB",
+        gib = *.bytes as f64 / f64::from(1 << 30)
+    )]
+    OutOfMemory {
+        /// Node count from the header.
+        nodes: u64,
+        /// The array (`"nodes"` or `"sphere codes"`).
+        part: &'static str,
+        /// How many bytes were asked for.
+        bytes: u128,
+    },
 }
 
 impl fmt::Display for FormatError {
@@ -188,19 +206,52 @@ fn fail<T>(offset: usize, kind: FormatErrorKind) -> Result<T, FormatError> {
 // Public entry points
 
 /// Writes `tree` to `path` as a `.tsplat` file (see [`encode`]).
+///
+/// # Errors
+/// [`Error::OutOfMemory`] from [`encode`] (nothing is written then), or [`Error::Io`].
 pub fn write(path: &Path, tree: &SplatTree) -> Result<(), Error> {
-    std::fs::write(path, encode(tree)).map_err(|e| Error::io(path, e))
+    std::fs::write(path, encode(tree)?).map_err(|e| Error::io(path, e))
 }
 
 /// Reads a `.tsplat` file. Format errors are [`Error::Parse`] with `line: 0` and a message
 /// starting `byte N:`.
+///
+/// # Errors
+/// As [`crate::input::read`]; [`Error::Parse`] for a malformed file;
+/// [`Error::OutOfMemory`] naming the file when the decoded tree's arrays cannot be allocated
+/// ([`FormatErrorKind::OutOfMemory`]).
 pub fn read(path: &Path) -> Result<SplatTree, Error> {
     let bytes = crate::input::read(path)?;
-    decode(&bytes).map_err(|e| Error::Parse {
-        path: path.to_path_buf(),
-        line: 0,
-        message: e.to_string(),
+    decode(&bytes).map_err(|e| match e.kind {
+        FormatErrorKind::OutOfMemory { nodes, part, bytes } => Error::OutOfMemory {
+            what: format!("the {nodes} nodes of {} ({part})", path.display()),
+            bytes,
+        },
+        _ => Error::Parse { path: path.to_path_buf(), line: 0, message: e.to_string() },
     })
+}
+
+/// What an encoding is of, to name it in [`Error::OutOfMemory`].
+#[derive(Clone, Copy)]
+struct Encoding {
+    /// Nodes in the tree.
+    nodes: usize,
+}
+
+impl Encoding {
+    /// Reserves exactly `n` more elements in `v`, or [`Error::OutOfMemory`] naming the
+    /// encoding, `part` of it and the bytes asked for.
+    fn reserve<T>(self, v: &mut Vec<T>, n: usize, part: &str) -> Result<(), Error> {
+        try_reserve_named(v, n, || format!("the .tsplat encoding of {} nodes ({part})", self.nodes))
+    }
+
+    /// `n` copies of `value`, or [`Error::OutOfMemory`] as for [`Encoding::reserve`].
+    fn filled<T: Clone>(self, n: usize, value: T, part: &str) -> Result<Vec<T>, Error> {
+        let mut v = Vec::new();
+        self.reserve(&mut v, n, part)?;
+        v.resize(n, value);
+        Ok(v)
+    }
 }
 
 /// Encodes a tree: [`HEADER_BYTES`] + [`BYTES_PER_NODE`] per node.
@@ -217,14 +268,28 @@ pub fn read(path: &Path) -> Result<SplatTree, Error> {
 /// negative radii as 0 (such spheres carry no guarantee), a NaN cone as pi, a non-finite normal
 /// as zero; child ranges are clipped to the node array, nodes already reached are not visited
 /// twice and at most 4 children per node are kept.
-#[must_use]
-pub fn encode(tree: &SplatTree) -> Vec<u8> {
-    let (order, counts) = breadth_first(tree);
+///
+/// Memory: besides the output, about 130 bytes per node of work arrays (three times the
+/// tree's own 40), all allocated before the spheres are encoded.
+///
+/// # Errors
+/// [`Error::OutOfMemory`] when one of its arrays (each proportional to the node count: the
+/// breadth-first order, the nodes made safe to quantize, the subtrees' ranges and spheres,
+/// the decoded spheres, the output) cannot be allocated, naming the encoding, the array and
+/// its bytes: a tree that fits in memory may not leave room to encode it, and an infallible
+/// allocation would abort the process instead. (With overcommit the system may still stop
+/// the process later; this is what the allocator refuses.)
+pub fn encode(tree: &SplatTree) -> Result<Vec<u8>, Error> {
+    let encoding = Encoding { nodes: tree.nodes.len() };
+    let (order, counts) = breadth_first(encoding, tree)?;
     let n = order.len();
-    let nodes: Vec<Clean> = order.iter().map(|&i| Clean::new(&tree.nodes[i])).collect();
+    let mut nodes: Vec<Clean> = Vec::new();
+    encoding.reserve(&mut nodes, n, "nodes made safe to quantize")?;
+    nodes.extend(order.iter().map(|&i| Clean::new(&tree.nodes[i])));
+    drop(order);
 
     // First child of each output node (output order is breadth-first by construction).
-    let mut first = vec![0usize; n];
+    let mut first = encoding.filled(n, 0usize, "first children")?;
     let mut next = 1;
     for j in 0..n {
         first[j] = next;
@@ -233,14 +298,14 @@ pub fn encode(tree: &SplatTree) -> Vec<u8> {
 
     // Every subtree as a contiguous range of a pre-order array of (centre, radius): subtree
     // sizes bottom-up, then positions top-down.
-    let mut size = vec![1usize; n];
+    let mut size = encoding.filled(n, 1usize, "subtree sizes")?;
     for j in (0..n).rev() {
         for c in first[j]..first[j] + usize::from(counts[j]) {
             size[j] += size[c];
         }
     }
-    let mut start = vec![0usize; n];
-    let mut content = vec![([0.0f32; 3], 0.0f64); n];
+    let mut start = encoding.filled(n, 0usize, "subtree starts")?;
+    let mut content = encoding.filled(n, ([0.0f32; 3], 0.0f64), "subtree spheres")?;
     for j in 0..n {
         content[start[j]] = (nodes[j].centre, nodes[j].radius);
         let mut at = start[j] + 1;
@@ -255,7 +320,9 @@ pub fn encode(tree: &SplatTree) -> Vec<u8> {
     let flags = (u32::from(has_normals) * FLAG_NORMALS) | (u32::from(has_colors) * FLAG_COLORS);
     let leaves = counts.iter().filter(|&&c| c == 0).count();
 
-    let mut out = Vec::with_capacity(HEADER_BYTES + BYTES_PER_NODE * n);
+    // No overflow: the tree holds n nodes of 40 bytes each.
+    let mut out = Vec::new();
+    encoding.reserve(&mut out, HEADER_BYTES + BYTES_PER_NODE * n, "output bytes")?;
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&VERSION.to_le_bytes());
     out.extend_from_slice(&flags.to_le_bytes());
@@ -263,8 +330,9 @@ pub fn encode(tree: &SplatTree) -> Vec<u8> {
     out.extend_from_slice(&(leaves as u64).to_le_bytes());
 
     // Decoded spheres, top-down: each child is quantized against its parent's decoded sphere.
-    let mut decoded = vec![Sphere { centre: [0.0; 3], radius: 0.0 }; n];
-    let mut sphere_code = vec![IDENTITY; n];
+    let zero = Sphere { centre: [0.0; 3], radius: 0.0 };
+    let mut decoded = encoding.filled(n, zero, "decoded spheres")?;
+    let mut sphere_code = encoding.filled(n, IDENTITY, "sphere codes")?;
     if n > 0 {
         let centre = nodes[0].centre;
         let reach = content.iter().map(|&(c, r)| reach(c, r, centre)).fold(0.0, f64::max);
@@ -280,7 +348,7 @@ pub fn encode(tree: &SplatTree) -> Vec<u8> {
         }
     }
 
-    let root = decoded.first().copied().unwrap_or(Sphere { centre: [0.0; 3], radius: 0.0 });
+    let root = decoded.first().copied().unwrap_or(zero);
     for v in root.centre.into_iter().chain([root.radius]) {
         out.extend_from_slice(&v.to_le_bytes());
     }
@@ -300,7 +368,7 @@ pub fn encode(tree: &SplatTree) -> Vec<u8> {
 
     let crc = file_checksum(&out);
     out[OFFSET_CHECKSUM..OFFSET_CHECKSUM + 4].copy_from_slice(&crc.to_le_bytes());
-    out
+    Ok(out)
 }
 
 /// Decodes a `.tsplat` file's bytes.
@@ -309,7 +377,13 @@ pub fn encode(tree: &SplatTree) -> Vec<u8> {
 /// count matches the length exactly (a count the data cannot hold allocates nothing), the root
 /// sphere (finite, radius `>= 0`), the checksum, each node's structure code and that the child
 /// counts describe a breadth-first layout, then the leaf count. Allocation is bounded by the
-/// input's length. `first_child` is rebuilt from the breadth-first order (0 for leaves).
+/// input's length (42 bytes per 6-byte node: the nodes and their sphere codes) and made only
+/// once the node count has been checked against it; an allocation the allocator refuses is
+/// [`FormatErrorKind::OutOfMemory`], not an abort. `first_child` is rebuilt from the
+/// breadth-first order (0 for leaves).
+///
+/// # Errors
+/// A [`FormatError`] at the first problem found.
 pub fn decode(bytes: &[u8]) -> Result<SplatTree, FormatError> {
     let len = bytes.len();
     let magic_len = len.min(MAGIC.len());
@@ -376,8 +450,10 @@ pub fn decode(bytes: &[u8]) -> Result<SplatTree, FormatError> {
     // Pass 1: fields, structure codes and the breadth-first layout.
     let has_normals = flags & FLAG_NORMALS != 0;
     let has_colors = flags & FLAG_COLORS != 0;
-    let mut nodes = Vec::with_capacity(n);
-    let mut spheres = Vec::with_capacity(n);
+    let mut nodes = Vec::new();
+    reserve_decoded(&mut nodes, n, "nodes")?;
+    let mut spheres = Vec::new();
+    reserve_decoded(&mut spheres, n, "sphere codes")?;
     let mut next: u64 = 1;
     let mut actual_leaves = 0u64;
     for i in 0..n {
@@ -456,19 +532,32 @@ pub fn decode(bytes: &[u8]) -> Result<SplatTree, FormatError> {
     Ok(SplatTree::new(nodes))
 }
 
+/// Reserves exactly `n` elements in the empty `v` for [`decode`], or
+/// [`FormatErrorKind::OutOfMemory`] naming `part`.
+fn reserve_decoded<T>(v: &mut Vec<T>, n: usize, part: &'static str) -> Result<(), FormatError> {
+    try_reserve_named(v, n, String::new).or_else(|_| {
+        let bytes = n as u128 * size_of::<T>() as u128;
+        fail(OFFSET_NODE_COUNT, FormatErrorKind::OutOfMemory { nodes: n as u64, part, bytes })
+    })
+}
+
 // ---------------------------------------------------------------------------------------------
 // Tree traversal and input cleaning
 
 /// Output order (input indices, breadth-first from the root) and each output node's kept child
 /// count. Children out of range or already reached are skipped; at most 4 are kept.
-fn breadth_first(tree: &SplatTree) -> (Vec<usize>, Vec<u8>) {
+fn breadth_first(encoding: Encoding, tree: &SplatTree) -> Result<(Vec<usize>, Vec<u8>), Error> {
     let n = tree.nodes.len();
     if n == 0 {
-        return (Vec::new(), Vec::new());
+        return Ok((Vec::new(), Vec::new()));
     }
-    let mut seen = vec![false; n];
-    let mut order = vec![0];
-    let mut counts = Vec::with_capacity(n);
+    let mut seen = encoding.filled(n, false, "nodes reached")?;
+    // Each node is reached at most once: the order never outgrows `n`.
+    let mut order = Vec::new();
+    encoding.reserve(&mut order, n, "breadth-first order")?;
+    order.push(0);
+    let mut counts = Vec::new();
+    encoding.reserve(&mut counts, n, "child counts")?;
     seen[0] = true;
     let mut j = 0;
     while j < order.len() {
@@ -489,7 +578,7 @@ fn breadth_first(tree: &SplatTree) -> (Vec<usize>, Vec<u8>) {
         counts.push(kept);
         j += 1;
     }
-    (order, counts)
+    Ok((order, counts))
 }
 
 /// A node with its values made safe to quantize.
@@ -863,6 +952,125 @@ fn crc32_update(mut state: u32, data: &[u8]) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::error::refusals::refuse_after;
+    use crate::splat::PointCloud;
+
+    /// A built tree (chains included) over `n` points of a fixed-seed cloud with normals and
+    /// colours, and a few stragglers far from the rest.
+    fn built_tree(n: usize) -> SplatTree {
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut rand = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 40) as f32 / (1u64 << 24) as f32 - 0.5
+        };
+        let positions: Vec<[f32; 3]> = (0..n)
+            .map(|i| {
+                let spread = if i % 100 == 0 { 50.0 } else { 1.0 };
+                [0, 1, 2].map(|_| spread * rand())
+            })
+            .collect();
+        let cloud = PointCloud {
+            normals: Some(positions.iter().map(|_| [0.0, 0.6, 0.8]).collect()),
+            colors: Some((0..n).map(|i| [i as u8, 7, 200]).collect()),
+            positions,
+            radii: None,
+        };
+        SplatTree::build(&cloud).unwrap()
+    }
+
+    /// Each of the encoder's reservations, refused in turn as an allocator refuses a request
+    /// too large for it, is an [`Error::OutOfMemory`] naming the encoding, the array and its
+    /// bytes, not an abort (`trirast pack` of 15 M points under `ulimit -v` built the
+    /// hierarchy, then aborted encoding it). Once none is refused the bytes are the usual ones.
+    #[test]
+    fn every_refused_encoder_reservation_is_an_error_naming_the_array() {
+        let tree = built_tree(600);
+        assert!(tree.nodes.iter().any(|n| n.child_count == 1), "no chains");
+        let n = tree.nodes.len();
+        let bytes = |size: usize| (n * size) as u128;
+        let all = [
+            ("nodes reached", bytes(1)),
+            ("breadth-first order", bytes(8)),
+            ("child counts", bytes(1)),
+            ("nodes made safe to quantize", bytes(size_of::<Clean>())),
+            ("first children", bytes(8)),
+            ("subtree sizes", bytes(8)),
+            ("subtree starts", bytes(8)),
+            ("subtree spheres", bytes(24)),
+            ("output bytes", (HEADER_BYTES + BYTES_PER_NODE * n) as u128),
+            ("decoded spheres", bytes(16)),
+            ("sphere codes", bytes(2)),
+        ];
+        check_refusals(&tree, &all);
+        // The empty tree allocates its header only.
+        check_refusals(&SplatTree::default(), &[("output bytes", HEADER_BYTES as u128)]);
+    }
+
+    /// Refuses each of `encode(tree)`'s reservations in turn: the `k`-th refusal must be the
+    /// error `parts[k]` describes, and with none refused the bytes must be `encode`'s.
+    fn check_refusals(tree: &SplatTree, parts: &[(&str, u128)]) {
+        let whole = encode(tree).unwrap();
+        let prefix = format!("the .tsplat encoding of {} nodes (", tree.nodes.len());
+        for k in 0.. {
+            refuse_after(Some(k));
+            let encoded = encode(tree);
+            refuse_after(None);
+            match encoded {
+                Ok(bytes) => {
+                    assert_eq!(k, parts.len(), "allocations refused");
+                    assert!(bytes == whole, "refusing allocation {k} and after");
+                    return;
+                }
+                Err(Error::OutOfMemory { what, bytes }) => {
+                    let part = what.strip_prefix(&prefix).and_then(|w| w.strip_suffix(')'));
+                    assert!(k < parts.len(), "allocation {k}: {what}");
+                    assert_eq!((part, bytes), (Some(parts[k].0), parts[k].1), "allocation {k}");
+                }
+                Err(e) => panic!("allocation {k}: {e}"),
+            }
+        }
+    }
+
+    /// The decoder's two arrays, refused in turn: [`FormatErrorKind::OutOfMemory`] at the node
+    /// count, and through [`read`] an [`Error::OutOfMemory`] naming the file.
+    #[test]
+    fn every_refused_decoder_reservation_is_an_error() {
+        let tree = built_tree(300);
+        let bytes = encode(&tree).unwrap();
+        let n = tree.nodes.len();
+        let nodes = n as u64;
+        let want = decode(&bytes).unwrap();
+        let path = std::env::temp_dir().join(format!("trirast-oom-{}.tsplat", std::process::id()));
+        std::fs::write(&path, &bytes).unwrap();
+        for (k, part, size) in [(0, "nodes", size_of::<SplatNode>()), (1, "sphere codes", 2)] {
+            let asked = (n * size) as u128;
+            refuse_after(Some(k));
+            let e = decode(&bytes).unwrap_err();
+            refuse_after(None);
+            let kind = FormatErrorKind::OutOfMemory { nodes, part, bytes: asked };
+            assert_eq!(e, FormatError { offset: OFFSET_NODE_COUNT, kind });
+            let text = format!("byte 16: not enough memory to decode {n} nodes ({part}): 0.0 GiB");
+            assert_eq!(e.to_string(), text);
+
+            refuse_after(Some(k));
+            let read = read(&path);
+            refuse_after(None);
+            match read {
+                Err(Error::OutOfMemory { what, bytes }) => {
+                    assert_eq!(what, format!("the {n} nodes of {} ({part})", path.display()));
+                    assert_eq!(bytes, asked);
+                }
+                other => panic!("{other:?}"),
+            }
+        }
+        refuse_after(Some(2));
+        let decoded = decode(&bytes);
+        refuse_after(None);
+        assert_eq!(decoded.unwrap(), want);
+        std::fs::remove_file(&path).unwrap();
+    }
 
     #[test]
     fn crc32_matches_the_standard_check_value() {

@@ -80,7 +80,7 @@ impl SplatTree {
 }
 
 use super::PointCloud;
-use crate::error::Error;
+use crate::error::{Error, try_reserve_named};
 
 /// What a build is for, to name it in [`Error::OutOfMemory`].
 #[derive(Clone, Copy)]
@@ -95,15 +95,8 @@ impl Building {
     /// the `n` more). The build's arrays are proportional to the point count, and a cloud
     /// that fits in memory may have a hierarchy that does not.
     fn reserve<T>(self, v: &mut Vec<T>, n: usize, part: &str) -> Result<(), Error> {
-        // Tests refuse a chosen allocation by asking for more than any allocator gives.
-        #[cfg(test)]
-        let ask =
-            if n > v.capacity() - v.len() && tests::refuse_this_one() { usize::MAX } else { n };
-        #[cfg(not(test))]
-        let ask = n;
-        v.try_reserve_exact(ask).map_err(|_| Error::OutOfMemory {
-            what: format!("the splat hierarchy of {} points ({part})", self.points),
-            bytes: (v.len() as u128 + n as u128) * size_of::<T>() as u128,
+        try_reserve_named(v, n, || {
+            format!("the splat hierarchy of {} points ({part})", self.points)
         })
     }
 
@@ -499,12 +492,11 @@ fn with_chains(building: Building, nodes: Vec<SplatNode>) -> Result<Vec<SplatNod
 
 #[cfg(test)]
 mod tests {
-    use std::cell::Cell;
-
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
 
     use super::*;
+    use crate::error::refusals::refuse_after;
 
     /// The ranges [`children_of`] gives are the groups [`split4`] leaves: consecutive, covering
     /// the node's range, half of it on each side of `len / 2`, each half split at its own half.
@@ -531,28 +523,6 @@ mod tests {
         }
     }
 
-    thread_local! {
-        /// Allocations [`Building::reserve`] lets through before it refuses one (`None`:
-        /// none refused). Per thread, so tests running side by side do not see each other's;
-        /// the build reserves on the calling thread only.
-        static REFUSE: Cell<Option<usize>> = const { Cell::new(None) };
-    }
-
-    /// Whether the reservation being made is the one to refuse.
-    pub(super) fn refuse_this_one() -> bool {
-        REFUSE.with(|r| match r.get() {
-            Some(0) => {
-                r.set(None);
-                true
-            }
-            Some(k) => {
-                r.set(Some(k - 1));
-                false
-            }
-            None => false,
-        })
-    }
-
     /// Each of the build's reservations, refused in turn as an allocator refuses a request
     /// too large for it, is an [`Error::OutOfMemory`] naming the hierarchy, the array and its
     /// bytes, not an abort (`trirast splat-bench --points 60000000` under `ulimit -v 4000000`
@@ -575,9 +545,9 @@ mod tests {
         // Per array, in the order first refused: refusals, and the largest request's bytes.
         let mut parts: Vec<(String, usize, u128)> = Vec::new();
         for k in 0.. {
-            REFUSE.set(Some(k));
+            refuse_after(Some(k));
             let built = SplatTree::build(&cloud);
-            REFUSE.set(None);
+            refuse_after(None);
             let (what, bytes) = match built {
                 Ok(tree) => {
                     assert!(tree == whole, "refusing allocation {k} and after");
