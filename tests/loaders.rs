@@ -2,9 +2,9 @@
 //! and variant (OBJ, ASCII / binary little / big endian PLY with every attribute spelling and
 //! index type, ASCII / binary STL) and read back; malformed files must give errors naming the
 //! file and the line or byte offset; missing material libraries and textures are warnings; and a
-//! deterministic mutation fuzz checks that the PLY and STL readers never panic. Paths that are
-//! not regular files (directories, devices, FIFOs) are refused by name, and oversized textures
-//! from their header.
+//! deterministic mutation fuzz checks that the PLY and STL readers never panic (and that the
+//! streamed STL reader agrees with the reference). Paths that are not regular files
+//! (directories, devices, FIFOs) are refused by name, and oversized textures from their header.
 //!
 //! Everything is generated in code: the tests need nothing outside the repository (the real
 //! models in `../shared/models` are loaded too when that directory exists).
@@ -460,8 +460,10 @@ fn stl_round_trips_ascii_and_binary_welded() {
     ];
     for (name, bytes) in files {
         let path = dir.join(name);
-        fs::write(&path, bytes).unwrap();
+        fs::write(&path, &bytes).unwrap();
         let mesh = mesh::load(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
+        // Streamed from the file: the mesh the reference makes of the bytes.
+        assert_eq!(mesh, mesh::stl::parse(&bytes, &path).unwrap(), "{name}");
         check_indices(&mesh);
         assert_eq!(triangle_set(&mesh.positions, &mesh.triangles), expected, "{name}");
         assert_eq!(mesh.polygon_count, triangles.len(), "{name}");
@@ -1164,6 +1166,39 @@ fn fuzz_stl_never_panics() {
         write_stl_binary(&model, b"solid header"),
     ];
     fuzz("stl", &seeds, 4000, mesh::stl::parse);
+    fuzz("stl streamed", &seeds, 4000, mesh::stl::parse_streamed);
+}
+
+/// The streamed STL reader gives what the reference (the file in memory) gives, the same mesh
+/// or the same error, on the fuzz test's mutated files.
+#[test]
+fn fuzz_stl_streamed_is_the_reference() {
+    let model = Model::random(6, 8, 6);
+    let seeds = [
+        write_stl_ascii(&model, false),
+        write_stl_ascii(&model, true),
+        write_stl_binary(&model, b""),
+        write_stl_binary(&model, b"solid header"),
+    ];
+    let mut rng = XorShift::new(0x571e_5eed);
+    let path = Path::new("fuzz.stl");
+    let (mut accepted, mut rejected) = (0, 0);
+    for i in 0..4000 {
+        let input = mutate(&mut rng, &seeds[i % seeds.len()]);
+        let escaped = || input.escape_ascii().to_string();
+        match (mesh::stl::parse(&input, path), mesh::stl::parse_streamed(&input, path)) {
+            (Ok(reference), Ok(streamed)) => {
+                assert_eq!(reference, streamed, "{}", escaped());
+                accepted += 1;
+            }
+            (Err(reference), Err(streamed)) => {
+                assert_eq!(format!("{reference:?}"), format!("{streamed:?}"), "{}", escaped());
+                rejected += 1;
+            }
+            (reference, streamed) => panic!("{reference:?}\n{streamed:?}\n{}", escaped()),
+        }
+    }
+    assert!(accepted > 200 && rejected > 2000, "{accepted} accepted, {rejected} rejected");
 }
 
 // ---------------------------------------------------------------------------------------------

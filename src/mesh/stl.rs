@@ -15,6 +15,7 @@
 //! ASCII: keywords are matched case-insensitively; a file may hold several `solid ... endsolid`
 //! blocks; `facet normal nx ny nz` may omit the normal; an `outer loop` of more than three
 //! vertices is accepted as a polygon and triangulated by [`crate::polygon::triangulate_face`].
+//! Lines end at LF only (a CR before it is whitespace).
 //!
 //! **Welding.** STL stores every facet's corners separately, with a per-facet normal. The
 //! [`Mesh`] produced here welds them: corners at bit-identical positions (after folding `-0.0`
@@ -26,63 +27,253 @@
 //! crease angle, not from unwelded corners. Triangles keep the file's order and winding;
 //! degenerate facets are kept (setup rejects zero-area triangles).
 //!
-//! Binary errors are [`Error::Parse`] with `line: 0` and a message starting `byte N:`.
+//! **Streaming.** [`read`] parses the file as it reads it, through a 64 KB buffer, welding as
+//! it goes, so the file is never in memory whole: the size that decides the format comes from
+//! the file's metadata, and the first bytes (the header, the first word, which may follow any
+//! amount of whitespace) are read ahead and then read again by the parser. `trirast info` on a
+//! binary STL of 1,000,000 triangles (50 MB; a mesh of 18 MB, welded through an index of as
+//! much) had peaked at 123 MB and now at 76 MB; on an ASCII one (228 MB), 279 MB and now 55 MB.
+//! [`parse`] reads a file already in memory, as the reader did before: it is the reference the
+//! streamed reader ([`parse_streamed`] on bytes) is tested against. The two share the ASCII
+//! grammar, the decoding of a binary facet and the welding; each has its own format detection,
+//! line splitting and binary framing.
+//!
+//! Binary errors are [`Error::Parse`] with `line: 0` and a message starting `byte N:`. The
+//! vertex and triangle arrays grow fallibly: memory running out is [`Error::OutOfMemory`].
 
 use std::collections::HashMap;
+use std::io::{BufRead, BufReader, Read, Seek};
 use std::path::Path;
 
 use super::Mesh;
 use crate::error::Error;
 
-/// Reads an STL file (ASCII or binary) as a welded [`Mesh`].
+/// Bytes read from a file at a time.
+const READ_BUFFER: usize = 1 << 16;
+
+/// The first bytes format detection looks at: the triangle count at byte 80, and the bytes
+/// that tell a binary file with a `solid` header from an ASCII one ([`looks_binary`]).
+const HEAD: usize = 512;
+
+/// Bytes of a binary facet: normal, three vertices (12 `f32`), attribute byte count (`u16`).
+const FACET: usize = 50;
+
+/// Reads an STL file (ASCII or binary) as a welded [`Mesh`], parsing it as it is read (see
+/// the module documentation). A path that is not a regular file is refused by
+/// [`crate::input::open`].
 pub fn read(path: &Path) -> Result<Mesh, Error> {
-    let bytes = crate::input::read(path)?;
-    parse(&bytes, path)
+    let file = crate::input::open(path)?;
+    let size = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    read_from(BufReader::with_capacity(READ_BUFFER, file), size, path)
 }
 
-/// Parses the contents of an STL file; `path` is only used to name the file in errors.
+/// Parses the contents of an STL file as [`read`] reads a file (through the same buffered
+/// reader, over `bytes`); `path` is only used to name the file in errors. Gives what [`parse`]
+/// gives.
+pub fn parse_streamed(bytes: &[u8], path: &Path) -> Result<Mesh, Error> {
+    let reader = BufReader::with_capacity(READ_BUFFER, std::io::Cursor::new(bytes));
+    read_from(reader, bytes.len() as u64, path)
+}
+
+/// Parses the contents of an STL file, all in memory; `path` is only used to name the file in
+/// errors. The reference [`read`] is tested against.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, Error> {
-    let fail = |at: At, message: String| match at {
-        At::Line(line) => Error::Parse { path: path.to_path_buf(), line, message },
-        At::Byte(offset) => Error::Parse {
-            path: path.to_path_buf(),
-            line: 0,
-            message: format!("byte {offset}: {message}"),
-        },
+    let len = bytes.len() as u64;
+    let head = &bytes[..bytes.len().min(HEAD)];
+    let solid = first_word(bytes).eq_ignore_ascii_case(b"solid");
+    let mesh = match format(head, len, solid) {
+        Ok(Format::Ascii) => {
+            parse_ascii(&mut SliceLines::new(bytes)).map_err(|f| ascii_failed(f, head, len))
+        }
+        Ok(Format::Binary { count }) => parse_binary(&bytes[84..], count),
+        Err(fail) => Err(fail),
     };
-    let binary_size = binary_size(bytes);
-    let starts_with_solid = first_word(bytes).eq_ignore_ascii_case(b"solid");
-    if starts_with_solid && binary_size != Some(bytes.len() as u64) {
-        return parse_ascii(bytes).map_err(|(line, message)| {
-            // A binary file whose header starts with `solid` but whose size is wrong: the
-            // size is the more useful complaint.
-            if looks_binary(bytes)
-                && let Err((at, message)) = check_binary_size(bytes)
-            {
-                return fail(
-                    at,
-                    format!("{message} (it starts with `solid` but is not ASCII STL either)"),
-                );
-            }
-            fail(At::Line(line), message)
-        });
-    }
-    parse_binary(bytes).map_err(|(at, message)| fail(at, message))
+    mesh.map_err(|f| f.at(path))
 }
 
+/// [`read`] and [`parse_streamed`]: parses the file `reader` reads, whose size is `size` (a
+/// hint: see [`detect`]), naming `path` in errors.
+fn read_from<R: Read + Seek>(
+    mut reader: BufReader<R>,
+    size: u64,
+    path: &Path,
+) -> Result<Mesh, Error> {
+    let (head, solid, len) = detect(&mut reader, size).map_err(|e| Error::io(path, e))?;
+    let mesh = match format(&head, len, solid) {
+        Ok(Format::Ascii) => {
+            parse_ascii(&mut StreamLines::new(reader)).map_err(|f| ascii_failed(f, &head, len))
+        }
+        Ok(Format::Binary { count }) => read_binary(&mut reader, count, len),
+        Err(fail) => Err(fail),
+    };
+    mesh.map_err(|f| f.at(path))
+}
+
+/// Reads the start of the file: returns its first [`HEAD`] bytes (fewer in a shorter file),
+/// whether its first word is `solid`, and its length, and leaves `reader` where it started.
+///
+/// The length is `size` (the file's metadata), except where what is read shows it wrong: a
+/// file that ends within the bytes read has their length, and one that goes on past `size`
+/// (files under /proc report 0) is read to the end to count it.
+fn detect<R: Read + Seek>(
+    reader: &mut BufReader<R>,
+    size: u64,
+) -> std::io::Result<(Vec<u8>, bool, u64)> {
+    let mut head = Vec::with_capacity(HEAD);
+    let mut word = FirstWord::default();
+    let mut read = 0u64;
+    let mut ended = false;
+    while head.len() < HEAD || !word.done {
+        let buffer = reader.fill_buf()?;
+        if buffer.is_empty() {
+            ended = true;
+            break;
+        }
+        let mut used = 0;
+        for &b in buffer {
+            if head.len() == HEAD && word.done {
+                break;
+            }
+            if head.len() < HEAD {
+                head.push(b);
+            }
+            word.push(b);
+            used += 1;
+        }
+        reader.consume(used);
+        read += used as u64;
+    }
+    let len = if ended {
+        read
+    } else if read > size {
+        loop {
+            let n = reader.fill_buf()?.len();
+            if n == 0 {
+                break read;
+            }
+            reader.consume(n);
+            read += n as u64;
+        }
+    } else {
+        size
+    };
+    match i64::try_from(read) {
+        // Within the buffer, as a rule: nothing is read again from the file.
+        Ok(back) => reader.seek_relative(-back)?,
+        Err(_) => reader.rewind()?,
+    }
+    Ok((head, word.is_solid(), len))
+}
+
+/// The first word of a file, read a byte at a time: after any whitespace, up to the next
+/// whitespace or six bytes, which is enough to tell whether it is `solid`.
+#[derive(Default)]
+struct FirstWord {
+    bytes: [u8; 6],
+    len: usize,
+    /// Whether the bytes so far decide it.
+    done: bool,
+}
+
+impl FirstWord {
+    fn push(&mut self, b: u8) {
+        if self.done {
+            return;
+        }
+        if b.is_ascii_whitespace() {
+            self.done = self.len > 0;
+            return;
+        }
+        self.bytes[self.len] = b;
+        self.len += 1;
+        self.done = self.len == self.bytes.len();
+    }
+
+    fn is_solid(&self) -> bool {
+        self.bytes[..self.len].eq_ignore_ascii_case(b"solid")
+    }
+}
+
+/// What stopped a read: a malformed file, the file failing, or the memory running out.
+#[derive(Debug)]
+enum Fail {
+    /// Where the file is malformed, and what was expected there.
+    At(At, String),
+    Io(std::io::Error),
+    Error(Error),
+}
+
+impl Fail {
+    /// The error, naming the file at `path`.
+    fn at(self, path: &Path) -> Error {
+        match self {
+            Self::At(At::Line(line), message) => {
+                Error::Parse { path: path.to_path_buf(), line, message }
+            }
+            Self::At(At::Byte(offset), message) => Error::Parse {
+                path: path.to_path_buf(),
+                line: 0,
+                message: format!("byte {offset}: {message}"),
+            },
+            Self::Io(e) => Error::io(path, e),
+            Self::Error(e) => e,
+        }
+    }
+}
+
+/// A 1-based line of an ASCII file, or a byte offset in a binary one.
 #[derive(Clone, Copy, Debug)]
 enum At {
     Line(usize),
     Byte(u64),
 }
 
+/// A malformed ASCII file at `line`.
+fn on_line(line: usize, message: String) -> Fail {
+    Fail::At(At::Line(line), message)
+}
+
+/// Which reader a file takes.
+enum Format {
+    Ascii,
+    /// Binary, of `count` triangles (the size agrees).
+    Binary {
+        count: u32,
+    },
+}
+
+/// The format of a file of `len` bytes that starts with `head` (its first [`HEAD`] bytes) and
+/// whose first word is `solid` or not; a binary file whose size disagrees with its count fails.
+fn format(head: &[u8], len: u64, solid: bool) -> Result<Format, Fail> {
+    if solid && binary_size(head) != Some(len) {
+        return Ok(Format::Ascii);
+    }
+    check_binary_size(head, len).map(|count| Format::Binary { count })
+}
+
+/// What a failed ASCII read reports: a binary file whose header starts with `solid` but whose
+/// size is wrong complains of the size, the more useful complaint.
+fn ascii_failed(fail: Fail, head: &[u8], len: u64) -> Fail {
+    if let Fail::At(At::Line(_), _) = fail
+        && looks_binary(head)
+        && let Err(Fail::At(at, message)) = check_binary_size(head, len)
+    {
+        return Fail::At(
+            at,
+            format!("{message} (it starts with `solid` but is not ASCII STL either)"),
+        );
+    }
+    fail
+}
+
 /// The size a binary STL with this header's triangle count has.
-fn binary_size(bytes: &[u8]) -> Option<u64> {
-    let count = bytes.get(80..84)?;
+fn binary_size(head: &[u8]) -> Option<u64> {
+    let count = head.get(80..84)?;
     let count = u32::from_le_bytes([count[0], count[1], count[2], count[3]]);
     Some(84 + 50 * u64::from(count))
 }
 
+/// The first whitespace-separated word of `bytes`.
 fn first_word(bytes: &[u8]) -> &[u8] {
     let start = bytes.iter().position(|b| !b.is_ascii_whitespace()).unwrap_or(bytes.len());
     let rest = &bytes[start..];
@@ -91,14 +282,15 @@ fn first_word(bytes: &[u8]) -> &[u8] {
 }
 
 /// Whether the start of the file has bytes no ASCII STL contains.
-fn looks_binary(bytes: &[u8]) -> bool {
-    bytes.iter().take(512).any(|&b| b == 0 || (b < 0x20 && !b.is_ascii_whitespace()) || b > 0x7e)
+fn looks_binary(head: &[u8]) -> bool {
+    head.iter().take(HEAD).any(|&b| b == 0 || (b < 0x20 && !b.is_ascii_whitespace()) || b > 0x7e)
 }
 
-fn check_binary_size(bytes: &[u8]) -> Result<u32, (At, String)> {
-    let len = bytes.len() as u64;
-    let Some(expected) = binary_size(bytes) else {
-        return Err((
+/// The triangle count of a binary file of `len` bytes starting with `head`, if its size is
+/// the one the count gives.
+fn check_binary_size(head: &[u8], len: u64) -> Result<u32, Fail> {
+    let Some(expected) = binary_size(head) else {
+        return Err(Fail::At(
             At::Byte(len),
             format!(
                 "file ends after {len} bytes: a binary STL starts with an 80-byte header and a \
@@ -108,7 +300,7 @@ fn check_binary_size(bytes: &[u8]) -> Result<u32, (At, String)> {
     };
     let count = (expected - 84) / 50;
     if expected != len {
-        return Err((
+        return Err(Fail::At(
             At::Byte(80),
             format!(
                 "the header declares {count} triangles, which take {expected} bytes (84 + 50 per \
@@ -119,7 +311,19 @@ fn check_binary_size(bytes: &[u8]) -> Result<u32, (At, String)> {
     Ok(count as u32)
 }
 
-/// Welds corners into shared vertices.
+/// Room for `n` more elements in `v` (amortised, as `push` grows), or [`Error::OutOfMemory`]
+/// naming `what`.
+fn reserve<'v, T>(v: &'v mut Vec<T>, n: usize, what: &str) -> Result<&'v mut Vec<T>, Fail> {
+    if v.try_reserve(n).is_err() {
+        // What `Vec` asks for: room for `n` more, at least twice its capacity.
+        let elements = (v.len() as u128 + n as u128).max(2 * v.capacity() as u128);
+        let bytes = elements * size_of::<T>() as u128;
+        return Err(Fail::Error(Error::OutOfMemory { what: what.to_string(), bytes }));
+    }
+    Ok(v)
+}
+
+/// Welds corners into shared vertices as the mesh is built.
 #[derive(Default)]
 struct Welder {
     mesh: Mesh,
@@ -127,24 +331,39 @@ struct Welder {
 }
 
 impl Welder {
-    fn vertex(&mut self, p: [f32; 3]) -> u32 {
+    /// A welder for a binary file of `count` triangles, their array allocated.
+    fn for_triangles(count: u32) -> Result<Self, Fail> {
+        let mut welder = Self::default();
+        let triangles = &mut welder.mesh.triangles;
+        crate::error::try_reserve(triangles, count as usize, "STL triangles")
+            .map_err(Fail::Error)?;
+        welder.mesh.polygon_count = count as usize;
+        Ok(welder)
+    }
+
+    /// The vertex at `p`, made if it is the first corner there.
+    fn vertex(&mut self, p: [f32; 3]) -> Result<u32, Fail> {
         // `+ 0.0` folds -0.0 into 0.0; positions are finite, so bits identify them.
         let p = p.map(|c| c + 0.0);
+        if self.index.try_reserve(1).is_err() {
+            // About what the map asks for: twice the buckets, an entry and a control byte each.
+            let entries = 2 * (self.index.len() as u128 + 1).max(self.index.capacity() as u128);
+            let bytes = entries * (size_of::<([u32; 3], u32)>() as u128 + 1);
+            let what = "STL vertex index".to_string();
+            return Err(Fail::Error(Error::OutOfMemory { what, bytes }));
+        }
         let next = self.mesh.positions.len() as u32;
-        let positions = &mut self.mesh.positions;
-        *self.index.entry(p.map(f32::to_bits)).or_insert_with(|| {
-            positions.push(p);
-            next
-        })
+        match self.index.entry(p.map(f32::to_bits)) {
+            std::collections::hash_map::Entry::Occupied(e) => Ok(*e.get()),
+            std::collections::hash_map::Entry::Vacant(e) => {
+                reserve(&mut self.mesh.positions, 1, "STL vertices")?.push(p);
+                Ok(*e.insert(next))
+            }
+        }
     }
-}
 
-fn parse_binary(bytes: &[u8]) -> Result<Mesh, (At, String)> {
-    let count = check_binary_size(bytes)?;
-    let mut welder = Welder::default();
-    welder.mesh.triangles.reserve(count as usize);
-    welder.mesh.polygon_count = count as usize;
-    for (i, facet) in bytes[84..].chunks_exact(50).enumerate() {
+    /// Binary facet `i` (its 50 bytes) as a triangle.
+    fn facet(&mut self, i: usize, facet: &[u8; FACET]) -> Result<(), Fail> {
         let mut triangle = [0; 3];
         for (k, v) in triangle.iter_mut().enumerate() {
             let mut p = [0.0f32; 3];
@@ -153,7 +372,7 @@ fn parse_binary(bytes: &[u8]) -> Result<Mesh, (At, String)> {
                 *out = f32::from_le_bytes([facet[at], facet[at + 1], facet[at + 2], facet[at + 3]]);
                 if !out.is_finite() {
                     let offset = 84 + 50 * i as u64 + at as u64;
-                    return Err((
+                    return Err(Fail::At(
                         At::Byte(offset),
                         format!(
                             "triangle {i}, vertex {k}: coordinate {} is {out}, expected a finite \
@@ -163,88 +382,185 @@ fn parse_binary(bytes: &[u8]) -> Result<Mesh, (At, String)> {
                     ));
                 }
             }
-            *v = welder.vertex(p);
+            *v = self.vertex(p)?;
         }
-        welder.mesh.triangles.push(triangle);
+        // Room for every triangle was reserved (`for_triangles`).
+        self.mesh.triangles.push(triangle);
+        Ok(())
+    }
+}
+
+/// The reference binary reader: the `count` facets of `body`, the file after its header and
+/// count (whose size [`check_binary_size`] checked).
+fn parse_binary(body: &[u8], count: u32) -> Result<Mesh, Fail> {
+    let mut welder = Welder::for_triangles(count)?;
+    for (i, facet) in body.as_chunks::<FACET>().0.iter().enumerate() {
+        welder.facet(i, facet)?;
     }
     Ok(welder.mesh)
 }
 
-/// An ASCII error: 1-based line and message.
-type Fail = (usize, String);
+/// The streamed binary reader: `count` facets from `reader` (at the start of a file of `len`
+/// bytes, whose size [`check_binary_size`] checked), a facet at a time. A file that ends
+/// before `len` bytes or goes on past them (it changed while being read) fails.
+fn read_binary(reader: &mut impl BufRead, count: u32, len: u64) -> Result<Mesh, Fail> {
+    let mut fill = |buffer: &mut [u8], at: u64| {
+        reader.read_exact(buffer).map_err(|e| match e.kind() {
+            std::io::ErrorKind::UnexpectedEof => Fail::At(
+                At::Byte(at),
+                format!("the file ends before its stated size of {len} bytes"),
+            ),
+            _ => Fail::Io(e),
+        })
+    };
+    fill(&mut [0; 84], 0)?;
+    let mut welder = Welder::for_triangles(count)?;
+    let mut facet = [0; FACET];
+    for i in 0..count as usize {
+        fill(&mut facet, 84 + 50 * i as u64)?;
+        welder.facet(i, &facet)?;
+    }
+    if !reader.fill_buf().map_err(Fail::Io)?.is_empty() {
+        let message = format!("the file goes on past its stated size of {len} bytes");
+        return Err(Fail::At(At::Byte(len), message));
+    }
+    Ok(welder.mesh)
+}
 
-/// A non-blank line: its number and its tokens.
-type Tokens<'a> = (usize, Vec<&'a str>);
+/// The non-blank lines of an ASCII STL.
+trait Lines {
+    /// The next non-blank line: its 1-based number and text, or at the end of the file the
+    /// number of the last line (counting the empty one after a final LF) and `None`. Fails on
+    /// a line that is not UTF-8.
+    fn line(&mut self) -> Result<(usize, Option<&str>), Fail>;
+}
 
-/// Lines of an ASCII STL as (1-based line, tokens), skipping blank lines.
-struct Lines<'a> {
-    inner: std::slice::Split<'a, u8, fn(&u8) -> bool>,
+/// The reference's lines: split from the file in memory.
+struct SliceLines<'a> {
+    pieces: std::slice::Split<'a, u8, fn(&u8) -> bool>,
     /// The last line number seen (for end-of-file errors).
     last: usize,
 }
 
-impl<'a> Lines<'a> {
+impl<'a> SliceLines<'a> {
     fn new(bytes: &'a [u8]) -> Self {
         let newline: fn(&u8) -> bool = |&b| b == b'\n';
-        Self { inner: bytes.split(newline), last: 0 }
+        Self { pieces: bytes.split(newline), last: 0 }
     }
+}
 
-    /// The next non-blank line, or `None` at the end of the file.
-    fn next(&mut self) -> Result<Option<Tokens<'a>>, Fail> {
-        for raw in self.inner.by_ref() {
+impl Lines for SliceLines<'_> {
+    fn line(&mut self) -> Result<(usize, Option<&str>), Fail> {
+        for raw in self.pieces.by_ref() {
             self.last += 1;
             let line = self.last;
-            let text =
-                std::str::from_utf8(raw).map_err(|_| (line, "not valid UTF-8".to_string()))?;
-            let tokens: Vec<&str> = text.split_ascii_whitespace().collect();
-            if !tokens.is_empty() {
-                return Ok(Some((line, tokens)));
+            let text = std::str::from_utf8(raw)
+                .map_err(|_| on_line(line, "not valid UTF-8".to_string()))?;
+            if text.split_ascii_whitespace().next().is_some() {
+                return Ok((line, Some(text)));
             }
         }
-        Ok(None)
+        Ok((self.last, None))
     }
+}
 
-    /// The next non-blank line, where `what` is expected.
-    fn require(&mut self, what: &str) -> Result<Tokens<'a>, Fail> {
-        self.next()?.ok_or_else(|| (self.last, format!("file ends where {what} was expected")))
+/// The streamed reader's lines: read one at a time from a buffered file.
+struct StreamLines<R> {
+    reader: R,
+    /// The current line, without its LF.
+    text: Vec<u8>,
+    /// The last line number read.
+    last: usize,
+    /// Whether the last line (the one after the last LF, perhaps empty) is read.
+    ended: bool,
+}
+
+impl<R: BufRead> StreamLines<R> {
+    fn new(reader: R) -> Self {
+        Self { reader, text: Vec::new(), last: 0, ended: false }
     }
+}
 
-    /// The next line, which must start with `keyword`.
-    fn expect(&mut self, keyword: &str, what: &str) -> Result<Tokens<'a>, Fail> {
-        let (line, tokens) = self.require(what)?;
-        if !tokens[0].eq_ignore_ascii_case(keyword) {
-            return Err((line, format!("expected {what}, found `{}`", tokens.join(" "))));
+impl<R: BufRead> Lines for StreamLines<R> {
+    fn line(&mut self) -> Result<(usize, Option<&str>), Fail> {
+        loop {
+            if self.ended {
+                return Ok((self.last, None));
+            }
+            self.text.clear();
+            self.reader.read_until(b'\n', &mut self.text).map_err(Fail::Io)?;
+            self.last += 1;
+            if self.text.last() == Some(&b'\n') {
+                self.text.pop();
+            } else {
+                self.ended = true;
+            }
+            // A blank line is ASCII, hence UTF-8: only the others need checking.
+            if !self.text.iter().all(u8::is_ascii_whitespace) {
+                break;
+            }
         }
-        Ok((line, tokens))
+        let line = self.last;
+        let text = std::str::from_utf8(&self.text)
+            .map_err(|_| on_line(line, "not valid UTF-8".to_string()))?;
+        Ok((line, Some(text)))
     }
+}
+
+/// The next non-blank line's number and tokens, or the last line's number and `None` at the
+/// end of the file.
+fn next_tokens(lines: &mut impl Lines) -> Result<(usize, Option<Vec<&str>>), Fail> {
+    let (line, text) = lines.line()?;
+    Ok((line, text.map(|t| t.split_ascii_whitespace().collect())))
+}
+
+/// The next non-blank line, where `what` is expected.
+fn require<'l>(lines: &'l mut impl Lines, what: &str) -> Result<(usize, Vec<&'l str>), Fail> {
+    match next_tokens(lines)? {
+        (line, Some(tokens)) => Ok((line, tokens)),
+        (line, None) => Err(on_line(line, format!("file ends where {what} was expected"))),
+    }
+}
+
+/// The next line, which must start with `keyword`.
+fn expect<'l>(
+    lines: &'l mut impl Lines,
+    keyword: &str,
+    what: &str,
+) -> Result<(usize, Vec<&'l str>), Fail> {
+    let (line, tokens) = require(lines, what)?;
+    if !tokens[0].eq_ignore_ascii_case(keyword) {
+        return Err(on_line(line, format!("expected {what}, found `{}`", tokens.join(" "))));
+    }
+    Ok((line, tokens))
 }
 
 fn numbers(tokens: &[&str], line: usize, what: &str) -> Result<[f32; 3], Fail> {
     if tokens.len() != 3 {
-        return Err((line, format!("`{what}` takes 3 numbers, found {}", tokens.len())));
+        return Err(on_line(line, format!("`{what}` takes 3 numbers, found {}", tokens.len())));
     }
     let mut out = [0.0; 3];
     for (o, t) in out.iter_mut().zip(tokens) {
-        *o = t.parse().map_err(|_| (line, format!("expected a number, found `{t}`")))?;
+        *o = t.parse().map_err(|_| on_line(line, format!("expected a number, found `{t}`")))?;
     }
     Ok(out)
 }
 
-fn parse_ascii(bytes: &[u8]) -> Result<Mesh, Fail> {
-    let mut lines = Lines::new(bytes);
+/// The ASCII grammar, on the lines of either reader.
+fn parse_ascii(lines: &mut impl Lines) -> Result<Mesh, Fail> {
     let mut welder = Welder::default();
     let mut corners = Vec::new();
     let mut points = Vec::new();
-    lines.expect("solid", "`solid`")?;
+    expect(lines, "solid", "`solid`")?;
     loop {
-        let (line, tokens) = lines.require("`facet` or `endsolid`")?;
+        let (line, tokens) = require(lines, "`facet` or `endsolid`")?;
         let keyword = tokens[0];
         if keyword.eq_ignore_ascii_case("endsolid") {
-            match lines.next()? {
-                None => break,
-                Some((_, t)) if t[0].eq_ignore_ascii_case("solid") => continue,
-                Some((line, t)) => {
-                    return Err((
+            match next_tokens(lines)? {
+                (_, None) => break,
+                (_, Some(t)) if t[0].eq_ignore_ascii_case("solid") => continue,
+                (line, Some(t)) => {
+                    return Err(on_line(
                         line,
                         format!("expected `solid` or the end of the file, found `{}`", t.join(" ")),
                     ));
@@ -252,7 +568,7 @@ fn parse_ascii(bytes: &[u8]) -> Result<Mesh, Fail> {
             }
         }
         if !keyword.eq_ignore_ascii_case("facet") {
-            return Err((
+            return Err(on_line(
                 line,
                 format!(
                     "expected `facet normal nx ny nz` or `endsolid`, found `{}`",
@@ -262,7 +578,7 @@ fn parse_ascii(bytes: &[u8]) -> Result<Mesh, Fail> {
         }
         if tokens.len() > 1 {
             if !tokens[1].eq_ignore_ascii_case("normal") {
-                return Err((
+                return Err(on_line(
                     line,
                     format!("expected `facet normal nx ny nz`, found `{}`", tokens.join(" ")),
                 ));
@@ -270,17 +586,20 @@ fn parse_ascii(bytes: &[u8]) -> Result<Mesh, Fail> {
             // The normal is checked for syntax but not kept (see the module documentation).
             numbers(&tokens[2..], line, "facet normal")?;
         }
-        let (line, tokens) = lines.expect("outer", "`outer loop`")?;
+        let (line, tokens) = expect(lines, "outer", "`outer loop`")?;
         if tokens.len() != 2 || !tokens[1].eq_ignore_ascii_case("loop") {
-            return Err((line, format!("expected `outer loop`, found `{}`", tokens.join(" "))));
+            return Err(on_line(
+                line,
+                format!("expected `outer loop`, found `{}`", tokens.join(" ")),
+            ));
         }
         corners.clear();
         points.clear();
         loop {
-            let (line, tokens) = lines.require("`vertex x y z` or `endloop`")?;
+            let (line, tokens) = require(lines, "`vertex x y z` or `endloop`")?;
             if tokens[0].eq_ignore_ascii_case("endloop") {
                 if points.len() < 3 {
-                    return Err((
+                    return Err(on_line(
                         line,
                         format!("a facet needs 3 or more vertices, found {}", points.len()),
                     ));
@@ -288,28 +607,29 @@ fn parse_ascii(bytes: &[u8]) -> Result<Mesh, Fail> {
                 break;
             }
             if !tokens[0].eq_ignore_ascii_case("vertex") {
-                return Err((
+                return Err(on_line(
                     line,
                     format!("expected `vertex x y z` or `endloop`, found `{}`", tokens.join(" ")),
                 ));
             }
             let p = numbers(&tokens[1..], line, "vertex")?;
             if !p.iter().all(|c| c.is_finite()) {
-                return Err((line, format!("vertex {p:?} is not finite")));
+                return Err(on_line(line, format!("vertex {p:?} is not finite")));
             }
             points.push(p);
-            corners.push(welder.vertex(p));
+            corners.push(welder.vertex(p)?);
         }
-        lines.expect("endfacet", "`endfacet`")?;
+        expect(lines, "endfacet", "`endfacet`")?;
         welder.mesh.polygon_count += 1;
-        if corners.len() == 3 {
-            welder.mesh.triangles.push([corners[0], corners[1], corners[2]]);
+        let triangles = reserve(&mut welder.mesh.triangles, 1, "STL triangles")?;
+        if let [a, b, c] = corners[..] {
+            triangles.push([a, b, c]);
         } else {
             for t in crate::polygon::triangulate_face(&points) {
                 if let (Some(&a), Some(&b), Some(&c)) =
                     (corners.get(t[0]), corners.get(t[1]), corners.get(t[2]))
                 {
-                    welder.mesh.triangles.push([a, b, c]);
+                    reserve(triangles, 1, "STL triangles")?.push([a, b, c]);
                 }
             }
         }
@@ -319,6 +639,11 @@ fn parse_ascii(bytes: &[u8]) -> Result<Mesh, Fail> {
 
 #[cfg(test)]
 mod tests {
+    use std::io::Cursor;
+
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
+
     use super::*;
 
     const CUBE_CORNER: &str = "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\n\
@@ -326,9 +651,35 @@ mod tests {
         facet normal 0 0 1\nouter loop\nvertex 1 0 0\nvertex 1 1 0\nvertex 0 1 -0\nendloop\n\
         endfacet\nendsolid t\n";
 
+    /// `bytes` through the streamed reader, with a buffer of `capacity` bytes and `size` for
+    /// the size the file's metadata gives.
+    fn streamed(bytes: &[u8], capacity: usize, size: u64) -> Result<Mesh, Error> {
+        let reader = BufReader::with_capacity(capacity, Cursor::new(bytes));
+        read_from(reader, size, Path::new("t.stl"))
+    }
+
+    /// Both readers on `bytes`, which must agree (with several buffer sizes); the outcome.
+    fn both(bytes: &[u8]) -> Result<Mesh, Error> {
+        let reference = parse(bytes, Path::new("t.stl"));
+        for capacity in [1, 7, 100, READ_BUFFER] {
+            let streamed = streamed(bytes, capacity, bytes.len() as u64);
+            assert!(same(&reference, &streamed), "{reference:?}\n{streamed:?}");
+        }
+        reference
+    }
+
+    /// The same mesh, or the same error.
+    fn same(a: &Result<Mesh, Error>, b: &Result<Mesh, Error>) -> bool {
+        match (a, b) {
+            (Ok(a), Ok(b)) => a == b,
+            (Err(a), Err(b)) => format!("{a:?}") == format!("{b:?}"),
+            _ => false,
+        }
+    }
+
     #[test]
     fn ascii_welds_shared_corners() {
-        let m = parse(CUBE_CORNER.as_bytes(), Path::new("t.stl")).unwrap();
+        let m = both(CUBE_CORNER.as_bytes()).unwrap();
         assert_eq!(m.positions.len(), 4);
         assert_eq!(m.triangles, vec![[0, 1, 2], [1, 3, 2]]);
         assert_eq!(m.polygon_count, 2);
@@ -346,10 +697,10 @@ mod tests {
             }
         }
         b.extend_from_slice(&[0, 0]);
-        let m = parse(&b, Path::new("t.stl")).unwrap();
+        let m = both(&b).unwrap();
         assert_eq!(m.triangles.len(), 1);
         b.push(0);
-        let e = parse(&b, Path::new("t.stl")).unwrap_err().to_string();
+        let e = both(&b).unwrap_err().to_string();
         assert!(e.starts_with("t.stl: byte 80: the header declares 1 triangles"), "{e}");
         assert!(e.contains("not ASCII STL either"), "{e}");
     }
@@ -363,6 +714,7 @@ mod tests {
                 "5: a facet needs 3",
             ),
             ("solid\nfacet normal 0 0 1\nouter loop\n\n", "5: file ends where `vertex"),
+            ("solid\nfacet normal 0 0 1\nouter loop\n\n  ", "5: file ends where `vertex"),
             (
                 "solid\nfacet normal 0 0 1\nouter loop\nvertex 0 0 q\n",
                 "4: expected a number, found `q`",
@@ -376,11 +728,273 @@ mod tests {
             ("solid x\nloop\n", "2: expected `facet normal"),
         ];
         for (src, needle) in cases {
-            let e = parse(src.as_bytes(), Path::new("t.stl")).unwrap_err().to_string();
+            let e = both(src.as_bytes()).unwrap_err().to_string();
             assert!(
                 e.starts_with(&format!("t.stl:{needle}")),
                 "{e:?} should start with {needle:?}"
             );
         }
+        // A byte no ASCII STL has, in the first 512: the complaint is the binary size.
+        let e = both(b"\n\n  solid x\n\xff\n").unwrap_err().to_string();
+        assert!(e.starts_with("t.stl: byte 14: file ends after 14 bytes"), "{e}");
+        assert!(e.ends_with("(it starts with `solid` but is not ASCII STL either)"), "{e}");
+        let e = both(&[b"solid x", &[b'\n'; 600][..], b"\xff\n"].concat()).unwrap_err();
+        assert_eq!(e.to_string(), "t.stl:601: not valid UTF-8");
+    }
+
+    /// Whitespace before the first word, past the buffer and the head: the first word is
+    /// still found, and the lines are numbered from the start.
+    #[test]
+    fn first_word_after_long_whitespace() {
+        let pad = " \n\t\r".repeat(300);
+        let ascii = format!("{pad}{CUBE_CORNER}");
+        let m = both(ascii.as_bytes()).unwrap();
+        assert_eq!(m.triangles.len(), 2);
+        let e = both(format!("{pad}solid\nfacet\nvertex\n").as_bytes()).unwrap_err();
+        assert!(e.to_string().starts_with("t.stl:303: expected `outer loop`"), "{e}");
+        // Not `solid`: binary, counted from the whitespace at byte 80.
+        let e = both(format!("{pad}solidx").as_bytes()).unwrap_err();
+        assert!(e.to_string().starts_with("t.stl: byte 80: the header declares"), "{e}");
+        for empty in ["", " ", "\n\n"] {
+            let e = both(empty.as_bytes()).unwrap_err().to_string();
+            let len = empty.len();
+            assert!(e.starts_with(&format!("t.stl: byte {len}: file ends after {len} bytes")));
+        }
+    }
+
+    /// The size the metadata gives is corrected by what is read: a file that ends within the
+    /// head has the length read (a small file under /sys), one that goes on past the size is
+    /// counted (files under /proc report 0). A larger binary file that is shorter or longer
+    /// than its stated size fails at the byte where that shows.
+    #[test]
+    fn wrong_sizes() {
+        let mut rng = SmallRng::seed_from_u64(3);
+        for _ in 0..300 {
+            let bytes = random_stl(&mut rng);
+            let reference = parse(&bytes, Path::new("t.stl"));
+            let capacity = rng.random_range(1..1000);
+            assert!(same(&reference, &streamed(&bytes, capacity, 0)));
+            if bytes.len() < HEAD {
+                let size = rng.random_range(0..100_000);
+                assert!(same(&reference, &streamed(&bytes, capacity, size)));
+            }
+        }
+        let header = |count: u32| {
+            let mut b = b"solid but binary".to_vec();
+            b.resize(80, b' ');
+            b.extend_from_slice(&count.to_le_bytes());
+            b
+        };
+        let mut b = header(20);
+        b.resize(84 + 50 * 20, 0);
+        let len = b.len() as u64;
+        assert_eq!(both(&b).unwrap().triangles.len(), 20);
+        b.truncate(84 + 50 * 15 + 7);
+        let e = streamed(&b, 64, len).unwrap_err().to_string();
+        assert_eq!(e, "t.stl: byte 834: the file ends before its stated size of 1084 bytes");
+        b.resize(len as usize + 3, 0);
+        let e = streamed(&b, 64, len).unwrap_err().to_string();
+        assert_eq!(e, "t.stl: byte 1084: the file goes on past its stated size of 1084 bytes");
+    }
+
+    /// A random number as an ASCII STL writes it: mostly few distinct values (so corners
+    /// weld, `-0` among them), sometimes long, exponent, non-finite or not a number.
+    fn number(rng: &mut SmallRng) -> String {
+        match rng.random_range(0..400) {
+            0 => "nan".into(),
+            1 => "-inf".into(),
+            2 => "1e39".into(),
+            3 => "x".into(),
+            4 => format!("{:e}", rng.random::<f32>()),
+            5..=59 => format!("{}", rng.random_range(-1.0f32..1.0)),
+            60..=99 => "-0".into(),
+            _ => format!("{}", rng.random_range(-2..3)),
+        }
+    }
+
+    /// A keyword in a random case.
+    fn keyword(rng: &mut SmallRng, k: &str) -> String {
+        match rng.random_range(0..6) {
+            0 => k.to_uppercase(),
+            1 => k.chars().map(|c| if rng.random() { c.to_ascii_uppercase() } else { c }).collect(),
+            _ => k.to_string(),
+        }
+    }
+
+    /// A random ASCII STL, usually well formed: several solids, facets with and without a
+    /// normal, polygons, blank and indented lines, CRLF, leading whitespace, no final LF.
+    fn random_ascii(rng: &mut SmallRng) -> Vec<u8> {
+        let mut s = String::new();
+        if rng.random_bool(0.1) {
+            s += &" \n".repeat(rng.random_range(0..400));
+        }
+        let eol = if rng.random_bool(0.2) { "\r\n" } else { "\n" };
+        for _ in 0..rng.random_range(1..3) {
+            s += &format!("{} name{eol}", keyword(rng, "solid"));
+            for _ in 0..rng.random_range(0..10) {
+                s += &keyword(rng, "facet");
+                if rng.random_bool(0.8) {
+                    s += &format!(" {} 0 0 1", keyword(rng, "normal"));
+                }
+                s += &format!("{eol}  {} {}{eol}", keyword(rng, "outer"), keyword(rng, "loop"));
+                let n = [3, 3, 3, 3, 3, 4, 5, 6, 2][rng.random_range(0..9)];
+                for _ in 0..n {
+                    let [x, y, z] = [(); 3].map(|()| number(rng));
+                    s += &format!("    {} {x} {y} {z}{eol}", keyword(rng, "vertex"));
+                }
+                s +=
+                    &format!("  {}{eol}{}{eol}", keyword(rng, "endloop"), keyword(rng, "endfacet"));
+                if rng.random_bool(0.1) {
+                    s += &format!("{eol} \t{eol}");
+                }
+            }
+            s += &format!("{} name{eol}", keyword(rng, "endsolid"));
+        }
+        if rng.random_bool(0.2) {
+            s.truncate(s.trim_end().len());
+        }
+        s.into_bytes()
+    }
+
+    /// A random binary STL: a `solid` header or another, coordinates welding, the odd
+    /// non-finite one, a count that is sometimes wrong, sometimes cut short or lengthened.
+    fn random_binary(rng: &mut SmallRng) -> Vec<u8> {
+        let mut b = match rng.random_range(0..3) {
+            0 => b"solid binary".to_vec(),
+            1 => (0..80).map(|_| rng.random()).collect(),
+            _ => Vec::new(),
+        };
+        b.resize(80, b' ');
+        let count = rng.random_range(0..30u32);
+        let declared = if rng.random_bool(0.1) { rng.random_range(0..40) } else { count };
+        b.extend_from_slice(&declared.to_le_bytes());
+        for _ in 0..count {
+            for k in 0..12 {
+                let c = match rng.random_range(0..200) {
+                    0 => f32::NAN,
+                    1 => f32::INFINITY,
+                    _ if k < 3 => rng.random(),
+                    _ => [0.0, -0.0, 1.0, 0.5, -2.0][rng.random_range(0..5)],
+                };
+                b.extend_from_slice(&c.to_le_bytes());
+            }
+            b.extend_from_slice(&[0, 0]);
+        }
+        match rng.random_range(0..10) {
+            0 => b.truncate(rng.random_range(0..=b.len())),
+            1 => b.extend((0..rng.random_range(1..60)).map(|_| rng.random::<u8>())),
+            _ => {}
+        }
+        b
+    }
+
+    fn random_stl(rng: &mut SmallRng) -> Vec<u8> {
+        if rng.random_bool(0.5) { random_ascii(rng) } else { random_binary(rng) }
+    }
+
+    /// A few random edits: flipped and replaced bytes, cuts, deletions, insertions of
+    /// keywords, numbers and line ends, a rewritten triangle count.
+    fn mutate(rng: &mut SmallRng, mut b: Vec<u8>) -> Vec<u8> {
+        const TOKENS: &[&[u8]] = &[
+            b"solid",
+            b"endsolid",
+            b"facet",
+            b"normal",
+            b"outer loop",
+            b"vertex",
+            b"endloop",
+            b"endfacet",
+            b"\n",
+            b"\r\n",
+            b" ",
+            b"nan",
+            b"1e39",
+            b"-0",
+            b"\xff",
+            b"\0",
+        ];
+        for _ in 0..rng.random_range(1..4) {
+            let len = b.len();
+            let at = rng.random_range(0..=len);
+            match rng.random_range(0..7) {
+                0 if at < len => b[at] ^= 1 << rng.random_range(0..8),
+                1 if at < len => b[at] = rng.random(),
+                2 => b.truncate(at),
+                3 => {
+                    let end = (at + rng.random_range(1..20)).min(len);
+                    b.drain(at..end);
+                }
+                4 => {
+                    let t = TOKENS[rng.random_range(0..TOKENS.len())];
+                    b.splice(at..at, t.iter().copied());
+                }
+                5 if len >= 84 => {
+                    let count = (len as u32).saturating_sub(84) / 50 + rng.random_range(0..2);
+                    b[80..84].copy_from_slice(&count.to_le_bytes());
+                }
+                _ => {}
+            }
+        }
+        b
+    }
+
+    /// The streamed reader gives what the reference gives, mesh or error, on random and
+    /// mutated files, through buffers of 1 byte to 64 KB.
+    #[test]
+    fn streamed_is_the_reference() {
+        let mut rng = SmallRng::seed_from_u64(11);
+        let mut seen = HashMap::new();
+        for round in 0..6000 {
+            let mut bytes = random_stl(&mut rng);
+            if round % 2 == 1 {
+                bytes = mutate(&mut rng, bytes);
+            }
+            let reference = parse(&bytes, Path::new("t.stl"));
+            let capacity = [1, 2, 3, 50, 64, 511, 4096, READ_BUFFER][rng.random_range(0..8)];
+            let streamed = streamed(&bytes, capacity, bytes.len() as u64);
+            assert!(
+                same(&reference, &streamed),
+                "{reference:?}\n{streamed:?}\n{:?}",
+                bytes.escape_ascii().to_string()
+            );
+            let what = match &reference {
+                Ok(m) if m.triangles.len() > m.polygon_count => "polygons",
+                Ok(m) if m.positions.len() < 3 * m.triangles.len() => "welded",
+                Ok(_) => "accepted",
+                Err(Error::Parse { line: 0, message, .. }) if message.contains("either") => {
+                    "solid header, wrong size"
+                }
+                Err(Error::Parse { line: 0, .. }) => "binary error",
+                Err(_) => "ASCII error",
+            };
+            *seen.entry(what).or_insert(0) += 1;
+        }
+        for what in [
+            "polygons",
+            "welded",
+            "accepted",
+            "solid header, wrong size",
+            "binary error",
+            "ASCII error",
+        ] {
+            assert!(seen.get(what).is_some_and(|&n| n > 50), "{seen:?}");
+        }
+    }
+
+    /// [`read`] from files on disk gives what [`parse`] gives on their bytes.
+    #[test]
+    fn read_from_disk_is_the_reference() {
+        let dir = std::env::temp_dir().join(format!("trirast-stl-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut rng = SmallRng::seed_from_u64(5);
+        for i in 0..40 {
+            let bytes = random_stl(&mut rng);
+            let file = dir.join(format!("{i}.stl"));
+            std::fs::write(&file, &bytes).unwrap();
+            let reference = parse(&bytes, &file);
+            let read = read(&file);
+            assert!(same(&reference, &read), "{reference:?}\n{read:?}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
