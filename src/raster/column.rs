@@ -222,6 +222,44 @@ mod tests {
         pixels
     }
 
+    /// Triangles reaching to the ends of the fixed-point range (the guard band), mostly
+    /// slivers, seen through small clips on a 16384-pixel target: the bounds' numerators are
+    /// near their largest there, and the column walk still covers the reference's pixels.
+    #[test]
+    fn columns_of_triangles_across_the_whole_range() {
+        let mut rng = SmallRng::seed_from_u64(11);
+        let mut checked = 0;
+        for round in 0..4000 {
+            let mut v: [Vertex; 3] = std::array::from_fn(|_| {
+                let (x, y) =
+                    (rng.random_range(-32767.0..32767.0), rng.random_range(-32767.0..32767.0));
+                Vertex::new(x, y, 0.5, [0; 4])
+            });
+            if round % 2 == 0 {
+                // A sliver: the third vertex within a pixel of the first edge.
+                let t = rng.random_range(0.0..1.0);
+                v[2].x = v[0].x + t * (v[1].x - v[0].x) + rng.random_range(-1.0..1.0);
+                v[2].y = v[0].y + t * (v[1].y - v[0].y) + rng.random_range(-1.0..1.0);
+            }
+            let Ok(tri) = TriangleSetup::new(&v, CullMode::None) else { continue };
+            // A clip the triangle crosses, where it does on the target.
+            let Some(on) = tri.bounds.intersect(&PixelRect::of_target(16384, 16384)) else {
+                continue;
+            };
+            let (x0, y0) = (rng.random_range(on.x0..=on.x1), rng.random_range(on.y0..=on.y1));
+            let clip = PixelRect { x0, y0, x1: x0 + rng.random_range(0..40), y1: y0 + 60 };
+            let offset = [rng.random_range(-127..128), rng.random_range(-127..128)];
+            let reference = reference_pixels(&tri, &clip, offset);
+            checked += usize::from(!reference.is_empty());
+            assert_eq!(
+                column_pixels(&tri, &clip, offset),
+                reference,
+                "{v:?} clip {clip:?} offset {offset:?}"
+            );
+        }
+        assert!(checked > 200, "only {checked} clips held pixels");
+    }
+
     /// A sliver from the top rim of a cylinder's inside seen from above: its top edge, 20/256
     /// of a pixel long, lies just above the first row's samples.
     #[test]
