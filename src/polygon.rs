@@ -53,10 +53,11 @@ const EARCUT_I32_HALF_RANGE: i64 = 1 << 19;
 ///
 /// A twisted (non-planar) face can project onto a degenerate ring (two corners on one point,
 /// the ring touching or crossing itself), of which earcut leaves corners out: a hole in the
-/// mesh. So a twisted face keeps earcut's triangles only if there are `n - 2` of them (every
-/// corner used); otherwise it is projected onto the plane perpendicular to its Newell normal,
-/// then onto the other coordinate planes, and takes the first projection earcut gives `n - 2`
-/// triangles for, the fan if none does. A planar face (up to rounding) projects one-to-one and
+/// mesh. So a twisted face keeps earcut's triangles only if there are `n - 2` of them, `n`
+/// its corners but those equal to the one before them (which earcut drops, leaving nothing
+/// out); otherwise it is projected onto the plane perpendicular to its Newell normal, then
+/// onto the other coordinate planes, and takes the first projection earcut gives `n - 2`
+/// triangles for, the fan over those `n` corners if none does. A planar face (up to rounding) projects one-to-one and
 /// keeps earcut's answer, which leaves out only corners repeated or on the line through their
 /// neighbours.
 ///
@@ -88,9 +89,12 @@ pub fn triangulate_face(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
     if is_strictly_convex(&ring) {
         return fan(n);
     }
+    // Earcut drops a corner equal to the one before it, which leaves nothing out: the
+    // triangles a whole triangulation has are those of the face without such repeats.
+    let whole = (n - repeated_corners(points)).saturating_sub(2);
     let simple = most_corners_at_one_point(&ring, &[]) <= MAX_CORNERS_AT_ONE_POINT;
     let tris = if simple { earcut_f64(&ring, &[], ccw) } else { Vec::new() };
-    if tris.len() == n - 2 || is_planar(points, normal) {
+    if tris.len() == whole || is_planar(points, normal) {
         // Earcut gives up on some self-intersecting faces; a fan still draws something sensible.
         return if tris.is_empty() { fan(n) } else { tris };
     }
@@ -102,12 +106,26 @@ pub fn triangulate_face(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
         }
         if most_corners_at_one_point(&ring, &[]) <= MAX_CORNERS_AT_ONE_POINT {
             let tris = earcut_f64(&ring, &[], ccw);
-            if tris.len() == n - 2 {
+            if tris.len() == whole {
                 return tris;
             }
         }
     }
-    fan(n)
+    // The fan over the corners that are not repeats (a repeat's triangle has no area).
+    let kept: Vec<usize> = (0..n).filter(|&i| !repeats(points, i)).collect();
+    fan(kept.len()).into_iter().map(|t| t.map(|i| kept[i])).collect()
+}
+
+/// Corners equal to the corner before them (round the ring).
+fn repeated_corners(points: &[[f32; 3]]) -> usize {
+    (0..points.len()).filter(|&i| repeats(points, i)).count()
+}
+
+/// Whether corner `i` equals the corner before it (round the ring), `-0.0` and `0.0` being
+/// one.
+fn repeats(points: &[[f32; 3]], i: usize) -> bool {
+    let key = |p: &[f32; 3]| p.map(|c| (c + 0.0).to_bits());
+    key(&points[i]) == key(&points[(i + points.len() - 1) % points.len()])
 }
 
 /// Whether every corner lies on the plane through the first perpendicular to `normal`, up to

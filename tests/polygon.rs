@@ -708,14 +708,26 @@ fn stepped_chevron_is_not_fanned() {
     let face =
         [[0.0, 0.0, 0.0], [2.0, 1.0, 0.0], [2.0, 1.0, 1.0], [4.0, 0.0, 0.0], [2.0, 3.0, 0.0]];
     assert!(projection_merges_corners(&face));
-    let tris = triangulate_face(&face);
-    assert_n_minus_2(&tris, 5, &face);
+    assert_unfolded(&face, &triangulate_face(&face));
+    // With a corner repeated next to itself (which earcut drops), the same.
+    for at in 0..face.len() {
+        let mut repeated = face.to_vec();
+        repeated.insert(at, face[at]);
+        assert_unfolded(&repeated, &triangulate_face(&repeated));
+    }
+}
+
+/// Checks that `tris` are one triangle fewer than the face's distinct corners (a corner equal
+/// to the one before it not counted), none degenerate or facing against the face's normal.
+fn assert_unfolded(face: &[[f32; 3]], tris: &[[usize; 3]]) {
     let p: Vec<[i128; 3]> = face.iter().map(|v| v.map(|c| c as i128)).collect();
+    let distinct = (0..p.len()).filter(|&i| p[i] != p[(i + p.len() - 1) % p.len()]).count();
+    assert_eq!(tris.len(), distinct - 2, "{tris:?} for {face:?}");
     let n = newell3(&p);
-    for t in &tris {
+    for t in tris {
         let c = cross3(sub3(p[t[1]], p[t[0]]), sub3(p[t[2]], p[t[0]]));
         let dot: i128 = (0..3).map(|k| c[k] * n[k]).sum();
-        assert!(dot > 0, "{t:?} folds against the face's normal {n:?}: {tris:?}");
+        assert!(dot > 0, "{t:?} folds against the face's normal {n:?}: {tris:?} for {face:?}");
     }
 }
 
@@ -754,6 +766,43 @@ fn twisted_faces_give_n_minus_2_triangles() {
     }
     // The point of the exercise: many faces whose axis projection merges corners.
     assert!(merged[4..].iter().all(|&m| m > 100), "only {merged:?} merged projections");
+
+    // The same faces with a corner repeated next to itself: earcut drops the repeat, which
+    // leaves nothing out, so they keep earcut's triangles (the fan of a concave face folds).
+    for i in 0..3000 {
+        let n = 4 + i % 3;
+        let p: Vec<[i128; 3]> = loop {
+            let p: Vec<[i128; 3]> =
+                (0..n).map(|_| [(); 3].map(|_| rng.random_range(-2i128..=2))).collect();
+            let collinear = (0..n).any(|a| {
+                (0..a).any(|b| (0..b).any(|c| cross3(sub3(p[b], p[a]), sub3(p[c], p[a])) == [0; 3]))
+            });
+            let normal = cross3(sub3(p[1], p[0]), sub3(p[2], p[0]));
+            let planar =
+                p.iter().all(|&q| (0..3).map(|k| normal[k] * (q[k] - p[0][k])).sum::<i128>() == 0);
+            if !collinear && !planar && newell3(&p) != [0; 3] {
+                break p;
+            }
+        };
+        let mut face: Vec<[f32; 3]> = p.iter().map(|v| v.map(|c| c as f32)).collect();
+        let at = rng.random_range(0..n);
+        face.insert(at, face[at]);
+        let tris = triangulate_face(&face);
+        assert_eq!(tris.len(), n - 2, "{tris:?} for {face:?}");
+        // Each corner of the face once or as its repeat, each triangle's three corners apart.
+        let key = |i: usize| face[i].map(f32::to_bits);
+        for t in &tris {
+            assert!(key(t[0]) != key(t[1]) && key(t[1]) != key(t[2]) && key(t[0]) != key(t[2]));
+        }
+        let used: std::collections::BTreeSet<_> = tris.iter().flatten().map(|&i| key(i)).collect();
+        assert_eq!(used.len(), n, "{tris:?} leaves a corner of {face:?} out");
+        let q: Vec<[i128; 3]> = face.iter().map(|v| v.map(|c| c as i128)).collect();
+        let sum = tris.iter().fold([0; 3], |acc, t| {
+            let c = cross3(sub3(q[t[1]], q[t[0]]), sub3(q[t[2]], q[t[0]]));
+            [acc[0] + c[0], acc[1] + c[1], acc[2] + c[2]]
+        });
+        assert_eq!(sum, newell3(&p), "{tris:?} not bounded by {face:?}");
+    }
 
     // Random float corners, one made to differ from another in a single coordinate.
     for i in 0..3000 {
