@@ -55,7 +55,7 @@ pub enum Algorithm {
     /// row (the fast path for narrow triangles; as spans, boxes wider than [`edge::NARROW`]
     /// pixels fall back to [`Algorithm::EdgeFunctions`]). The tiled backend's choice for
     /// narrow and for tall boxes: `shade::shade_triangle` walks a tall box by columns
-    /// ([`column`](crate::raster::column)) when no SIMD span kernel takes it, and other wide
+    /// ([`column`](mod@column)) when no SIMD span kernel takes it, and other wide
     /// boxes by scanline.
     EdgeMasks,
 }
