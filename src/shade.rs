@@ -712,9 +712,12 @@ fn sample_columns<S: FragmentStage>(
     mut pixels: SamplePixels<'_, S>,
 ) -> u64 {
     let (setup, n, samples) = (pixels.setup, pixels.n, target.samples());
-    let mut walks: [Option<ColumnWalk>; MAX_SAMPLES] = std::array::from_fn(|s| {
-        (s < n).then(|| ColumnWalk::new(setup, clip, samples.offset(s))).flatten()
-    });
+    // Filled in place: built by `array::from_fn`, the walks of all eight samples (1.5 KB)
+    // were copied out on every call.
+    let mut walks: [Option<ColumnWalk>; MAX_SAMPLES] = [const { None }; MAX_SAMPLES];
+    for (s, walk) in walks.iter_mut().enumerate().take(n) {
+        *walk = ColumnWalk::new(setup, clip, samples.offset(s));
+    }
     let columns = walks.iter().flatten().map(ColumnWalk::columns);
     let Some(all) = columns.reduce(|a, b| *a.start().min(b.start())..=*a.end().max(b.end())) else {
         return 0;
