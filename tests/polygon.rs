@@ -693,11 +693,7 @@ fn twisted_quad_gives_two_triangles() {
     let tris = triangulate_face(&quad);
     assert_n_minus_2(&tris, 4, &quad);
     let p: Vec<[i128; 3]> = quad.iter().map(|v| v.map(|c| c as i128)).collect();
-    let sum = tris.iter().fold([0; 3], |acc, t| {
-        let c = cross3(sub3(p[t[1]], p[t[0]]), sub3(p[t[2]], p[t[0]]));
-        [acc[0] + c[0], acc[1] + c[1], acc[2] + c[2]]
-    });
-    assert_eq!(sum, newell3(&p));
+    assert_eq!(vector_area(&p, &tris), newell3(&p));
 }
 
 /// A chevron (concave at corner 1) with a step up at its notch: along z, corners 1 and 2 fall
@@ -731,38 +727,47 @@ fn assert_unfolded(face: &[[f32; 3]], tris: &[[usize; 3]]) {
     }
 }
 
+/// `n` small integer corners of a twisted face: axis-parallel edges and diagonals, hence
+/// corners merged by a projection, are common. No three corners collinear (nor two equal), and
+/// not planar: every corner is needed, and none can be dropped without leaving area out.
+fn twisted_corners(rng: &mut SmallRng, n: usize) -> Vec<[i128; 3]> {
+    loop {
+        let p: Vec<[i128; 3]> =
+            (0..n).map(|_| [(); 3].map(|_| rng.random_range(-2i128..=2))).collect();
+        let collinear = (0..n).any(|a| {
+            (0..a).any(|b| (0..b).any(|c| cross3(sub3(p[b], p[a]), sub3(p[c], p[a])) == [0; 3]))
+        });
+        let normal = cross3(sub3(p[1], p[0]), sub3(p[2], p[0]));
+        let planar =
+            p.iter().all(|&q| (0..3).map(|k| normal[k] * (q[k] - p[0][k])).sum::<i128>() == 0);
+        if !collinear && !planar && newell3(&p) != [0; 3] {
+            return p;
+        }
+    }
+}
+
+/// The sum of twice the triangles' vector areas (corners `p`): the face's Newell vector when
+/// they are bounded by its ring.
+fn vector_area(p: &[[i128; 3]], tris: &[[usize; 3]]) -> [i128; 3] {
+    tris.iter().fold([0; 3], |acc, t| {
+        let c = cross3(sub3(p[t[1]], p[t[0]]), sub3(p[t[2]], p[t[0]]));
+        [acc[0] + c[0], acc[1] + c[1], acc[2] + c[2]]
+    })
+}
+
 #[test]
 fn twisted_faces_give_n_minus_2_triangles() {
     let mut rng = SmallRng::seed_from_u64(0x7_415_7ed);
     let mut merged = [0; 7];
     for i in 0..6000 {
         let n = 4 + i % 3;
-        // Small integer corners: axis-parallel edges and diagonals, hence corners merged by
-        // the projection, are common. No three corners collinear (nor two equal), and not
-        // planar: every corner is needed, and none can be dropped without leaving area out.
-        let p: Vec<[i128; 3]> = loop {
-            let p: Vec<[i128; 3]> =
-                (0..n).map(|_| [(); 3].map(|_| rng.random_range(-2i128..=2))).collect();
-            let collinear = (0..n).any(|a| {
-                (0..a).any(|b| (0..b).any(|c| cross3(sub3(p[b], p[a]), sub3(p[c], p[a])) == [0; 3]))
-            });
-            let normal = cross3(sub3(p[1], p[0]), sub3(p[2], p[0]));
-            let planar =
-                p.iter().all(|&q| (0..3).map(|k| normal[k] * (q[k] - p[0][k])).sum::<i128>() == 0);
-            if !collinear && !planar && newell3(&p) != [0; 3] {
-                break p;
-            }
-        };
+        let p = twisted_corners(&mut rng, n);
         let face: Vec<[f32; 3]> = p.iter().map(|v| v.map(|c| c as f32)).collect();
         merged[n] += usize::from(projection_merges_corners(&face));
         let tris = triangulate_face(&face);
         assert_n_minus_2(&tris, n, &face);
         // Bounded by the face's ring: the triangles' vector areas add up to the face's.
-        let sum = tris.iter().fold([0; 3], |acc, t| {
-            let c = cross3(sub3(p[t[1]], p[t[0]]), sub3(p[t[2]], p[t[0]]));
-            [acc[0] + c[0], acc[1] + c[1], acc[2] + c[2]]
-        });
-        assert_eq!(sum, newell3(&p), "{tris:?} not bounded by {face:?}");
+        assert_eq!(vector_area(&p, &tris), newell3(&p), "{tris:?} not bounded by {face:?}");
     }
     // The point of the exercise: many faces whose axis projection merges corners.
     assert!(merged[4..].iter().all(|&m| m > 100), "only {merged:?} merged projections");
@@ -771,19 +776,7 @@ fn twisted_faces_give_n_minus_2_triangles() {
     // leaves nothing out, so they keep earcut's triangles (the fan of a concave face folds).
     for i in 0..3000 {
         let n = 4 + i % 3;
-        let p: Vec<[i128; 3]> = loop {
-            let p: Vec<[i128; 3]> =
-                (0..n).map(|_| [(); 3].map(|_| rng.random_range(-2i128..=2))).collect();
-            let collinear = (0..n).any(|a| {
-                (0..a).any(|b| (0..b).any(|c| cross3(sub3(p[b], p[a]), sub3(p[c], p[a])) == [0; 3]))
-            });
-            let normal = cross3(sub3(p[1], p[0]), sub3(p[2], p[0]));
-            let planar =
-                p.iter().all(|&q| (0..3).map(|k| normal[k] * (q[k] - p[0][k])).sum::<i128>() == 0);
-            if !collinear && !planar && newell3(&p) != [0; 3] {
-                break p;
-            }
-        };
+        let p = twisted_corners(&mut rng, n);
         let mut face: Vec<[f32; 3]> = p.iter().map(|v| v.map(|c| c as f32)).collect();
         let at = rng.random_range(0..n);
         face.insert(at, face[at]);
@@ -797,11 +790,7 @@ fn twisted_faces_give_n_minus_2_triangles() {
         let used: std::collections::BTreeSet<_> = tris.iter().flatten().map(|&i| key(i)).collect();
         assert_eq!(used.len(), n, "{tris:?} leaves a corner of {face:?} out");
         let q: Vec<[i128; 3]> = face.iter().map(|v| v.map(|c| c as i128)).collect();
-        let sum = tris.iter().fold([0; 3], |acc, t| {
-            let c = cross3(sub3(q[t[1]], q[t[0]]), sub3(q[t[2]], q[t[0]]));
-            [acc[0] + c[0], acc[1] + c[1], acc[2] + c[2]]
-        });
-        assert_eq!(sum, newell3(&p), "{tris:?} not bounded by {face:?}");
+        assert_eq!(vector_area(&q, &tris), newell3(&p), "{tris:?} not bounded by {face:?}");
     }
 
     // Random float corners, one made to differ from another in a single coordinate.
