@@ -645,6 +645,14 @@ pub fn shade_triangle(
         let extent = setup.extent();
         let boxes = (0..n).filter_map(|s| sample_bounds(extent, samples.offset(s)).intersect(clip));
         let Some(r) = boxes.reduce(|a, b| a.union(&b)) else { return 0 };
+        // Tall boxes by columns, narrow ones too: the row masks cost every row of a sliver
+        // (40,000-triangle cylinder at 4x, two threads: 134-135 -> 118-119 ms).
+        if kernel.is_none() && raster::column::is_tall(&r) {
+            let numerators = setup.numerators();
+            let pixels =
+                SamplePixels::new(setup, numerators, samples, depth, (depth_test, id), fragment);
+            return sample_columns(target, clip, pixels);
+        }
         let columns = r.x1 - r.x0 + 1;
         if columns <= raster::edge::NARROW {
             // The edges derived once for all that follows (derived for the kernel's job and
@@ -690,12 +698,6 @@ pub fn shade_triangle(
                 }
             }
             return pixels.covered;
-        }
-        if kernel.is_none() && raster::column::is_tall(&r) {
-            let numerators = setup.numerators();
-            let pixels =
-                SamplePixels::new(setup, numerators, samples, depth, (depth_test, id), fragment);
-            return sample_columns(target, clip, pixels);
         }
     }
     let numerators = setup.numerators();
