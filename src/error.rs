@@ -167,6 +167,23 @@ pub(crate) fn try_reserve<T>(v: &mut Vec<T>, n: usize, what: &str) -> Result<(),
     })
 }
 
+/// Room for `n` more elements in `v`, amortised as `push` grows it, or [`Error::OutOfMemory`]
+/// naming `what` with the bytes `Vec` asked for: for arrays that grow with a file read in
+/// pieces (the streamed OBJ and STL readers), which no single reservation bounds.
+pub(crate) fn try_grow<'v, T>(
+    v: &'v mut Vec<T>,
+    n: usize,
+    what: &str,
+) -> Result<&'v mut Vec<T>, Error> {
+    if v.try_reserve(n).is_err() {
+        // What `Vec` asks for: room for `n` more, at least twice its capacity.
+        let elements = (v.len() as u128 + n as u128).max(2 * v.capacity() as u128);
+        let bytes = elements * size_of::<T>() as u128;
+        return Err(Error::OutOfMemory { what: what.to_string(), bytes });
+    }
+    Ok(v)
+}
+
 /// Reserves exactly `n` more elements in `v`, or [`Error::OutOfMemory`] naming what `what`
 /// returns (called only then) and the bytes of the whole array asked for (`v`'s elements and
 /// the `n` more). For the arrays of one job named by their part in it (the splat hierarchy's,

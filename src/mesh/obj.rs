@@ -226,17 +226,9 @@ impl Fail {
     }
 }
 
-/// Room for `n` more elements in `v` (amortised, as `push` grows), or [`Error::OutOfMemory`]
-/// naming `what`: [`parse_mesh`]'s arrays grow with the file, which is read in pieces, so no
-/// single reservation bounds them as one for the whole file did.
+/// [`crate::error::try_grow`] for [`parse_mesh`]'s arrays, which grow with the file.
 fn reserve<'v, T>(v: &'v mut Vec<T>, n: usize, what: &str) -> Result<&'v mut Vec<T>, Fail> {
-    if v.try_reserve(n).is_err() {
-        // What `Vec` asks for: room for `n` more, at least twice its capacity.
-        let elements = (v.len() as u128 + n as u128).max(2 * v.capacity() as u128);
-        let bytes = elements * size_of::<T>() as u128;
-        return Err(Fail::Error(Error::OutOfMemory { what: what.to_string(), bytes }));
-    }
-    Ok(v)
+    crate::error::try_grow(v, n, what).map_err(Fail::Error)
 }
 
 /// Marks an absent index (a corner without `vt` or `vn`; no vertex made yet). Element counts

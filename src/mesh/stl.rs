@@ -311,16 +311,9 @@ fn check_binary_size(head: &[u8], len: u64) -> Result<u32, Fail> {
     Ok(count as u32)
 }
 
-/// Room for `n` more elements in `v` (amortised, as `push` grows), or [`Error::OutOfMemory`]
-/// naming `what`.
+/// [`crate::error::try_grow`] for the mesh's arrays, which grow as the file is read.
 fn reserve<'v, T>(v: &'v mut Vec<T>, n: usize, what: &str) -> Result<&'v mut Vec<T>, Fail> {
-    if v.try_reserve(n).is_err() {
-        // What `Vec` asks for: room for `n` more, at least twice its capacity.
-        let elements = (v.len() as u128 + n as u128).max(2 * v.capacity() as u128);
-        let bytes = elements * size_of::<T>() as u128;
-        return Err(Fail::Error(Error::OutOfMemory { what: what.to_string(), bytes }));
-    }
-    Ok(v)
+    crate::error::try_grow(v, n, what).map_err(Fail::Error)
 }
 
 /// Welds corners into shared vertices as the mesh is built.
