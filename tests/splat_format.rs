@@ -427,6 +427,17 @@ fn identity_code() -> u16 {
     unreachable!()
 }
 
+/// The points as a cloud for the crate's builder (positions, normals and colours; the
+/// builder's own splat radius).
+fn cloud_of(pts: &[Point]) -> PointCloud {
+    PointCloud {
+        positions: pts.iter().map(|p| p.position).collect(),
+        normals: Some(pts.iter().map(|p| p.normal).collect()),
+        colors: Some(pts.iter().map(|p| p.color).collect()),
+        radii: None,
+    }
+}
+
 fn tree_of(count: usize, seed: u64) -> (Vec<Point>, SplatTree, Vec<usize>) {
     let pts = points(count, seed);
     let (tree, leaf_point) = build(&pts, seed ^ 0x5eed);
@@ -485,12 +496,7 @@ fn golden_two_node_file() {
 fn encoded_bytes_are_pinned() {
     let (_, ours, _) = tree_of(1000, 11);
     let pts = points(5000, 12);
-    let cloud = PointCloud {
-        positions: pts.iter().map(|p| p.position).collect(),
-        normals: Some(pts.iter().map(|p| p.normal).collect()),
-        colors: Some(pts.iter().map(|p| p.color).collect()),
-        radii: None,
-    };
+    let cloud = cloud_of(&pts);
     let built = SplatTree::build(&cloud).unwrap();
     assert!(built.nodes.iter().any(|n| n.child_count == 1), "no chains");
     let (_, mut plain, _) = tree_of(200, 21);
@@ -561,12 +567,7 @@ fn round_trip_50000_points() {
 #[test]
 fn round_trip_of_the_crates_builder() {
     let pts = points(20_000, 77);
-    let cloud = PointCloud {
-        positions: pts.iter().map(|p| p.position).collect(),
-        normals: Some(pts.iter().map(|p| p.normal).collect()),
-        colors: Some(pts.iter().map(|p| p.color).collect()),
-        radii: None,
-    };
+    let cloud = cloud_of(&pts);
     let tree = SplatTree::build(&cloud).unwrap();
     // Its leaves are the points: take them (with the builder's splat radius) as the input.
     let mut leaf_points = Vec::new();
