@@ -6,7 +6,7 @@
 //! waited forever for a writer.
 
 use std::fs::{File, FileType};
-use std::io::Read;
+use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
 
 use crate::error::Error;
@@ -42,6 +42,44 @@ pub fn read(path: &Path) -> Result<Vec<u8>, Error> {
     crate::error::try_reserve(&mut bytes, usize::try_from(size).unwrap_or(0), &what)?;
     file.read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
     Ok(bytes)
+}
+
+/// A reader that tells `report` how far into its input it has read: the furthest offset
+/// reached, after each read that moves it past the last one reported. The streamed mesh and
+/// point cloud readers read through it, so that a long load can show progress (`trirast
+/// render` of a large file). The offset, not a count of bytes read: bytes read again after a
+/// seek back (the STL reader may go back to its first bytes) do not count twice.
+pub struct ReadProgress<'a, R> {
+    inner: R,
+    offset: u64,
+    furthest: u64,
+    report: &'a dyn Fn(u64),
+}
+
+impl<'a, R> ReadProgress<'a, R> {
+    /// Reads `inner` from its start, reporting to `report`.
+    pub fn new(inner: R, report: &'a dyn Fn(u64)) -> Self {
+        Self { inner, offset: 0, furthest: 0, report }
+    }
+}
+
+impl<R: Read> Read for ReadProgress<'_, R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.offset += n as u64;
+        if self.offset > self.furthest {
+            self.furthest = self.offset;
+            (self.report)(self.furthest);
+        }
+        Ok(n)
+    }
+}
+
+impl<R: Seek> Seek for ReadProgress<'_, R> {
+    fn seek(&mut self, to: SeekFrom) -> std::io::Result<u64> {
+        self.offset = self.inner.seek(to)?;
+        Ok(self.offset)
+    }
 }
 
 /// `Ok` for a regular file, else [`Error::NotRegularFile`] saying what it is.
@@ -92,5 +130,23 @@ mod tests {
         let e = read(Path::new("/dev/zero")).unwrap_err();
         assert_eq!(e.to_string(), "/dev/zero: is a character device, not a regular file");
         assert!(open(Path::new("/dev/null")).is_err());
+    }
+
+    /// Progress is the furthest offset reached: a read after a seek back reports nothing until
+    /// it passes it, and reads that return nothing report nothing.
+    #[test]
+    fn progress_is_the_furthest_offset() {
+        let seen = std::cell::RefCell::new(Vec::new());
+        let report = |n| seen.borrow_mut().push(n);
+        let mut r = ReadProgress::new(std::io::Cursor::new(vec![7u8; 100]), &report);
+        let mut buf = [0; 40];
+        assert_eq!(r.read(&mut buf).unwrap(), 40);
+        r.seek(SeekFrom::Start(10)).unwrap();
+        assert_eq!(r.read(&mut buf).unwrap(), 40);
+        assert_eq!(r.read(&mut buf).unwrap(), 40);
+        r.seek(SeekFrom::Current(-5)).unwrap();
+        assert_eq!(r.read(&mut buf).unwrap(), 15);
+        assert_eq!(r.read(&mut buf).unwrap(), 0);
+        assert_eq!(seen.into_inner(), [40, 50, 90, 100]);
     }
 }

@@ -1231,3 +1231,73 @@ fn shared_models_load() {
         assert!(spot.texcoords.is_some());
     }
 }
+
+/// Loads `path` through `read` with a report that records what it is told: returns the result
+/// and the reports.
+fn reported<T>(
+    path: &Path,
+    read: impl FnOnce(&Path, &dyn Fn(u64)) -> Result<T, Error>,
+) -> (Result<T, Error>, Vec<u64>) {
+    let seen = std::cell::RefCell::new(Vec::new());
+    let result = read(path, &|n| seen.borrow_mut().push(n));
+    (result, seen.into_inner())
+}
+
+/// The progress a load reports (for `trirast`'s bar) rises with every report and ends at the
+/// file's size, in each format, over files of many 64 KB reads; the STL reader's second read
+/// of its first bytes does not count again. The mesh is the one `load` gives. A truncated
+/// file reports no further than its end.
+#[test]
+fn loads_report_progress_to_the_end_of_the_file() {
+    let dir = scratch("progress");
+    let model = Model::random(7, 4000, 9000);
+    let mut files = vec![
+        (
+            "m.obj",
+            write_obj(
+                &model,
+                ObjVariant { texcoords: true, normals: true, colors: false, negative: false },
+            ),
+        ),
+        ("ascii.stl", write_stl_ascii(&model, false)),
+        ("binary.stl", write_stl_binary(&model, b"solid but binary")),
+    ];
+    // One PLY file per encoding, with indices that hold 4,000 vertices.
+    let mut encodings = Vec::new();
+    for variant in ply_variants() {
+        if !variant.index_type.contains("char") && !encodings.contains(&variant.encoding) {
+            encodings.push(variant.encoding);
+            files.push((
+                ["a.ply", "b.ply", "c.ply"][encodings.len() - 1],
+                write_ply(&model, &variant),
+            ));
+        }
+    }
+    assert_eq!(encodings.len(), 3, "ASCII and both binary encodings");
+    for (name, bytes) in &files {
+        let path = dir.join(name);
+        fs::write(&path, bytes).unwrap();
+        let (mesh, reports) = reported(&path, mesh::load_reporting);
+        assert_eq!(mesh.unwrap(), mesh::load(&path).unwrap(), "{name}");
+        assert!(reports.len() > 2, "{name}: {} reports", reports.len());
+        assert!(reports.windows(2).all(|w| w[0] < w[1]), "{name}: {reports:?}");
+        assert_eq!(reports.last(), Some(&(bytes.len() as u64)), "{name}");
+        // Cut short: an error, and no report past the bytes there are.
+        let cut = &bytes[..bytes.len() * 2 / 3];
+        fs::write(&path, cut).unwrap();
+        let (mesh, reports) = reported(&path, mesh::load_reporting);
+        assert!(mesh.is_err(), "{name}: a truncated file was read");
+        assert!(reports.iter().all(|&n| n <= cut.len() as u64), "{name}");
+    }
+    let path = dir.join("cloud.ply");
+    let cloud = cloud::PointCloud {
+        positions: model.positions.clone(),
+        normals: Some(model.normals.clone()),
+        ..cloud::PointCloud::default()
+    };
+    cloud::write_ply(&path, &cloud).unwrap();
+    let (read, reports) = reported(&path, cloud::read_ply_reporting);
+    assert_eq!(read.unwrap(), cloud::read_ply(&path).unwrap());
+    assert!(reports.windows(2).all(|w| w[0] < w[1]));
+    assert_eq!(reports.last(), Some(&fs::metadata(&path).unwrap().len()));
+}

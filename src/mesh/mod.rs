@@ -60,11 +60,22 @@ pub struct Mesh {
 
 /// Reads a mesh file for the 3D pipeline, choosing the reader by extension.
 pub fn load(path: &Path) -> Result<Mesh, Error> {
+    load_reporting(path, &|_| {})
+}
+
+/// [`load`], telling `report` how many bytes of the file it has read so far (the furthest
+/// offset reached: see [`crate::input::ReadProgress`]), for a progress bar; the last report
+/// is the file's size when it was read to its end. A material library or texture is not
+/// counted.
+///
+/// # Errors
+/// As [`load`].
+pub fn load_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<Mesh, Error> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
-        Some("obj") => obj::read_mesh(path),
-        Some("ply") => ply::read(path),
-        Some("stl") => stl::read(path),
+        Some("obj") => obj::read_mesh_reporting(path, report),
+        Some("ply") => ply::read_reporting(path, report),
+        Some("stl") => stl::read_reporting(path, report),
         _ => Err(Error::UnsupportedFormat { path: path.to_path_buf() }),
     }
 }

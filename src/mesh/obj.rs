@@ -22,11 +22,13 @@
 //! order.
 
 use std::collections::HashMap;
-use std::io::BufRead;
+use std::fs::File;
+use std::io::{BufRead, BufReader};
 use std::path::Path;
 
 use super::{Material, Mesh};
 use crate::error::Error;
+use crate::input::ReadProgress;
 
 /// One face corner: indices (0-based) into the mesh's arrays.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -96,7 +98,7 @@ impl ObjMesh {
 /// Reads and parses an OBJ file as written (see [`parse`]).
 pub fn read(path: &Path) -> Result<ObjMesh, Error> {
     let mut obj = ObjMesh { face_starts: vec![0], ..ObjMesh::default() };
-    obj.materials = read_statements(open(path)?, &mut obj).map_err(|f| f.at(path))?;
+    obj.materials = read_statements(open(path, &|_| {})?, &mut obj).map_err(|f| f.at(path))?;
     Ok(obj)
 }
 
@@ -105,14 +107,24 @@ pub fn read(path: &Path) -> Result<ObjMesh, Error> {
 /// come from the `mtllib` files (see [`super::mtl::apply`]); a missing library or texture is a
 /// warning in [`Mesh::warnings`]. Read line by line (see [`parse_mesh`]).
 pub fn read_mesh(path: &Path) -> Result<Mesh, Error> {
-    let (mut mesh, materials) = build_mesh(open(path)?).map_err(|f| f.at(path))?;
+    read_mesh_reporting(path, &|_| {})
+}
+
+/// [`read_mesh`], telling `report` how many bytes of the OBJ file it has read so far.
+pub(crate) fn read_mesh_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<Mesh, Error> {
+    let (mut mesh, materials) = build_mesh(open(path, report)?).map_err(|f| f.at(path))?;
     super::mtl::apply(&mut mesh, &materials, path)?;
     Ok(mesh)
 }
 
-/// `path` through [`crate::input::open`], buffered for reading line by line.
-fn open(path: &Path) -> Result<std::io::BufReader<std::fs::File>, Error> {
-    Ok(std::io::BufReader::with_capacity(1 << 16, crate::input::open(path)?))
+/// `path` through [`crate::input::open`], buffered for reading line by line, telling `report`
+/// how far it has read.
+fn open<'a>(
+    path: &Path,
+    report: &'a dyn Fn(u64),
+) -> Result<BufReader<ReadProgress<'a, File>>, Error> {
+    let file = crate::input::open(path)?;
+    Ok(BufReader::with_capacity(1 << 16, ReadProgress::new(file, report)))
 }
 
 /// Parses OBJ text as written; an error is `(line, message)`.

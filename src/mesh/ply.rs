@@ -36,7 +36,12 @@ use crate::error::Error;
 
 /// Reads a PLY file as a [`Mesh`], from the file as it goes (not whole into memory first).
 pub fn read(path: &Path) -> Result<Mesh, Error> {
-    read_file(path, parse_at)
+    read_reporting(path, &|_| {})
+}
+
+/// [`read`], telling `report` how many bytes of the file it has read so far.
+pub(crate) fn read_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<Mesh, Error> {
+    read_file(path, report, parse_at)
 }
 
 /// Parses the contents of a PLY file; `path` is only used to name the file in errors.

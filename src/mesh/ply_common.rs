@@ -30,6 +30,7 @@ use ply_rs_bw::ply::{
 };
 
 use crate::error::Error;
+use crate::input::ReadProgress;
 
 /// Where an error is: a 1-based line (header, ASCII body) or a byte offset (binary body).
 #[derive(Clone, Copy, Debug)]
@@ -56,18 +57,23 @@ pub(crate) fn parse_error(path: &Path, (at, message): Fail) -> Error {
     }
 }
 
-/// Reads the PLY file `path` with `parse`, from the file as it goes (see [`Source`]).
+/// Reads the PLY file `path` with `parse`, from the file as it goes (see [`Source`]), telling
+/// `report` how far it has read ([`ReadProgress`]).
 ///
 /// # Errors
 /// As [`crate::input::open`]; [`Error::Io`] when reading fails; else what `parse` returns, as
 /// [`parse_error`] words it.
-pub(crate) fn read_file<T, P>(path: &Path, parse: P) -> Result<T, Error>
+pub(crate) fn read_file<'a, T, P>(
+    path: &Path,
+    report: &'a dyn Fn(u64),
+    parse: P,
+) -> Result<T, Error>
 where
-    P: FnOnce(&mut Source<std::fs::File>, u64) -> Result<T, Fail>,
+    P: FnOnce(&mut Source<ReadProgress<'a, std::fs::File>>, u64) -> Result<T, Fail>,
 {
     let file = crate::input::open(path)?;
     let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
-    parse_with(file, len, path, parse)
+    parse_with(ReadProgress::new(file, report), len, path, parse)
 }
 
 /// Parses `len` bytes from `reader` with `parse`, naming `path` in errors: an I/O error the

@@ -62,8 +62,14 @@ const FACET: usize = 50;
 /// the module documentation). A path that is not a regular file is refused by
 /// [`crate::input::open`].
 pub fn read(path: &Path) -> Result<Mesh, Error> {
+    read_reporting(path, &|_| {})
+}
+
+/// [`read`], telling `report` how far into the file it has read.
+pub(crate) fn read_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<Mesh, Error> {
     let file = crate::input::open(path)?;
     let size = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let file = crate::input::ReadProgress::new(file, report);
     read_from(BufReader::with_capacity(READ_BUFFER, file), size, path)
 }
 

@@ -129,7 +129,16 @@ impl PointCloud {
 /// regular file (see [`crate::input`]); [`Error::Parse`] naming the file and the line
 /// (header, ASCII body) or byte offset (binary body) of the first problem.
 pub fn read_ply(path: &Path) -> Result<PointCloud, Error> {
-    read_file(path, parse_at)
+    read_ply_reporting(path, &|_| {})
+}
+
+/// [`read_ply`], telling `report` how many bytes of the file it has read so far (the furthest
+/// offset reached: see [`crate::input::ReadProgress`]), for a progress bar.
+///
+/// # Errors
+/// As [`read_ply`].
+pub fn read_ply_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<PointCloud, Error> {
+    read_file(path, report, parse_at)
 }
 
 /// Parses the contents of a PLY file as [`read_ply`] does; `path` only names the file in errors.
