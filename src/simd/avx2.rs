@@ -620,6 +620,45 @@ unsafe fn narrow_sample_groups(
     covered
 }
 
+/// [`super::row_masks`]: a row's first four pixels in one register per edge, the next four
+/// in a second when the box is wider; the sign bits of `e0 | e1 | e2` are the pixels out.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn row_masks(
+    e: [i64; 3],
+    step_x: [i64; 3],
+    step_y: [i64; 3],
+    columns: usize,
+    out: &mut [u8],
+) {
+    let keep = ((1u32 << columns) - 1) as u8;
+    let s = step_x;
+    let mut lo: [__m256i; 3] = std::array::from_fn(|k| {
+        _mm256_set_epi64x(e[k] + 3 * s[k], e[k] + 2 * s[k], e[k] + s[k], e[k])
+    });
+    let down: [__m256i; 3] = std::array::from_fn(|k| _mm256_set1_epi64x(step_y[k]));
+    let outside = |v: &[__m256i; 3]| {
+        let any = _mm256_or_si256(_mm256_or_si256(v[0], v[1]), v[2]);
+        _mm256_movemask_pd(_mm256_castsi256_pd(any)) as u32
+    };
+    if columns <= 4 {
+        for o in out.iter_mut() {
+            *o = !(outside(&lo) as u8) & keep;
+            lo = std::array::from_fn(|k| _mm256_add_epi64(lo[k], down[k]));
+        }
+    } else {
+        let mut hi: [__m256i; 3] =
+            std::array::from_fn(|k| _mm256_add_epi64(lo[k], _mm256_set1_epi64x(4 * s[k])));
+        for o in out.iter_mut() {
+            *o = !((outside(&lo) | outside(&hi) << 4) as u8) & keep;
+            lo = std::array::from_fn(|k| _mm256_add_epi64(lo[k], down[k]));
+            hi = std::array::from_fn(|k| _mm256_add_epi64(hi[k], down[k]));
+        }
+    }
+}
+
 /// [`super::index_range`]: 32 values a step in four pairs of accumulators (eight lanes each),
 /// so that the loop waits on loads rather than on the latency of one min and one max chain;
 /// the last `len % 32` values one at a time.

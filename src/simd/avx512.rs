@@ -19,6 +19,33 @@ use crate::fixed;
 use crate::setup::{CullMode, Vertex};
 use crate::shade::DepthTest;
 
+/// [`super::row_masks`]: a row's eight pixels in one register per edge; the pixels out are
+/// the negative lanes of `e0 | e1 | e2`.
+///
+/// # Safety
+/// The CPU must support AVX-512 (F, VL, DQ).
+#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+pub(super) unsafe fn row_masks(
+    e: [i64; 3],
+    step_x: [i64; 3],
+    step_y: [i64; 3],
+    columns: usize,
+    out: &mut [u8],
+) {
+    let keep = ((1u32 << columns) - 1) as u8;
+    let iota = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0);
+    let mut v: [__m512i; 3] = std::array::from_fn(|k| {
+        let across = _mm512_mullo_epi64(iota, _mm512_set1_epi64(step_x[k]));
+        _mm512_add_epi64(_mm512_set1_epi64(e[k]), across)
+    });
+    let down: [__m512i; 3] = std::array::from_fn(|k| _mm512_set1_epi64(step_y[k]));
+    for o in out.iter_mut() {
+        let any = _mm512_or_si512(_mm512_or_si512(v[0], v[1]), v[2]);
+        *o = !_mm512_movepi64_mask(any) & keep;
+        v = std::array::from_fn(|k| _mm512_add_epi64(v[k], down[k]));
+    }
+}
+
 /// Eight lanes of `(a0 + f1 * g1) + f2 * g2`: a depth plane.
 #[inline]
 #[target_feature(enable = "avx512f")]
