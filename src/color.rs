@@ -39,24 +39,27 @@ pub fn srgb_encode(l: f32) -> f32 {
 #[inline]
 #[must_use]
 pub fn linear_to_srgb8(l: f32) -> u8 {
-    let l = if l.is_nan() { 0.0 } else { l.clamp(0.0, 1.0) };
-    // The sign bit is cleared for `-0.0`, which the clamp lets through.
-    encode_bits(ENCODE_TABLE.get_or_init(encode_table), l.to_bits() & 0x7fff_ffff)
+    // Below 2^-13 everything encodes to 0, as 2^-13 does; `-0.0` is below.
+    let l = if l.is_nan() { FIRST_ENCODED } else { l.clamp(FIRST_ENCODED, 1.0) };
+    encode_bits(ENCODE_TABLE.get_or_init(encode_table), l.to_bits())
 }
 
-/// [`linear_to_srgb8`] of three channels: the same table lookups, after one vector clamp.
+/// [`linear_to_srgb8`] of three channels: the same table lookups, after one vector clamp
+/// ([`crate::simd::clamped_bits`]) that also puts them at or above 2^-13, where the table
+/// starts (everything below encodes to 0, as 2^-13 does), so the bucket needs no floor.
 #[inline]
 #[must_use]
 pub fn linear_to_srgb8_rgb(l: [f32; 3]) -> [u8; 3] {
     let table = ENCODE_TABLE.get_or_init(encode_table);
-    let [r, g, b, _] = crate::simd::unit_clamped_bits([l[0], l[1], l[2], 0.0]);
+    let [r, g, b, _] = crate::simd::clamped_bits([l[0], l[1], l[2], 1.0], FIRST_ENCODED);
     [encode_bits(table, r), encode_bits(table, g), encode_bits(table, b)]
 }
 
-/// The table lookup, for the bits of a value in [0, 1].
+/// The table lookup, for the bits of a value in [2^-13, 1]: its bucket is within the table
+/// (the `min` only spares a bounds check).
 #[inline]
 fn encode_bits(table: &[u32; ENCODE_BUCKETS], bits: u32) -> u8 {
-    let bucket = ((bits >> MANTISSA_SHIFT) as usize).saturating_sub(FIRST_BUCKET);
+    let bucket = ((bits >> MANTISSA_SHIFT) as usize).wrapping_sub(FIRST_BUCKET);
     let entry = table[bucket.min(ENCODE_BUCKETS - 1)];
     (entry >> 16) as u8 + u8::from(bits & LOW_MASK >= entry & 0xffff)
 }
@@ -68,8 +71,10 @@ const LOW_MASK: u32 = (1 << MANTISSA_SHIFT) - 1;
 /// Exponents covered: below 2^-13, linear light encodes to 0 (it is under half a step on
 /// the curve's linear segment, 0.5 / (255 * 12.92) = 1.5e-4).
 const EXPONENTS: usize = 13;
-/// The bucket index of 2^-13, the first bucket; everything below maps there.
+/// The bucket index of 2^-13, the first bucket; callers clamp everything below to 2^-13.
 const FIRST_BUCKET: usize = (127 - EXPONENTS) << (23 - MANTISSA_SHIFT);
+/// 2^-13, the start of the first bucket; every value below it encodes to 0, as it does.
+const FIRST_ENCODED: f32 = 1.0 / (1 << EXPONENTS) as f32;
 /// Buckets from 2^-13 up to and including 1.0.
 const ENCODE_BUCKETS: usize = (EXPONENTS << (23 - MANTISSA_SHIFT)) + 1;
 
@@ -143,7 +148,19 @@ mod tests {
             let l = [next(), next(), next()];
             assert_eq!(linear_to_srgb8_rgb(l), l.map(linear_to_srgb8), "{l:?}");
         }
-        for l in [f32::NAN, -0.0, -1.0, f32::NEG_INFINITY, 2.0, f32::INFINITY] {
+        let tiny = 2f32.powi(-13);
+        for l in [
+            f32::NAN,
+            -0.0,
+            0.0,
+            -1.0,
+            f32::NEG_INFINITY,
+            2.0,
+            f32::INFINITY,
+            tiny,
+            tiny * 0.99,
+            1e-40,
+        ] {
             assert_eq!(linear_to_srgb8_rgb([l, 0.5, l]), [l, 0.5, l].map(linear_to_srgb8));
             assert_eq!(linear_to_srgb8(l), exact(if l.is_nan() { 0.0 } else { l.clamp(0.0, 1.0) }));
         }

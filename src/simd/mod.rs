@@ -245,17 +245,17 @@ pub fn floor_i32x4(v: [f32; 4]) -> [i32; 4] {
     v.map(|x| if x.is_nan() { i32::MIN } else { x.clamp(-LIMIT, LIMIT).floor() as i32 })
 }
 
-/// Four values clamped to [0, 1] (NaN to 0, `-0.0` to `0.0`), as their bits: the front of
-/// the sRGB encoder ([`crate::color::linear_to_srgb8_rgb`]) for three channels at once, four
-/// SSE2 instructions where the scalar clamp with its NaN test takes a dozen a channel.
+/// Four values clamped to `[low, 1]` (NaN to `low`), as their bits: the front of the sRGB
+/// encoder ([`crate::color::linear_to_srgb8_rgb`]) for three channels at once, four SSE2
+/// instructions where the scalar clamp with its NaN test takes a dozen a channel. `low` is
+/// positive, so `-0.0` becomes it too.
 #[inline]
 #[must_use]
-pub fn unit_clamped_bits(v: [f32; 4]) -> [u32; 4] {
+pub fn clamped_bits(v: [f32; 4], low: f32) -> [u32; 4] {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{
-            _mm_castps_si128, _mm_max_ps, _mm_min_ps, _mm_set_ps, _mm_set1_ps, _mm_setzero_ps,
-            _mm_storeu_si128,
+            _mm_castps_si128, _mm_max_ps, _mm_min_ps, _mm_set_ps, _mm_set1_ps, _mm_storeu_si128,
         };
         let mut out = [0u32; 4];
         // SAFETY: SSE2 is part of the x86_64 baseline; the store moves 16 bytes to a
@@ -265,16 +265,16 @@ pub fn unit_clamped_bits(v: [f32; 4]) -> [u32; 4] {
             // narrow stores, waited for them (store forwarding fails; the bunny, one thread:
             // about 2%).
             let v = _mm_set_ps(v[3], v[2], v[1], v[0]);
-            // `max(x, 0)`: SSE returns the second operand when either is NaN or both are
-            // zeros, so NaN and `-0.0` become `0.0`; `x` is then a number for the `min`.
-            let x = _mm_max_ps(v, _mm_setzero_ps());
+            // `max(x, low)`: SSE returns the second operand when either is NaN, so NaN
+            // becomes `low`; `x` is then a number for the `min`.
+            let x = _mm_max_ps(v, _mm_set1_ps(low));
             let x = _mm_min_ps(x, _mm_set1_ps(1.0));
             _mm_storeu_si128(out.as_mut_ptr().cast(), _mm_castps_si128(x));
         }
         out
     }
     #[cfg(not(target_arch = "x86_64"))]
-    v.map(|x| if x.is_nan() { 0u32 } else { x.clamp(0.0, 1.0).to_bits() & 0x7fff_ffff })
+    v.map(|x| if x.is_nan() { low } else { x.clamp(low, 1.0) }.to_bits())
 }
 
 /// The colour of a span: constant, or four planes `[a0, g1, g2]` (RGBA, 0..=255 units).
