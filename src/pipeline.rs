@@ -603,11 +603,10 @@ where
         // soon the loads came, which moved with unrelated edits elsewhere (a quarter of this
         // function's time in one build: bunny 6.6 -> 7.6 ms on two threads, the same
         // instructions).
+        // All eight lanes at once (those past `len` from leftovers, not read).
         let mut w = [[0.0f32; LANES]; 3];
-        let numerators = passed.e1.iter().zip(&passed.e2).take(passed.len);
-        for (l, (e1, e2)) in numerators.enumerate() {
-            [w[0][l], w[1][l], w[2][l]] = divided_weights(e1 * t.inv_area2, e2 * t.inv_area2, q);
-        }
+        let numerators = (&passed.e1, &passed.e2);
+        simd::divided_weights(SimdLevel::detected(), numerators, t.inv_area2, q, &mut w);
         for (l, out) in out.iter_mut().enumerate().take(passed.len) {
             *out = self.shade_lane(t, passed, l, [w[0][l], w[1][l], w[2][l]]);
         }
@@ -934,7 +933,7 @@ fn perspective_weights(l1: f64, l2: f64, q: [f64; 3]) -> [f32; 3] {
 /// [`perspective_weights`] for `1/w` that are not [`is_affine`]: `l_i q_i / sum(l_j q_j)`,
 /// thirds for a degenerate sum.
 #[inline]
-fn divided_weights(l1: f64, l2: f64, q: [f64; 3]) -> [f32; 3] {
+pub(crate) fn divided_weights(l1: f64, l2: f64, q: [f64; 3]) -> [f32; 3] {
     let l0 = 1.0 - l1 - l2;
     let w = [l0 * q[0], l1 * q[1], l2 * q[2]];
     let sum = w[0] + w[1] + w[2];

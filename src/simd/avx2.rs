@@ -659,6 +659,49 @@ pub(super) unsafe fn row_masks(
     }
 }
 
+/// [`super::divided_weights`]: the scalar operations on two halves of four `f64` lanes, a
+/// lane whose sum is not positive (or NaN) given thirds before the rounding to `f32` (a
+/// third in `f64` rounds to the `f32` third), the quotients rounded to `f32` (nearest, as
+/// `as f32`).
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn divided_weights(
+    e1: &[f64; 8],
+    e2: &[f64; 8],
+    inv_area2: f64,
+    q: [f64; 3],
+    out: &mut [[f32; 8]; 3],
+) {
+    let ia = _mm256_set1_pd(inv_area2);
+    let third = _mm256_set1_pd(1.0 / 3.0);
+    for half in 0..2 {
+        // SAFETY: lanes `4 half .. 4 half + 4` lie within the eight-element arrays;
+        // unaligned loads.
+        let (l1, l2) = unsafe {
+            (
+                _mm256_mul_pd(_mm256_loadu_pd(e1.as_ptr().add(4 * half)), ia),
+                _mm256_mul_pd(_mm256_loadu_pd(e2.as_ptr().add(4 * half)), ia),
+            )
+        };
+        let l0 = _mm256_sub_pd(_mm256_sub_pd(_mm256_set1_pd(1.0), l1), l2);
+        let w = [
+            _mm256_mul_pd(l0, _mm256_set1_pd(q[0])),
+            _mm256_mul_pd(l1, _mm256_set1_pd(q[1])),
+            _mm256_mul_pd(l2, _mm256_set1_pd(q[2])),
+        ];
+        let sum = _mm256_add_pd(_mm256_add_pd(w[0], w[1]), w[2]);
+        let positive = _mm256_cmp_pd::<_CMP_GT_OQ>(sum, _mm256_setzero_pd());
+        for (o, w) in out.iter_mut().zip(w) {
+            let v = _mm256_cvtpd_ps(_mm256_blendv_pd(third, _mm256_div_pd(w, sum), positive));
+            // SAFETY: lanes `4 half .. 4 half + 4` lie within the eight-element array;
+            // unaligned store.
+            unsafe { _mm_storeu_ps(o.as_mut_ptr().add(4 * half), v) };
+        }
+    }
+}
+
 /// [`super::index_range`]: 32 values a step in four pairs of accumulators (eight lanes each),
 /// so that the loop waits on loads rather than on the latency of one min and one max chain;
 /// the last `len % 32` values one at a time.

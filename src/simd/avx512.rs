@@ -46,6 +46,44 @@ pub(super) unsafe fn row_masks(
     }
 }
 
+/// [`super::divided_weights`]: the scalar operations on eight `f64` lanes, the quotients
+/// rounded to `f32` (nearest, as `as f32`), a lane whose sum is not positive (or NaN) given
+/// thirds.
+///
+/// # Safety
+/// The CPU must support AVX-512 (F, VL, DQ).
+#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+pub(super) unsafe fn divided_weights(
+    e1: &[f64; 8],
+    e2: &[f64; 8],
+    inv_area2: f64,
+    q: [f64; 3],
+    out: &mut [[f32; 8]; 3],
+) {
+    let ia = _mm512_set1_pd(inv_area2);
+    // SAFETY: each load reads the eight `f64` of an eight-element array; unaligned loads.
+    let (l1, l2) = unsafe {
+        (
+            _mm512_mul_pd(_mm512_loadu_pd(e1.as_ptr()), ia),
+            _mm512_mul_pd(_mm512_loadu_pd(e2.as_ptr()), ia),
+        )
+    };
+    let l0 = _mm512_sub_pd(_mm512_sub_pd(_mm512_set1_pd(1.0), l1), l2);
+    let w = [
+        _mm512_mul_pd(l0, _mm512_set1_pd(q[0])),
+        _mm512_mul_pd(l1, _mm512_set1_pd(q[1])),
+        _mm512_mul_pd(l2, _mm512_set1_pd(q[2])),
+    ];
+    let sum = _mm512_add_pd(_mm512_add_pd(w[0], w[1]), w[2]);
+    let positive = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(sum, _mm512_setzero_pd());
+    let third = _mm256_set1_ps(1.0 / 3.0);
+    for (o, w) in out.iter_mut().zip(w) {
+        let v = _mm256_mask_blend_ps(positive, third, _mm512_cvtpd_ps(_mm512_div_pd(w, sum)));
+        // SAFETY: the store writes eight `f32` to an eight-element array; unaligned store.
+        unsafe { _mm256_storeu_ps(o.as_mut_ptr(), v) };
+    }
+}
+
 /// Eight lanes of `(a0 + f1 * g1) + f2 * g2`: a depth plane.
 #[inline]
 #[target_feature(enable = "avx512f")]

@@ -198,6 +198,47 @@ pub fn row_masks(
     }
 }
 
+/// Perspective-correct weights of eight fragments of one triangle at `level`: lane `l`'s
+/// weights `out[0..3][l]` are [`crate::pipeline::divided_weights`] of `e1[l] * inv_area2`,
+/// `e2[l] * inv_area2` and the vertices' `1 / w` `q`, computed with the same operations in
+/// the same order, so bit for bit the same. The three divisions of each fragment went one
+/// after another through the divider; eight lanes of them go at once.
+#[inline]
+pub fn divided_weights(
+    level: SimdLevel,
+    (e1, e2): (&[f64; 8], &[f64; 8]),
+    inv_area2: f64,
+    q: [f64; 3],
+    out: &mut [[f32; 8]; 3],
+) {
+    match level {
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx512 if SimdLevel::Avx512.is_available() => {
+            // SAFETY: AVX-512 support was just checked at run time.
+            unsafe { avx512::divided_weights(e1, e2, inv_area2, q, out) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx2 if SimdLevel::Avx2.is_available() => {
+            // SAFETY: AVX2 and FMA support was just checked at run time.
+            unsafe { avx2::divided_weights(e1, e2, inv_area2, q, out) }
+        }
+        _ => divided_weights_scalar((e1, e2), inv_area2, q, out),
+    }
+}
+
+/// [`divided_weights`] lane by lane.
+pub fn divided_weights_scalar(
+    (e1, e2): (&[f64; 8], &[f64; 8]),
+    inv_area2: f64,
+    q: [f64; 3],
+    out: &mut [[f32; 8]; 3],
+) {
+    for l in 0..8 {
+        let w = crate::pipeline::divided_weights(e1[l] * inv_area2, e2[l] * inv_area2, q);
+        (out[0][l], out[1][l], out[2][l]) = (w[0], w[1], w[2]);
+    }
+}
+
 /// [`row_masks`] a row at a time, through [`crate::raster::edge::row_coverage_within`].
 pub fn row_masks_scalar(
     mut e: [i64; 3],
@@ -1791,6 +1832,38 @@ mod tests {
                 ["Err(NonFinit", "Err(OutOfRan", "Err(Degenera", "Err(Culled)", "Ok(\"Triangle"]
             {
                 assert!(kinds.get(why).is_some_and(|&n| n > 20), "{why}: {kinds:?}");
+            }
+        }
+    }
+
+    /// Perspective weights are the scalar ones bit for bit at every level: random
+    /// numerators (inside and outside the triangle), areas and `1/w` from 1e-3 to 1e3 apart,
+    /// and lanes whose sum is zero, negative or NaN (thirds).
+    #[test]
+    fn divided_weights_agree_at_every_level() {
+        let mut rng = SmallRng::seed_from_u64(41);
+        for round in 0..20_000 {
+            let area2 = (2f64.powi(rng.random_range(2..48)) * rng.random_range(1.0..2.0)).round();
+            let mut e1: [f64; 8] =
+                std::array::from_fn(|_| (rng.random_range(-0.2..1.2) * area2).round());
+            let mut e2: [f64; 8] =
+                std::array::from_fn(|_| (rng.random_range(-0.2..1.2) * area2).round());
+            let q: [f64; 3] = std::array::from_fn(|_| 10f64.powf(rng.random_range(-3.0..3.0)));
+            if round % 7 == 0 {
+                (e1[round % 8], e2[3]) = (f64::NAN, -area2 * 4.0);
+            }
+            if round % 11 == 0 {
+                (e1[5], e2[5]) = (0.0, 0.0);
+            }
+            let inv_area2 = 1.0 / area2;
+            let q = if round % 3 == 0 { [q[0], -q[1], q[2]] } else { q };
+            let mut want = [[0.0f32; 8]; 3];
+            divided_weights_scalar((&e1, &e2), inv_area2, q, &mut want);
+            for level in SimdLevel::available() {
+                let mut got = [[f32::NAN; 8]; 3];
+                divided_weights(level, (&e1, &e2), inv_area2, q, &mut got);
+                let bits = |w: &[[f32; 8]; 3]| w.map(|row| row.map(f32::to_bits));
+                assert_eq!(bits(&got), bits(&want), "{level:?}, round {round}");
             }
         }
     }
