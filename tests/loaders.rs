@@ -1022,6 +1022,24 @@ fn malformed_files_name_the_file_and_position() {
     assert!(e.contains("absent.ply"), "{e}");
 }
 
+/// A PLY header cut short on a line without `\n` is reported on that line, the file's last, by
+/// both PLY readers: the crate counts one line past it (`ply\ncomment` ended "at line 3" of 2).
+/// Found by the `ply_parse` fuzz target.
+#[test]
+fn a_header_cut_short_names_its_last_line() {
+    let cases: [(&[u8], usize); 3] = [
+        (b"ply\ncomment", 2),
+        (b"ply\ncomment\n", 3),
+        (b"ply\nformat ascii 1.0\nelement vertex 2\nproperty short x", 4),
+    ];
+    for (src, line) in cases {
+        let path = Path::new("t.ply");
+        let expected = format!("t.ply:{line}: file ends before `end_header`");
+        assert_eq!(mesh::ply::parse(src, path).unwrap_err().to_string(), expected);
+        assert_eq!(cloud::parse_ply(src, path).unwrap_err().to_string(), expected);
+    }
+}
+
 /// OBJ and MTL files read the same whatever their line endings: LF, CR LF, CR alone (classic
 /// Mac OS, which was read as one line: "expected a number, found `v`") and CR CR LF; and an
 /// error names the same line in each.

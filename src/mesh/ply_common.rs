@@ -585,15 +585,19 @@ impl<F: Fields> Ply<F> {
 }
 
 /// Turns a header error from the crate into one naming the line (the reader's `line` when the
-/// error does not say), with a readable message; `bytes` are those the crate read.
+/// error does not say), with a readable message; `bytes` are those the crate read. The crate
+/// counts one line past a last line without `\n` (`ply\ncomment` "ends at line 3"), so the line
+/// is capped at the one the header's bytes end on.
 fn header_error(e: &ParseError, line: usize, bytes: &[u8]) -> Fail {
-    let line = e.line().unwrap_or(line).max(1);
+    let last = bytes.split(|&b| b == b'\n').count();
+    let line = e.line().unwrap_or(line).clamp(1, last);
     let text = bytes.split(|&b| b == b'\n').nth(line - 1).map(String::from_utf8_lossy);
     let text = text.as_deref().unwrap_or("").trim();
     let text: String = text.chars().take(80).collect();
     let first = e.to_string();
     let first = first.split("\n\t").next().unwrap_or("").trim();
-    let first = first.strip_prefix(&format!("Line {line}: ")).unwrap_or(first);
+    let crate_line = e.line().map(|l| format!("Line {l}: ")).unwrap_or_default();
+    let first = first.strip_prefix(&crate_line).unwrap_or(first);
     let message = match first {
         "Couldn't parse line." => format!(
             "expected a PLY header line (`format ascii|binary_little_endian|binary_big_endian \
