@@ -85,7 +85,8 @@ impl FillRule {
     #[inline]
     #[must_use]
     pub fn bias(a: i64, b: i64) -> i64 {
-        if a > 0 || (a == 0 && b > 0) { 0 } else { -1 }
+        // Bitwise, not short-circuit: edges of random orientation mispredicted the branches.
+        i64::from((a > 0) | ((a == 0) & (b > 0))) - 1
     }
 }
 
@@ -280,6 +281,33 @@ impl TriangleSetup {
         [edge(p1, p2), edge(p2, p0), edge(p0, p1)]
     }
 
+    /// Where the narrow paths start, at fixed-point `(x, y)`: the three edges' values there,
+    /// their steps one pixel right and down, and edges 1 and 2's fill-rule biases (an edge's
+    /// value less its bias is a barycentric numerator). The values [`EdgeFunction::values`]
+    /// and [`EdgeFunction::pixel_steps`] of [`TriangleSetup::edges`] give, computed from the
+    /// vertices directly: `a (x - x_v) + b (y - y_v) + bias` for an edge leaving vertex `v`
+    /// forms no constant term and each bias once (a tenth of a two-pixel triangle's shading
+    /// had gone to the constant terms, their evaluation and the biases a second time).
+    #[inline(always)]
+    #[must_use]
+    pub fn edges_at(&self, x: i64, y: i64) -> ([i64; 3], [i64; 3], [i64; 3], [i64; 2]) {
+        // In `i32` up to the products (coordinates within 2^23, their differences within
+        // 2^24): in `i64` the compiler paired the edges in SSE2 lanes, which have no 64-bit
+        // compare or multiply and emulated them (three times the instructions).
+        let p = self.xy;
+        let sign = if self.clockwise { 1 } else { -1 };
+        let (mut values, mut step_x, mut step_y, mut bias) = ([0; 3], [0; 3], [0; 3], [0; 3]);
+        for k in 0..3 {
+            let (a, b) = (p[(k + 1) % 3], p[(k + 2) % 3]);
+            let (ea, eb) = (sign * (a[1] - b[1]), sign * (b[0] - a[0]));
+            bias[k] = FillRule::bias(i64::from(ea), i64::from(eb));
+            let (ea, eb) = (i64::from(ea), i64::from(eb));
+            values[k] = ea * (x - i64::from(a[0])) + eb * (y - i64::from(a[1])) + bias[k];
+            (step_x[k], step_y[k]) = (ea * PIXEL_STEP, eb * PIXEL_STEP);
+        }
+        (values, step_x, step_y, [bias[1], bias[2]])
+    }
+
     /// The checks of [`TriangleSetup::from_snapped`], on their own: twice the signed area
     /// (`> 0`: clockwise on a y-down screen), or why the triangle is rejected (zero area,
     /// culled). Lets a front end drop triangles before paying for a full setup.
@@ -463,6 +491,42 @@ mod tests {
 
     fn tri(p: [[f32; 2]; 3]) -> [Vertex; 3] {
         p.map(|[x, y]| Vertex::new(x, y, 0.5, [255; 4]))
+    }
+
+    /// `edges_at` gives what the edge functions give: their values at a point, their pixel
+    /// steps and edges 1 and 2's biases, for random triangles of both windings (up to the
+    /// guard band's `2^23` fixed-point units), axis-aligned edges among them (where the
+    /// fill rule's ties lie), and points anywhere within reach.
+    #[test]
+    fn edges_at_is_the_edge_functions() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = |range: i32| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % (2 * range as u64 + 1)) as i32 - range
+        };
+        let mut checked = 0;
+        for round in 0..50_000 {
+            let range = [64, 4096, 1 << 16, 1 << 23][round % 4];
+            let mut xy: [[i32; 2]; 3] = std::array::from_fn(|_| [next(range), next(range)]);
+            if round % 3 == 0 {
+                // An axis-aligned edge.
+                let k = (round / 3) % 2;
+                xy[1][k] = xy[0][k];
+            }
+            let Ok(setup) = TriangleSetup::from_snapped(widen(xy), CullMode::None) else {
+                continue;
+            };
+            let (x, y) = (i64::from(next(range)), i64::from(next(range)));
+            let edges = setup.edges();
+            let (step_x, step_y) = EdgeFunction::pixel_steps(&edges);
+            let bias = [1, 2].map(|k| FillRule::bias(edges[k].a, edges[k].b));
+            let want = (EdgeFunction::values(&edges, x, y), step_x, step_y, bias);
+            assert_eq!(setup.edges_at(x, y), want, "{xy:?} at ({x}, {y})");
+            checked += 1;
+        }
+        assert!(checked > 45_000, "{checked} triangles set up");
     }
 
     #[test]

@@ -22,7 +22,7 @@ use crate::raster::column::ColumnWalk;
 use crate::raster::{self, Algorithm, Span};
 use crate::sample::{MAX_SAMPLES, SampleCount};
 use crate::setup::{
-    BarycentricNumerators, EdgeFunction, FillRule, PixelRect, TriangleSetup, Vertex, sample_bounds,
+    BarycentricNumerators, EdgeFunction, PixelRect, TriangleSetup, Vertex, sample_bounds,
 };
 use crate::simd::{
     self, KernelTarget, NarrowJob, NarrowSamplesJob, SampleSpanJob, SimdLevel, SpanColor, SpanJob,
@@ -660,7 +660,7 @@ pub fn shade_triangle(
             let edges = setup.edges();
             if let Some((level, color)) = kernel.filter(|_| target.overdraw.is_none()) {
                 let offsets = sample_edge_offsets(&edges, samples);
-                let narrow = narrow_job(target, &edges, &r, depth, (depth_test, id), color);
+                let narrow = narrow_job(target, setup, &r, depth, (depth_test, id), color);
                 return simd::shade_narrow_samples(
                     level,
                     NarrowSamplesJob { narrow, samples: n, offsets },
@@ -801,13 +801,13 @@ fn tiled_fallback(algorithm: Algorithm) -> Algorithm {
 #[inline(always)]
 fn narrow_job<'a>(
     target: &'a mut TargetBand<'_>,
-    edges: &[EdgeFunction; 3],
+    setup: &TriangleSetup,
     r: &PixelRect,
     depth: &PlaneEquation,
     (depth_test, id): (DepthTest, i32),
     color: &'a SpanColor,
 ) -> NarrowJob<'a> {
-    let (edges, step_x, step_y, bias) = narrow_start(edges, r);
+    let (edges, step_x, step_y, bias) = narrow_start(setup, r);
     NarrowJob {
         edges,
         step_x,
@@ -830,18 +830,11 @@ fn narrow_job<'a>(
     }
 }
 
-/// Where the narrow paths start a box `r` of a triangle with edges `edges`: the edge values
-/// at the centre of its first pixel, their steps one pixel right and down, and edges 1 and
-/// 2's fill-rule biases (an edge's value less its bias is the barycentric numerator).
+/// Where the narrow paths start a box `r` of a triangle: [`TriangleSetup::edges_at`] the
+/// centre of its first pixel.
 #[inline(always)]
-fn narrow_start(
-    edges: &[EdgeFunction; 3],
-    r: &PixelRect,
-) -> ([i64; 3], [i64; 3], [i64; 3], [i64; 2]) {
-    let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
-    let (step_x, step_y) = EdgeFunction::pixel_steps(edges);
-    let bias = [FillRule::bias(edges[1].a, edges[1].b), FillRule::bias(edges[2].a, edges[2].b)];
-    (EdgeFunction::values(edges, x, y), step_x, step_y, bias)
+fn narrow_start(setup: &TriangleSetup, r: &PixelRect) -> ([i64; 3], [i64; 3], [i64; 3], [i64; 2]) {
+    setup.edges_at(fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0))
 }
 
 /// Each sample's edge values less its pixel centre's, for edges `edges`: `a ox + b oy` per
@@ -1055,16 +1048,15 @@ fn shade_single_sample(
         let Some(r) = setup.bounds.intersect(clip) else { return 0 };
         let narrow = (r.x1 - r.x0 + 1) as usize <= simd::NARROW_COLUMNS;
         if let Some((level, color)) = kernel.filter(|_| narrow) {
-            let job = narrow_job(target, &setup.edges(), &r, depth, (depth_test, id), color);
+            let job = narrow_job(target, setup, &r, depth, (depth_test, id), color);
             return simd::shade_narrow(level, job);
         }
         if kernel.is_none() && raster::column::is_tall(&r) {
             return shade_columns(target, setup, &r, depth, (depth_test, id), fragment);
         }
         if narrow {
-            let edges = setup.edges();
             let mut queue = LaneQueue::new(fragment, id);
-            let covered = narrow_pixels::<true>(target, &edges, &r, |target, at, f1, f2| {
+            let covered = narrow_pixels::<true>(target, setup, &r, |target, at, f1, f2| {
                 queue.pixel(target, depth, depth_test, at, f1, f2);
             });
             queue.flush(target);
@@ -1336,13 +1328,13 @@ pub(crate) fn shade_small_triangle<'a, T, F: TriangleFragments<T>>(
     }
     // The lanes queued so far are now an earlier triangle's.
     (queue.earlier, queue.current) = (queue.earlier | queue.current, 0);
-    Some(narrow_pixels::<false>(target, &setup.edges(), &r, |target, at, f1, f2| {
+    Some(narrow_pixels::<false>(target, setup, &r, |target, at, f1, f2| {
         queue.pixel(target, depth, depth_test, at, f1, f2, (t, id, stage));
     }))
 }
 
 /// Calls `pixel(target, (i, x, y), f1, f2)` for each pixel of box `r` (at most
-/// [`raster::edge::NARROW`] wide) a triangle with edges `edges` covers, row by row, left to
+/// [`raster::edge::NARROW`] wide) triangle `setup` covers, row by row, left to
 /// right, with its buffer index and barycentric numerators; returns how many. Row coverage is
 /// a bit mask without branches (as `rasterize_narrow`): with `SIMD_MASKS`, those of a run of
 /// rows at once from [`simd::row_masks`], else row by row in scalar code.
@@ -1355,12 +1347,12 @@ pub(crate) fn shade_small_triangle<'a, T, F: TriangleFragments<T>>(
 #[inline(always)]
 fn narrow_pixels<const SIMD_MASKS: bool>(
     target: &mut TargetBand<'_>,
-    edges: &[EdgeFunction; 3],
+    setup: &TriangleSetup,
     r: &PixelRect,
     mut pixel: impl FnMut(&mut TargetBand<'_>, (usize, i32, i32), f64, f64),
 ) -> u64 {
     let columns = (r.x1 - r.x0 + 1) as usize;
-    let (edges, step_x, step_y, bias) = narrow_start(edges, r);
+    let (edges, step_x, step_y, bias) = narrow_start(setup, r);
     let mut covered = 0u64;
     let mut row = edges;
     if !SIMD_MASKS {
