@@ -702,6 +702,53 @@ pub(super) unsafe fn divided_weights(
     }
 }
 
+/// [`super::perspective_weights`]: [`divided_weights`]' quotients and the screen-space
+/// weights on two halves of four `f64` lanes, each lane taking the screen-space ones where
+/// its three `1 / w` are one positive value (chosen before the rounding to `f32`, which
+/// commutes with the choice).
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn perspective_weights(
+    e1: &[f64; 8],
+    e2: &[f64; 8],
+    inv_area2: &[f64; 8],
+    q: &[[f64; 8]; 3],
+    out: &mut [[f32; 8]; 3],
+) {
+    let third = _mm256_set1_pd(1.0 / 3.0);
+    let zero = _mm256_setzero_pd();
+    for half in 0..2 {
+        // SAFETY: lanes `4 half .. 4 half + 4` lie within the eight-element arrays;
+        // unaligned loads.
+        let (e1, e2, ia, q) = unsafe {
+            let load = |v: &[f64; 8]| _mm256_loadu_pd(v.as_ptr().add(4 * half));
+            (load(e1), load(e2), load(inv_area2), [load(&q[0]), load(&q[1]), load(&q[2])])
+        };
+        let (l1, l2) = (_mm256_mul_pd(e1, ia), _mm256_mul_pd(e2, ia));
+        let l0 = _mm256_sub_pd(_mm256_sub_pd(_mm256_set1_pd(1.0), l1), l2);
+        let l = [l0, l1, l2];
+        let w: [__m256d; 3] = std::array::from_fn(|k| _mm256_mul_pd(l[k], q[k]));
+        let sum = _mm256_add_pd(_mm256_add_pd(w[0], w[1]), w[2]);
+        let positive = _mm256_cmp_pd::<_CMP_GT_OQ>(sum, zero);
+        let affine = _mm256_and_pd(
+            _mm256_cmp_pd::<_CMP_GT_OQ>(q[0], zero),
+            _mm256_and_pd(
+                _mm256_cmp_pd::<_CMP_EQ_OQ>(q[0], q[1]),
+                _mm256_cmp_pd::<_CMP_EQ_OQ>(q[1], q[2]),
+            ),
+        );
+        for (k, o) in out.iter_mut().enumerate() {
+            let divided = _mm256_blendv_pd(third, _mm256_div_pd(w[k], sum), positive);
+            let v = _mm256_cvtpd_ps(_mm256_blendv_pd(divided, l[k], affine));
+            // SAFETY: lanes `4 half .. 4 half + 4` lie within the eight-element array;
+            // unaligned store.
+            unsafe { _mm_storeu_ps(o.as_mut_ptr().add(4 * half), v) };
+        }
+    }
+}
+
 /// [`super::index_range`]: 32 values a step in four pairs of accumulators (eight lanes each),
 /// so that the loop waits on loads rather than on the latency of one min and one max chain;
 /// the last `len % 32` values one at a time.

@@ -84,6 +84,44 @@ pub(super) unsafe fn divided_weights(
     }
 }
 
+/// [`super::perspective_weights`]: [`divided_weights`]' quotients and the screen-space
+/// weights on eight `f64` lanes, each lane taking the screen-space ones where its three
+/// `1 / w` are one positive value.
+///
+/// # Safety
+/// The CPU must support AVX-512 (F, VL, DQ).
+#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+pub(super) unsafe fn perspective_weights(
+    e1: &[f64; 8],
+    e2: &[f64; 8],
+    inv_area2: &[f64; 8],
+    q: &[[f64; 8]; 3],
+    out: &mut [[f32; 8]; 3],
+) {
+    // SAFETY: each load reads the eight `f64` of an eight-element array; unaligned loads.
+    let (e1, e2, ia, q) = unsafe {
+        let load = |v: &[f64; 8]| _mm512_loadu_pd(v.as_ptr());
+        (load(e1), load(e2), load(inv_area2), [load(&q[0]), load(&q[1]), load(&q[2])])
+    };
+    let (l1, l2) = (_mm512_mul_pd(e1, ia), _mm512_mul_pd(e2, ia));
+    let l0 = _mm512_sub_pd(_mm512_sub_pd(_mm512_set1_pd(1.0), l1), l2);
+    let l = [l0, l1, l2];
+    let w: [__m512d; 3] = std::array::from_fn(|k| _mm512_mul_pd(l[k], q[k]));
+    let sum = _mm512_add_pd(_mm512_add_pd(w[0], w[1]), w[2]);
+    let positive = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(sum, _mm512_setzero_pd());
+    let affine = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(q[0], _mm512_setzero_pd())
+        & _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(q[0], q[1])
+        & _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(q[1], q[2]);
+    let third = _mm256_set1_ps(1.0 / 3.0);
+    for (k, o) in out.iter_mut().enumerate() {
+        let divided = _mm512_cvtpd_ps(_mm512_div_pd(w[k], sum));
+        let divided = _mm256_mask_blend_ps(positive, third, divided);
+        let v = _mm256_mask_blend_ps(affine, divided, _mm512_cvtpd_ps(l[k]));
+        // SAFETY: the store writes eight `f32` to an eight-element array; unaligned store.
+        unsafe { _mm256_storeu_ps(o.as_mut_ptr(), v) };
+    }
+}
+
 /// Eight lanes of `(a0 + f1 * g1) + f2 * g2`: a depth plane.
 #[inline]
 #[target_feature(enable = "avx512f")]

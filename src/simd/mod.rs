@@ -239,6 +239,50 @@ pub fn divided_weights_scalar(
     }
 }
 
+/// Perspective-correct weights of eight fragments of up to eight triangles at `level`: lane
+/// `l`'s weights `out[0..3][l]` are [`crate::pipeline::perspective_weights`] of
+/// `e1[l] * inv_area2[l]`, `e2[l] * inv_area2[l]` and its triangle's `1 / w`
+/// `(q[0][l], q[1][l], q[2][l])`: the screen-space weights where the three are one positive
+/// value, else [`divided_weights`]' quotients, each lane choosing as the scalar code does,
+/// with the same operations in the same order. The queue shared by small triangles
+/// (`shade::SharedLaneQueue`) hands over such lanes.
+#[inline]
+pub fn perspective_weights(
+    level: SimdLevel,
+    (e1, e2): (&[f64; 8], &[f64; 8]),
+    inv_area2: &[f64; 8],
+    q: &[[f64; 8]; 3],
+    out: &mut [[f32; 8]; 3],
+) {
+    match level {
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx512 if SimdLevel::Avx512.is_available() => {
+            // SAFETY: AVX-512 support was just checked at run time.
+            unsafe { avx512::perspective_weights(e1, e2, inv_area2, q, out) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx2 if SimdLevel::Avx2.is_available() => {
+            // SAFETY: AVX2 and FMA support was just checked at run time.
+            unsafe { avx2::perspective_weights(e1, e2, inv_area2, q, out) }
+        }
+        _ => perspective_weights_scalar((e1, e2), inv_area2, q, out),
+    }
+}
+
+/// [`perspective_weights`] lane by lane.
+pub fn perspective_weights_scalar(
+    (e1, e2): (&[f64; 8], &[f64; 8]),
+    inv_area2: &[f64; 8],
+    q: &[[f64; 8]; 3],
+    out: &mut [[f32; 8]; 3],
+) {
+    for l in 0..8 {
+        let (l1, l2) = (e1[l] * inv_area2[l], e2[l] * inv_area2[l]);
+        let w = crate::pipeline::perspective_weights(l1, l2, [q[0][l], q[1][l], q[2][l]]);
+        (out[0][l], out[1][l], out[2][l]) = (w[0], w[1], w[2]);
+    }
+}
+
 /// [`row_masks`] a row at a time, through [`crate::raster::edge::row_coverage_within`].
 pub fn row_masks_scalar(
     mut e: [i64; 3],
@@ -1862,6 +1906,45 @@ mod tests {
             for level in SimdLevel::available() {
                 let mut got = [[f32::NAN; 8]; 3];
                 divided_weights(level, (&e1, &e2), inv_area2, q, &mut got);
+                let bits = |w: &[[f32; 8]; 3]| w.map(|row| row.map(f32::to_bits));
+                assert_eq!(bits(&got), bits(&want), "{level:?}, round {round}");
+            }
+        }
+    }
+
+    /// Per-lane perspective weights are the scalar ones bit for bit at every level: lanes of
+    /// different triangles, some affine (three equal positive `1/w`, screen-space weights),
+    /// some with equal but non-positive `1/w` or NaN among them (divided, thirds), mixed in
+    /// one group.
+    #[test]
+    fn perspective_weights_agree_at_every_level() {
+        let mut rng = SmallRng::seed_from_u64(42);
+        for round in 0..20_000 {
+            let (mut e1, mut e2, mut inv_area2) = ([0.0; 8], [0.0; 8], [0.0; 8]);
+            let mut q = [[0.0; 8]; 3];
+            for l in 0..8 {
+                let area2 =
+                    (2f64.powi(rng.random_range(2..48)) * rng.random_range(1.0..2.0)).round();
+                e1[l] = (rng.random_range(-0.2..1.2) * area2).round();
+                e2[l] = (rng.random_range(-0.2..1.2) * area2).round();
+                inv_area2[l] = 1.0 / area2;
+                let w: [f64; 3] = std::array::from_fn(|_| 10f64.powf(rng.random_range(-3.0..3.0)));
+                let w = match (round + l) % 6 {
+                    0 | 1 => [w[0]; 3],
+                    2 => [-w[0]; 3],
+                    3 if round % 2 == 0 => [f64::NAN, w[1], w[2]],
+                    // Two of three equal: divided.
+                    4 if round % 2 == 0 => [w[0], w[0], w[2]],
+                    4 => [w[0], w[1], w[1]],
+                    _ => w,
+                };
+                (q[0][l], q[1][l], q[2][l]) = (w[0], w[1], w[2]);
+            }
+            let mut want = [[0.0f32; 8]; 3];
+            perspective_weights_scalar((&e1, &e2), &inv_area2, &q, &mut want);
+            for level in SimdLevel::available() {
+                let mut got = [[f32::NAN; 8]; 3];
+                perspective_weights(level, (&e1, &e2), &inv_area2, &q, &mut got);
                 let bits = |w: &[[f32; 8]; 3]| w.map(|row| row.map(f32::to_bits));
                 assert_eq!(bits(&got), bits(&want), "{level:?}, round {round}");
             }
