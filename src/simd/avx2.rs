@@ -659,10 +659,42 @@ pub(super) unsafe fn row_masks(
     }
 }
 
-/// [`super::divided_weights`]: the scalar operations on two halves of four `f64` lanes, a
-/// lane whose sum is not positive (or NaN) given thirds before the rounding to `f32` (a
-/// third in `f64` rounds to the `f32` third), the quotients rounded to `f32` (nearest, as
-/// `as f32`).
+/// The screen-space weights `[l0, l1, l2]` of four lanes (`l0 = (1 - l1) - l2`, as the
+/// scalar code forms it) from their numerators and `1 / area2`.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn screen_weights(e1: __m256d, e2: __m256d, inv_area2: __m256d) -> [__m256d; 3] {
+    let (l1, l2) = (_mm256_mul_pd(e1, inv_area2), _mm256_mul_pd(e2, inv_area2));
+    [_mm256_sub_pd(_mm256_sub_pd(_mm256_set1_pd(1.0), l1), l2), l1, l2]
+}
+
+/// `l_i q_i / sum(l_j q_j)` of four lanes, thirds where the sum is not positive (or NaN), still
+/// in `f64`: [`crate::pipeline::divided_weights`] lane by lane before its rounding to `f32`
+/// (a third in `f64` rounds to the `f32` third).
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn divided(l: [__m256d; 3], q: [__m256d; 3]) -> [__m256d; 3] {
+    let w: [__m256d; 3] = std::array::from_fn(|k| _mm256_mul_pd(l[k], q[k]));
+    let sum = _mm256_add_pd(_mm256_add_pd(w[0], w[1]), w[2]);
+    let positive = _mm256_cmp_pd::<_CMP_GT_OQ>(sum, _mm256_setzero_pd());
+    let third = _mm256_set1_pd(1.0 / 3.0);
+    w.map(|w| _mm256_blendv_pd(third, _mm256_div_pd(w, sum), positive))
+}
+
+/// Rounds four lanes of each weight to `f32` (nearest, as `as f32`) and stores them at lanes
+/// `4 half .. 4 half + 4`.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn store_weights(v: [__m256d; 3], half: usize, out: &mut [[f32; 8]; 3]) {
+    for (o, v) in out.iter_mut().zip(v) {
+        // SAFETY: `half` is 0 or 1, so lanes `4 half .. 4 half + 4` lie within the
+        // eight-element array; unaligned store.
+        unsafe { _mm_storeu_ps(o.as_mut_ptr().add(4 * half), _mm256_cvtpd_ps(v)) };
+    }
+}
+
+/// [`super::divided_weights`]: one triangle's `1 / area2` and `1 / w` for all lanes, in two
+/// halves of four.
 ///
 /// # Safety
 /// The CPU must support AVX2 and FMA.
@@ -674,38 +706,20 @@ pub(super) unsafe fn divided_weights(
     q: [f64; 3],
     out: &mut [[f32; 8]; 3],
 ) {
-    let ia = _mm256_set1_pd(inv_area2);
-    let third = _mm256_set1_pd(1.0 / 3.0);
+    let (ia, q) = (_mm256_set1_pd(inv_area2), q.map(|q| _mm256_set1_pd(q)));
     for half in 0..2 {
         // SAFETY: lanes `4 half .. 4 half + 4` lie within the eight-element arrays;
         // unaligned loads.
-        let (l1, l2) = unsafe {
-            (
-                _mm256_mul_pd(_mm256_loadu_pd(e1.as_ptr().add(4 * half)), ia),
-                _mm256_mul_pd(_mm256_loadu_pd(e2.as_ptr().add(4 * half)), ia),
-            )
+        let (e1, e2) = unsafe {
+            (_mm256_loadu_pd(e1.as_ptr().add(4 * half)), _mm256_loadu_pd(e2.as_ptr().add(4 * half)))
         };
-        let l0 = _mm256_sub_pd(_mm256_sub_pd(_mm256_set1_pd(1.0), l1), l2);
-        let w = [
-            _mm256_mul_pd(l0, _mm256_set1_pd(q[0])),
-            _mm256_mul_pd(l1, _mm256_set1_pd(q[1])),
-            _mm256_mul_pd(l2, _mm256_set1_pd(q[2])),
-        ];
-        let sum = _mm256_add_pd(_mm256_add_pd(w[0], w[1]), w[2]);
-        let positive = _mm256_cmp_pd::<_CMP_GT_OQ>(sum, _mm256_setzero_pd());
-        for (o, w) in out.iter_mut().zip(w) {
-            let v = _mm256_cvtpd_ps(_mm256_blendv_pd(third, _mm256_div_pd(w, sum), positive));
-            // SAFETY: lanes `4 half .. 4 half + 4` lie within the eight-element array;
-            // unaligned store.
-            unsafe { _mm_storeu_ps(o.as_mut_ptr().add(4 * half), v) };
-        }
+        store_weights(divided(screen_weights(e1, e2, ia), q), half, out);
     }
 }
 
-/// [`super::perspective_weights`]: [`divided_weights`]' quotients and the screen-space
-/// weights on two halves of four `f64` lanes, each lane taking the screen-space ones where
-/// its three `1 / w` are one positive value (chosen before the rounding to `f32`, which
-/// commutes with the choice).
+/// [`super::perspective_weights`]: each lane its own triangle's constants, in two halves of
+/// four; a lane whose three `1 / w` are one positive value takes the screen-space weights
+/// (chosen before the rounding to `f32`, which commutes with the choice).
 ///
 /// # Safety
 /// The CPU must support AVX2 and FMA.
@@ -717,7 +731,6 @@ pub(super) unsafe fn perspective_weights(
     q: &[[f64; 8]; 3],
     out: &mut [[f32; 8]; 3],
 ) {
-    let third = _mm256_set1_pd(1.0 / 3.0);
     let zero = _mm256_setzero_pd();
     for half in 0..2 {
         // SAFETY: lanes `4 half .. 4 half + 4` lie within the eight-element arrays;
@@ -726,12 +739,7 @@ pub(super) unsafe fn perspective_weights(
             let load = |v: &[f64; 8]| _mm256_loadu_pd(v.as_ptr().add(4 * half));
             (load(e1), load(e2), load(inv_area2), [load(&q[0]), load(&q[1]), load(&q[2])])
         };
-        let (l1, l2) = (_mm256_mul_pd(e1, ia), _mm256_mul_pd(e2, ia));
-        let l0 = _mm256_sub_pd(_mm256_sub_pd(_mm256_set1_pd(1.0), l1), l2);
-        let l = [l0, l1, l2];
-        let w: [__m256d; 3] = std::array::from_fn(|k| _mm256_mul_pd(l[k], q[k]));
-        let sum = _mm256_add_pd(_mm256_add_pd(w[0], w[1]), w[2]);
-        let positive = _mm256_cmp_pd::<_CMP_GT_OQ>(sum, zero);
+        let l = screen_weights(e1, e2, ia);
         let affine = _mm256_and_pd(
             _mm256_cmp_pd::<_CMP_GT_OQ>(q[0], zero),
             _mm256_and_pd(
@@ -739,13 +747,9 @@ pub(super) unsafe fn perspective_weights(
                 _mm256_cmp_pd::<_CMP_EQ_OQ>(q[1], q[2]),
             ),
         );
-        for (k, o) in out.iter_mut().enumerate() {
-            let divided = _mm256_blendv_pd(third, _mm256_div_pd(w[k], sum), positive);
-            let v = _mm256_cvtpd_ps(_mm256_blendv_pd(divided, l[k], affine));
-            // SAFETY: lanes `4 half .. 4 half + 4` lie within the eight-element array;
-            // unaligned store.
-            unsafe { _mm_storeu_ps(o.as_mut_ptr().add(4 * half), v) };
-        }
+        let divided = divided(l, q);
+        let v = std::array::from_fn(|k| _mm256_blendv_pd(divided[k], l[k], affine));
+        store_weights(v, half, out);
     }
 }
 

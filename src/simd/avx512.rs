@@ -46,9 +46,38 @@ pub(super) unsafe fn row_masks(
     }
 }
 
-/// [`super::divided_weights`]: the scalar operations on eight `f64` lanes, the quotients
-/// rounded to `f32` (nearest, as `as f32`), a lane whose sum is not positive (or NaN) given
-/// thirds.
+/// The screen-space weights `[l0, l1, l2]` of eight lanes (`l0 = (1 - l1) - l2`, as the
+/// scalar code forms it) from their numerators and `1 / area2`.
+#[inline]
+#[target_feature(enable = "avx512f")]
+fn screen_weights(e1: __m512d, e2: __m512d, inv_area2: __m512d) -> [__m512d; 3] {
+    let (l1, l2) = (_mm512_mul_pd(e1, inv_area2), _mm512_mul_pd(e2, inv_area2));
+    [_mm512_sub_pd(_mm512_sub_pd(_mm512_set1_pd(1.0), l1), l2), l1, l2]
+}
+
+/// `l_i q_i / sum(l_j q_j)` of eight lanes rounded to `f32` (nearest, as `as f32`), thirds
+/// where the sum is not positive (or NaN): [`crate::pipeline::divided_weights`] lane by lane.
+#[inline]
+#[target_feature(enable = "avx512f,avx512vl")]
+fn divided(l: [__m512d; 3], q: [__m512d; 3]) -> [__m256; 3] {
+    let w: [__m512d; 3] = std::array::from_fn(|k| _mm512_mul_pd(l[k], q[k]));
+    let sum = _mm512_add_pd(_mm512_add_pd(w[0], w[1]), w[2]);
+    let positive = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(sum, _mm512_setzero_pd());
+    let third = _mm256_set1_ps(1.0 / 3.0);
+    w.map(|w| _mm256_mask_blend_ps(positive, third, _mm512_cvtpd_ps(_mm512_div_pd(w, sum))))
+}
+
+/// Stores eight lanes of each weight.
+#[inline]
+#[target_feature(enable = "avx512f")]
+fn store_weights(v: [__m256; 3], out: &mut [[f32; 8]; 3]) {
+    for (o, v) in out.iter_mut().zip(v) {
+        // SAFETY: the store writes eight `f32` to an eight-element array; unaligned store.
+        unsafe { _mm256_storeu_ps(o.as_mut_ptr(), v) };
+    }
+}
+
+/// [`super::divided_weights`]: one triangle's `1 / area2` and `1 / w` for all lanes.
 ///
 /// # Safety
 /// The CPU must support AVX-512 (F, VL, DQ).
@@ -60,33 +89,14 @@ pub(super) unsafe fn divided_weights(
     q: [f64; 3],
     out: &mut [[f32; 8]; 3],
 ) {
-    let ia = _mm512_set1_pd(inv_area2);
     // SAFETY: each load reads the eight `f64` of an eight-element array; unaligned loads.
-    let (l1, l2) = unsafe {
-        (
-            _mm512_mul_pd(_mm512_loadu_pd(e1.as_ptr()), ia),
-            _mm512_mul_pd(_mm512_loadu_pd(e2.as_ptr()), ia),
-        )
-    };
-    let l0 = _mm512_sub_pd(_mm512_sub_pd(_mm512_set1_pd(1.0), l1), l2);
-    let w = [
-        _mm512_mul_pd(l0, _mm512_set1_pd(q[0])),
-        _mm512_mul_pd(l1, _mm512_set1_pd(q[1])),
-        _mm512_mul_pd(l2, _mm512_set1_pd(q[2])),
-    ];
-    let sum = _mm512_add_pd(_mm512_add_pd(w[0], w[1]), w[2]);
-    let positive = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(sum, _mm512_setzero_pd());
-    let third = _mm256_set1_ps(1.0 / 3.0);
-    for (o, w) in out.iter_mut().zip(w) {
-        let v = _mm256_mask_blend_ps(positive, third, _mm512_cvtpd_ps(_mm512_div_pd(w, sum)));
-        // SAFETY: the store writes eight `f32` to an eight-element array; unaligned store.
-        unsafe { _mm256_storeu_ps(o.as_mut_ptr(), v) };
-    }
+    let (e1, e2) = unsafe { (_mm512_loadu_pd(e1.as_ptr()), _mm512_loadu_pd(e2.as_ptr())) };
+    let l = screen_weights(e1, e2, _mm512_set1_pd(inv_area2));
+    store_weights(divided(l, q.map(|q| _mm512_set1_pd(q))), out);
 }
 
-/// [`super::perspective_weights`]: [`divided_weights`]' quotients and the screen-space
-/// weights on eight `f64` lanes, each lane taking the screen-space ones where its three
-/// `1 / w` are one positive value.
+/// [`super::perspective_weights`]: each lane its own triangle's constants; a lane whose three
+/// `1 / w` are one positive value takes the screen-space weights.
 ///
 /// # Safety
 /// The CPU must support AVX-512 (F, VL, DQ).
@@ -103,23 +113,14 @@ pub(super) unsafe fn perspective_weights(
         let load = |v: &[f64; 8]| _mm512_loadu_pd(v.as_ptr());
         (load(e1), load(e2), load(inv_area2), [load(&q[0]), load(&q[1]), load(&q[2])])
     };
-    let (l1, l2) = (_mm512_mul_pd(e1, ia), _mm512_mul_pd(e2, ia));
-    let l0 = _mm512_sub_pd(_mm512_sub_pd(_mm512_set1_pd(1.0), l1), l2);
-    let l = [l0, l1, l2];
-    let w: [__m512d; 3] = std::array::from_fn(|k| _mm512_mul_pd(l[k], q[k]));
-    let sum = _mm512_add_pd(_mm512_add_pd(w[0], w[1]), w[2]);
-    let positive = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(sum, _mm512_setzero_pd());
+    let l = screen_weights(e1, e2, ia);
     let affine = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(q[0], _mm512_setzero_pd())
         & _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(q[0], q[1])
         & _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(q[1], q[2]);
-    let third = _mm256_set1_ps(1.0 / 3.0);
-    for (k, o) in out.iter_mut().enumerate() {
-        let divided = _mm512_cvtpd_ps(_mm512_div_pd(w[k], sum));
-        let divided = _mm256_mask_blend_ps(positive, third, divided);
-        let v = _mm256_mask_blend_ps(affine, divided, _mm512_cvtpd_ps(l[k]));
-        // SAFETY: the store writes eight `f32` to an eight-element array; unaligned store.
-        unsafe { _mm256_storeu_ps(o.as_mut_ptr(), v) };
-    }
+    let divided = divided(l, q);
+    let v =
+        std::array::from_fn(|k| _mm256_mask_blend_ps(affine, divided[k], _mm512_cvtpd_ps(l[k])));
+    store_weights(v, out);
 }
 
 /// Eight lanes of `(a0 + f1 * g1) + f2 * g2`: a depth plane.
