@@ -603,20 +603,20 @@ where
         // soon the loads came, which moved with unrelated edits elsewhere (a quarter of this
         // function's time in one build: bunny 6.6 -> 7.6 ms on two threads, the same
         // instructions).
-        // All eight lanes at once (those past `len` from leftovers, not read).
         let mut w = [[0.0f32; LANES]; 3];
-        let numerators = (&passed.e1, &passed.e2);
-        simd::divided_weights(SimdLevel::detected(), numerators, t.inv_area2, q, &mut w);
+        let numerators = passed.e1.iter().zip(&passed.e2).take(passed.len);
+        for (l, (e1, e2)) in numerators.enumerate() {
+            [w[0][l], w[1][l], w[2][l]] = divided_weights(e1 * t.inv_area2, e2 * t.inv_area2, q);
+        }
         for (l, out) in out.iter_mut().enumerate().take(passed.len) {
             *out = self.shade_lane(t, passed, l, [w[0][l], w[1][l], w[2][l]]);
         }
     }
 
     /// [`TriangleFragments::lanes`] for lanes of several triangles: each lane's triangle
-    /// constants gathered first, then the weights of all lanes at once, affine or divided
-    /// lane by lane ([`simd::perspective_weights`]; lanes past `len` compute from leftovers
-    /// and zeros, and are not read: the grid, one thread, 1.6% fewer instructions than a
-    /// scalar loop over the lanes).
+    /// constants gathered first, then the weights of all lanes in one loop of fixed length
+    /// (lanes past `len` compute from leftovers and zeros, and are not read), affine or
+    /// divided lane by lane.
     /// The lanes in use always have their triangle; shading `Option::and_then` of it instead
     /// of `expect` made the grid 2% slower.
     fn lanes_of(
@@ -625,15 +625,17 @@ where
         passed: &PassedLanes,
         out: &mut [Option<FragmentOutput>; LANES],
     ) {
-        let (mut inv_area2, mut q) = ([0.0f64; LANES], [[0.0f64; LANES]; 3]);
+        let mut k = [[0.0f64; LANES]; 4];
         for l in 0..passed.len {
             let t = tris[l].expect("a queued lane has its triangle");
-            let inv_w = t.inv_w_f64();
-            (inv_area2[l], q[0][l], q[1][l], q[2][l]) = (t.inv_area2, inv_w[0], inv_w[1], inv_w[2]);
+            let q = t.inv_w_f64();
+            (k[0][l], k[1][l], k[2][l], k[3][l]) = (t.inv_area2, q[0], q[1], q[2]);
         }
         let mut w = [[0.0f32; LANES]; 3];
-        let numerators = (&passed.e1, &passed.e2);
-        simd::perspective_weights(SimdLevel::detected(), numerators, &inv_area2, &q, &mut w);
+        for l in 0..LANES {
+            let (l1, l2) = (passed.e1[l] * k[0][l], passed.e2[l] * k[0][l]);
+            [w[0][l], w[1][l], w[2][l]] = perspective_weights(l1, l2, [k[1][l], k[2][l], k[3][l]]);
+        }
         for (l, out) in out.iter_mut().enumerate().take(passed.len) {
             let t = tris[l].expect("a queued lane has its triangle");
             *out = self.shade_lane(t, passed, l, [w[0][l], w[1][l], w[2][l]]);
@@ -925,14 +927,14 @@ fn each_ref<V, R: Borrow<ShadedVertex<V>>>(v: &[R; 3]) -> [&ShadedVertex<V>; 3] 
 /// screen-space ones: returned as they are, without the division per fragment (a twentieth of
 /// a frame of a flat grid), differing from what the division would give by rounding only.
 #[inline]
-pub(crate) fn perspective_weights(l1: f64, l2: f64, q: [f64; 3]) -> [f32; 3] {
+fn perspective_weights(l1: f64, l2: f64, q: [f64; 3]) -> [f32; 3] {
     if is_affine(q) { affine_weights(l1, l2) } else { divided_weights(l1, l2, q) }
 }
 
 /// [`perspective_weights`] for `1/w` that are not [`is_affine`]: `l_i q_i / sum(l_j q_j)`,
 /// thirds for a degenerate sum.
 #[inline]
-pub(crate) fn divided_weights(l1: f64, l2: f64, q: [f64; 3]) -> [f32; 3] {
+fn divided_weights(l1: f64, l2: f64, q: [f64; 3]) -> [f32; 3] {
     let l0 = 1.0 - l1 - l2;
     let w = [l0 * q[0], l1 * q[1], l2 * q[2]];
     let sum = w[0] + w[1] + w[2];
