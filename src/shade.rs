@@ -1341,7 +1341,8 @@ pub(crate) fn shade_small_triangle<'a, T, F: TriangleFragments<T>>(
 ///
 /// The SIMD masks pay for their setup once a triangle has a few pixels a row: one drawn
 /// alone (the bunny's, about 10 pixels) takes them (the bunny's frame 4.5% fewer
-/// instructions; one thread, fastest frames 11.3-11.4 -> 10.3-11.5 ms); the smallest
+/// instructions; one thread, fastest frames of three alternated runs 10.6-11.6 -> 10.0-11.3
+/// ms); the smallest
 /// triangles, which share a queue ([`shade_small_triangle`], the grid's two-pixel ones),
 /// took 5% more instructions with them and keep the scalar masks.
 #[inline(always)]
