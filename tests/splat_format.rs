@@ -503,21 +503,7 @@ fn encoded_bytes_are_pinned() {
     for n in &mut plain.nodes {
         (n.normal, n.cone, n.color) = ([0.0; 3], std::f32::consts::PI, [255; 3]);
     }
-    let bad = |centre: [f32; 3], radius: f32, first_child: u32, child_count: u8| SplatNode {
-        centre,
-        radius,
-        normal: [f32::NAN, 0.0, 1.0],
-        cone: f32::NAN,
-        color: [1, 2, 3],
-        first_child,
-        child_count,
-    };
-    let malformed = SplatTree::new(vec![
-        bad([0.0; 3], 1.0, 0, 9),
-        bad([1e30, 0.0, 0.0], f32::INFINITY, 7, 200),
-        bad([f32::MAX, -f32::MAX, 0.0], f32::MAX, u32::MAX, 255),
-    ]);
-    let trees = [ours, built, plain, malformed, SplatTree::default()];
+    let trees = [ours, built, plain, out_of_range_tree(), SplatTree::default()];
     let mut got = Vec::new();
     for tree in &trees {
         let bytes = format::encode(tree).unwrap();
@@ -666,9 +652,9 @@ fn a_zero_normal_in_a_tree_with_normals_round_trips_as_zero() {
     assert_ne!(decoded.nodes[4].normal, [0.0; 3]);
 }
 
-#[test]
-fn encoder_never_panics_on_bad_trees() {
-    let node = |centre: [f32; 3], radius: f32, first_child: u32, child_count: u8| SplatNode {
+/// A node with a NaN normal and cone and the given sphere and children, for malformed trees.
+fn bad_node(centre: [f32; 3], radius: f32, first_child: u32, child_count: u8) -> SplatNode {
+    SplatNode {
         centre,
         radius,
         normal: [f32::NAN, 0.0, 1.0],
@@ -676,17 +662,27 @@ fn encoder_never_panics_on_bad_trees() {
         color: [1, 2, 3],
         first_child,
         child_count,
-    };
+    }
+}
+
+/// Child ranges out of bounds, pointing back to the root, more than 4 children; spheres at
+/// and past the edge of `f32`.
+fn out_of_range_tree() -> SplatTree {
+    SplatTree::new(vec![
+        bad_node([0.0; 3], 1.0, 0, 9),
+        bad_node([1e30, 0.0, 0.0], f32::INFINITY, 7, 200),
+        bad_node([f32::MAX, -f32::MAX, 0.0], f32::MAX, u32::MAX, 255),
+    ])
+}
+
+#[test]
+fn encoder_never_panics_on_bad_trees() {
+    let chain = (0..10).map(|i| bad_node([i as f32, 0.0, 0.0], 0.5, i + 1, 6));
     let trees = [
         SplatTree::default(),
-        SplatTree::new(vec![node([f32::NAN, 1.0, f32::INFINITY], -1.0, 0, 0)]),
-        // Child ranges out of bounds, pointing back to the root, more than 4 children.
-        SplatTree::new(vec![
-            node([0.0; 3], 1.0, 0, 9),
-            node([1e30, 0.0, 0.0], f32::INFINITY, 7, 200),
-            node([f32::MAX, -f32::MAX, 0.0], f32::MAX, u32::MAX, 255),
-        ]),
-        SplatTree::new((0..10).map(|i| node([i as f32, 0.0, 0.0], 0.5, i + 1, 6)).collect()),
+        SplatTree::new(vec![bad_node([f32::NAN, 1.0, f32::INFINITY], -1.0, 0, 0)]),
+        out_of_range_tree(),
+        SplatTree::new(chain.collect()),
     ];
     for tree in &trees {
         let bytes = format::encode(tree).unwrap();
