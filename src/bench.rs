@@ -509,11 +509,8 @@ pub fn run_splats(points: usize, frames: usize) -> Result<SplatBenchResult, Erro
     let tree = SplatTree::build(&cloud)?;
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
     let bytes = format::encode(&tree)?;
-    let tree = format::decode(&bytes).map_err(|e| match e.kind {
-        format::FormatErrorKind::OutOfMemory { nodes, part, bytes } => {
-            Error::OutOfMemory { what: format!("the {nodes} decoded nodes ({part})"), bytes }
-        }
-        _ => Error::Usage(format!("decoding: {e}")),
+    let tree = format::decode(&bytes).map_err(|e| {
+        e.into_error("the encoded hierarchy", |e| Error::Usage(format!("decoding: {e}")))
     })?;
     let Some(root) = tree.nodes.first() else {
         return Err(Error::Usage(format!("no points to time: {points} sampled")));

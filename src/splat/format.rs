@@ -198,6 +198,20 @@ impl fmt::Display for FormatError {
 
 impl std::error::Error for FormatError {}
 
+impl FormatError {
+    /// The crate's error for this one: [`Error::OutOfMemory`] naming the nodes of `source` when
+    /// the decoder's arrays were refused, else what `otherwise` makes of it.
+    pub fn into_error(self, source: &str, otherwise: impl FnOnce(Self) -> Error) -> Error {
+        match self.kind {
+            FormatErrorKind::OutOfMemory { nodes, part, bytes } => Error::OutOfMemory {
+                what: format!("the {nodes} nodes of {source} ({part})"),
+                bytes,
+            },
+            _ => otherwise(self),
+        }
+    }
+}
+
 fn fail<T>(offset: usize, kind: FormatErrorKind) -> Result<T, FormatError> {
     Err(FormatError { offset, kind })
 }
@@ -222,12 +236,12 @@ pub fn write(path: &Path, tree: &SplatTree) -> Result<(), Error> {
 /// ([`FormatErrorKind::OutOfMemory`]).
 pub fn read(path: &Path) -> Result<SplatTree, Error> {
     let bytes = crate::input::read(path)?;
-    decode(&bytes).map_err(|e| match e.kind {
-        FormatErrorKind::OutOfMemory { nodes, part, bytes } => Error::OutOfMemory {
-            what: format!("the {nodes} nodes of {} ({part})", path.display()),
-            bytes,
-        },
-        _ => Error::Parse { path: path.to_path_buf(), line: 0, message: e.to_string() },
+    decode(&bytes).map_err(|e| {
+        e.into_error(&path.display().to_string(), |e| Error::Parse {
+            path: path.to_path_buf(),
+            line: 0,
+            message: e.to_string(),
+        })
     })
 }
 
