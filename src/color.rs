@@ -41,7 +41,13 @@ pub fn srgb_encode(l: f32) -> f32 {
 pub fn linear_to_srgb8(l: f32) -> u8 {
     // Below 2^-13 everything encodes to 0, as 2^-13 does; `-0.0` is below.
     let l = if l.is_nan() { FIRST_ENCODED } else { l.clamp(FIRST_ENCODED, 1.0) };
-    encode_bits(ENCODE_TABLE.get_or_init(encode_table), l.to_bits())
+    encode_bits(srgb8_table(), l.to_bits())
+}
+
+/// The encoder's table ([`linear_to_srgb8`]), for the SIMD kernels' gathers.
+#[inline]
+pub(crate) fn srgb8_table() -> &'static [u32; ENCODE_BUCKETS] {
+    ENCODE_TABLE.get_or_init(encode_table)
 }
 
 /// [`linear_to_srgb8`] of three channels: the same table lookups, after one vector clamp
@@ -50,7 +56,7 @@ pub fn linear_to_srgb8(l: f32) -> u8 {
 #[inline]
 #[must_use]
 pub fn linear_to_srgb8_rgb(l: [f32; 3]) -> [u8; 3] {
-    let table = ENCODE_TABLE.get_or_init(encode_table);
+    let table = srgb8_table();
     let [r, g, b, _] = crate::simd::clamped_bits([l[0], l[1], l[2], 1.0], FIRST_ENCODED);
     [encode_bits(table, r), encode_bits(table, g), encode_bits(table, b)]
 }
@@ -65,18 +71,18 @@ fn encode_bits(table: &[u32; ENCODE_BUCKETS], bits: u32) -> u8 {
 }
 
 /// Mantissa bits below the bucket index.
-const MANTISSA_SHIFT: u32 = 15;
+pub(crate) const MANTISSA_SHIFT: u32 = 15;
 /// Bits within a bucket.
-const LOW_MASK: u32 = (1 << MANTISSA_SHIFT) - 1;
+pub(crate) const LOW_MASK: u32 = (1 << MANTISSA_SHIFT) - 1;
 /// Exponents covered: below 2^-13, linear light encodes to 0 (it is under half a step on
 /// the curve's linear segment, 0.5 / (255 * 12.92) = 1.5e-4).
 const EXPONENTS: usize = 13;
 /// The bucket index of 2^-13, the first bucket; callers clamp everything below to 2^-13.
-const FIRST_BUCKET: usize = (127 - EXPONENTS) << (23 - MANTISSA_SHIFT);
+pub(crate) const FIRST_BUCKET: usize = (127 - EXPONENTS) << (23 - MANTISSA_SHIFT);
 /// 2^-13, the start of the first bucket; every value below it encodes to 0, as it does.
-const FIRST_ENCODED: f32 = 1.0 / (1 << EXPONENTS) as f32;
+pub(crate) const FIRST_ENCODED: f32 = 1.0 / (1 << EXPONENTS) as f32;
 /// Buckets from 2^-13 up to and including 1.0.
-const ENCODE_BUCKETS: usize = (EXPONENTS << (23 - MANTISSA_SHIFT)) + 1;
+pub(crate) const ENCODE_BUCKETS: usize = (EXPONENTS << (23 - MANTISSA_SHIFT)) + 1;
 
 static ENCODE_TABLE: OnceLock<[u32; ENCODE_BUCKETS]> = OnceLock::new();
 

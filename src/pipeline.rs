@@ -927,7 +927,7 @@ fn each_ref<V, R: Borrow<ShadedVertex<V>>>(v: &[R; 3]) -> [&ShadedVertex<V>; 3] 
 /// screen-space ones: returned as they are, without the division per fragment (a twentieth of
 /// a frame of a flat grid), differing from what the division would give by rounding only.
 #[inline]
-fn perspective_weights(l1: f64, l2: f64, q: [f64; 3]) -> [f32; 3] {
+pub(crate) fn perspective_weights(l1: f64, l2: f64, q: [f64; 3]) -> [f32; 3] {
     if is_affine(q) { affine_weights(l1, l2) } else { divided_weights(l1, l2, q) }
 }
 
@@ -948,7 +948,7 @@ fn divided_weights(l1: f64, l2: f64, q: [f64; 3]) -> [f32; 3] {
 /// Whether the three `1/w` are one positive value, where [`perspective_weights`] are the
 /// screen-space ones.
 #[inline]
-fn is_affine(q: [f64; 3]) -> bool {
+pub(crate) fn is_affine(q: [f64; 3]) -> bool {
     q[0] > 0.0 && q[0] == q[1] && q[1] == q[2]
 }
 

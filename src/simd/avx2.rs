@@ -5,10 +5,11 @@ use std::arch::x86_64::*;
 use glam::Vec4;
 
 use super::{
-    Corner, CornerGroup, CornerTests, KernelTarget, NarrowJob, NarrowSamplesJob, SampleSpanJob,
-    SpanColor, SpanJob, WindowGroup,
+    Corner, CornerGroup, CornerTests, KernelTarget, NarrowJob, NarrowSamplesJob, PerspectiveColor,
+    SampleSpanJob, SpanColor, SpanJob, WindowGroup,
 };
 use crate::clip::MIN_W;
+use crate::color::ENCODE_BUCKETS;
 use crate::fixed;
 use crate::sample::{MAX_SAMPLES, SampleCount};
 use crate::setup::{CullMode, PixelRect, Vertex};
@@ -277,6 +278,140 @@ fn smooth<const CLAMP: bool>(
         None => _mm_slli_epi32::<24>(channel(p[3])),
     };
     _mm_or_si128(_mm_or_si128(r, _mm_slli_epi32::<8>(g)), _mm_or_si128(_mm_slli_epi32::<16>(b), a))
+}
+
+/// [`crate::color::linear_to_srgb8`] of eight lanes, in `i32` lanes: the clamp (NaN to
+/// 2^-13 as `max` returns its second operand for NaN), the bucket from the bits, its table
+/// entry gathered, and the one comparison of the low bits with the entry's threshold.
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) fn srgb8(v: __m256, table: &[u32; ENCODE_BUCKETS]) -> __m256i {
+    use crate::color::{FIRST_BUCKET, FIRST_ENCODED, LOW_MASK, MANTISSA_SHIFT};
+    let v = _mm256_min_ps(_mm256_max_ps(v, _mm256_set1_ps(FIRST_ENCODED)), _mm256_set1_ps(1.0));
+    let bits = _mm256_castps_si256(v);
+    let bucket = _mm256_sub_epi32(
+        _mm256_srli_epi32::<{ MANTISSA_SHIFT as i32 }>(bits),
+        _mm256_set1_epi32(FIRST_BUCKET as i32),
+    );
+    // Within the table after the clamp; the `min` makes the gather's bound local.
+    let bucket = _mm256_min_epu32(bucket, _mm256_set1_epi32(ENCODE_BUCKETS as i32 - 1));
+    // SAFETY: every lane of `bucket` is below `ENCODE_BUCKETS`, an index into `table`
+    // (scale 4: `u32` elements); the gather reads nothing else.
+    let entry = unsafe { _mm256_i32gather_epi32::<4>(table.as_ptr().cast(), bucket) };
+    let low = _mm256_and_si256(bits, _mm256_set1_epi32(LOW_MASK as i32));
+    let threshold = _mm256_and_si256(entry, _mm256_set1_epi32(0xffff));
+    // `value + (low >= threshold)`: `value + 1`, less one where `threshold > low` (both
+    // below 2^16, so the signed comparison is the unsigned one).
+    let value = _mm256_srli_epi32::<16>(entry);
+    let below = _mm256_cmpgt_epi32(threshold, low);
+    _mm256_add_epi32(_mm256_add_epi32(value, _mm256_set1_epi32(1)), below)
+}
+
+/// [`crate::color::unorm8`] of eight lanes, in `i32` lanes: `max` maps NaN to 0 (and
+/// `-0.0` to `0.0`, which gives the same 0), `* 255 + 0.5` as two roundings, truncated.
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) fn unorm8(v: __m256) -> __m256i {
+    let v = _mm256_min_ps(_mm256_max_ps(v, _mm256_setzero_ps()), _mm256_set1_ps(1.0));
+    let v = _mm256_add_ps(_mm256_mul_ps(v, _mm256_set1_ps(255.0)), _mm256_set1_ps(0.5));
+    _mm256_cvttps_epi32(v)
+}
+
+/// Four lanes of [`PerspectiveColor::at`], as the AVX-512 `perspective` computes eight:
+/// weights in `f64`, colours in `f32`, the encoder on the low half of [`srgb8`]'s lanes.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn perspective(
+    p: &PerspectiveColor,
+    q: ([f64; 3], bool),
+    table: &[u32; ENCODE_BUCKETS],
+    f1: __m256d,
+    f2: __m256d,
+) -> __m128i {
+    let w = perspective_weights(p.inv_area2, q, f1, f2);
+    let low = |v: __m256i| _mm256_castsi256_si128(v);
+    let channel = |k| _mm256_castps128_ps256(perspective_channel(p, &w, k));
+    let [r, g, b] = [0, 1, 2].map(|k| low(srgb8(channel(k), table)));
+    let a = match p.alpha {
+        Some(a) => _mm_set1_epi32(i32::from(crate::color::unorm8(a)) << 24),
+        None => _mm_slli_epi32::<24>(low(unorm8(channel(3)))),
+    };
+    _mm_or_si128(_mm_or_si128(r, _mm_slli_epi32::<8>(g)), _mm_or_si128(_mm_slli_epi32::<16>(b), a))
+}
+
+/// Four lanes of `crate::pipeline::perspective_weights(f1 inv_area2, f2 inv_area2, q)`.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn perspective_weights(
+    inv_area2: f64,
+    (q, affine): ([f64; 3], bool),
+    f1: __m256d,
+    f2: __m256d,
+) -> [__m128; 3] {
+    let inv_area2 = _mm256_set1_pd(inv_area2);
+    let (l1, l2) = (_mm256_mul_pd(f1, inv_area2), _mm256_mul_pd(f2, inv_area2));
+    let l0 = _mm256_sub_pd(_mm256_sub_pd(_mm256_set1_pd(1.0), l1), l2);
+    if affine {
+        return [l0, l1, l2].map(|l| _mm256_cvtpd_ps(l));
+    }
+    let w = [(l0, q[0]), (l1, q[1]), (l2, q[2])].map(|(l, q)| _mm256_mul_pd(l, _mm256_set1_pd(q)));
+    let sum = _mm256_add_pd(_mm256_add_pd(w[0], w[1]), w[2]);
+    // `sum > 0`, false for NaN: thirds elsewhere (1/3 in `f64` narrows to the `f32` third).
+    let positive = _mm256_cmp_pd::<_CMP_GT_OQ>(sum, _mm256_setzero_pd());
+    let third = _mm256_set1_pd(1.0 / 3.0);
+    w.map(|w| _mm256_cvtpd_ps(_mm256_blendv_pd(third, _mm256_div_pd(w, sum), positive)))
+}
+
+/// Channel `k` of the colour at weights `w`: `(c0 w0 + c1 w1 + c2 w2) scale`, left to right.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn perspective_channel(p: &PerspectiveColor, w: &[__m128; 3], k: usize) -> __m128 {
+    let [c0, c1, c2] = p.colors.map(|c| _mm_set1_ps(c[k]));
+    let t = _mm_add_ps(_mm_mul_ps(c0, w[0]), _mm_mul_ps(c1, w[1]));
+    let t = _mm_add_ps(t, _mm_mul_ps(c2, w[2]));
+    _mm_mul_ps(t, _mm_set1_ps(p.scale[k]))
+}
+
+/// The weights and the four channels of [`perspective`] at four numerators, for the tests.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(test)]
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn perspective_probe(
+    p: &PerspectiveColor,
+    f1: [f64; 4],
+    f2: [f64; 4],
+) -> ([[f32; 4]; 3], [[f32; 4]; 4]) {
+    // SAFETY: each load reads the lanes of its array, no more.
+    let (f1, f2) = unsafe { (_mm256_loadu_pd(f1.as_ptr()), _mm256_loadu_pd(f2.as_ptr())) };
+    let w = perspective_weights(p.inv_area2, p.inv_w(), f1, f2);
+    let lanes = |v: __m128| {
+        let mut out = [0.0f32; 4];
+        // SAFETY: four `f32` lanes into an array of four.
+        unsafe { _mm_storeu_ps(out.as_mut_ptr(), v) };
+        out
+    };
+    (w.map(lanes), [0, 1, 2, 3].map(|k| lanes(perspective_channel(p, &w, k))))
+}
+
+/// [`srgb8`] and [`unorm8`] of eight values, for the tests.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(test)]
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn encode_probe(v: [f32; 8]) -> ([u32; 8], [u32; 8]) {
+    let table = crate::color::srgb8_table();
+    let lanes = |x: __m256i| {
+        let mut out = [0u32; 8];
+        // SAFETY: eight `u32` lanes into an array of eight.
+        unsafe { _mm256_storeu_si256(out.as_mut_ptr().cast(), x) };
+        out
+    };
+    // SAFETY: eight `f32` from an array of eight.
+    let v = unsafe { _mm256_loadu_ps(v.as_ptr()) };
+    (lanes(srgb8(v, table)), lanes(unorm8(v)))
 }
 
 /// Four lanes of `-1` (covered) or `0`, from the low four bits of an index.

@@ -13,8 +13,10 @@
 use std::arch::x86_64::*;
 
 use super::{
-    KernelTarget, NarrowJob, NarrowSamplesJob, SampleSpanJob, SpanColor, SpanJob, WindowGroup,
+    KernelTarget, NarrowJob, NarrowSamplesJob, PerspectiveColor, SampleSpanJob, SpanColor, SpanJob,
+    WindowGroup,
 };
+use crate::color::ENCODE_BUCKETS;
 use crate::fixed;
 use crate::setup::{CullMode, Vertex};
 use crate::shade::DepthTest;
@@ -93,6 +95,86 @@ fn smooth<const CLAMP: bool>(
         _mm256_or_si256(r, _mm256_slli_epi32::<8>(g)),
         _mm256_or_si256(_mm256_slli_epi32::<16>(b), a),
     )
+}
+
+/// Eight lanes of [`PerspectiveColor::at`] (its `1 / w` and whether they are affine, `q`;
+/// the sRGB encoder's `table`): the weights in `f64` lanes (three divisions of eight), the
+/// colours in `f32` lanes, the encoder's lookups gathered ([`super::avx2::srgb8`]).
+#[inline]
+#[target_feature(enable = "avx512f,avx512vl,avx2")]
+fn perspective(
+    p: &PerspectiveColor,
+    q: ([f64; 3], bool),
+    table: &[u32; ENCODE_BUCKETS],
+    f1: __m512d,
+    f2: __m512d,
+) -> __m256i {
+    let w = perspective_weights(p.inv_area2, q, f1, f2);
+    let [r, g, b] = [0, 1, 2].map(|k| super::avx2::srgb8(perspective_channel(p, &w, k), table));
+    let a = match p.alpha {
+        Some(a) => _mm256_set1_epi32(i32::from(crate::color::unorm8(a)) << 24),
+        None => _mm256_slli_epi32::<24>(super::avx2::unorm8(perspective_channel(p, &w, 3))),
+    };
+    _mm256_or_si256(
+        _mm256_or_si256(r, _mm256_slli_epi32::<8>(g)),
+        _mm256_or_si256(_mm256_slli_epi32::<16>(b), a),
+    )
+}
+
+/// Eight lanes of `crate::pipeline::perspective_weights(f1 inv_area2, f2 inv_area2, q)`.
+#[inline]
+#[target_feature(enable = "avx512f,avx512vl")]
+fn perspective_weights(
+    inv_area2: f64,
+    (q, affine): ([f64; 3], bool),
+    f1: __m512d,
+    f2: __m512d,
+) -> [__m256; 3] {
+    let inv_area2 = _mm512_set1_pd(inv_area2);
+    let (l1, l2) = (_mm512_mul_pd(f1, inv_area2), _mm512_mul_pd(f2, inv_area2));
+    let l0 = _mm512_sub_pd(_mm512_sub_pd(_mm512_set1_pd(1.0), l1), l2);
+    if affine {
+        return [l0, l1, l2].map(|l| _mm512_cvtpd_ps(l));
+    }
+    let w = [(l0, q[0]), (l1, q[1]), (l2, q[2])].map(|(l, q)| _mm512_mul_pd(l, _mm512_set1_pd(q)));
+    let sum = _mm512_add_pd(_mm512_add_pd(w[0], w[1]), w[2]);
+    // `sum > 0`, false for NaN: thirds elsewhere.
+    let positive = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(sum, _mm512_setzero_pd());
+    let third = _mm256_set1_ps(1.0 / 3.0);
+    w.map(|w| _mm256_mask_blend_ps(positive, third, _mm512_cvtpd_ps(_mm512_div_pd(w, sum))))
+}
+
+/// Channel `k` of the colour at weights `w`: `(c0 w0 + c1 w1 + c2 w2) scale`, left to right.
+#[inline]
+#[target_feature(enable = "avx512f,avx512vl")]
+fn perspective_channel(p: &PerspectiveColor, w: &[__m256; 3], k: usize) -> __m256 {
+    let [c0, c1, c2] = p.colors.map(|c| _mm256_set1_ps(c[k]));
+    let t = _mm256_add_ps(_mm256_mul_ps(c0, w[0]), _mm256_mul_ps(c1, w[1]));
+    let t = _mm256_add_ps(t, _mm256_mul_ps(c2, w[2]));
+    _mm256_mul_ps(t, _mm256_set1_ps(p.scale[k]))
+}
+
+/// The weights and the four channels of [`perspective`] at eight numerators, for the tests.
+///
+/// # Safety
+/// The CPU must support AVX-512 F and VL.
+#[cfg(test)]
+#[target_feature(enable = "avx512f,avx512vl")]
+pub(super) unsafe fn perspective_probe(
+    p: &PerspectiveColor,
+    f1: [f64; 8],
+    f2: [f64; 8],
+) -> ([[f32; 8]; 3], [[f32; 8]; 4]) {
+    // SAFETY: each load reads the lanes of its array, no more.
+    let (f1, f2) = unsafe { (_mm512_loadu_pd(f1.as_ptr()), _mm512_loadu_pd(f2.as_ptr())) };
+    let w = perspective_weights(p.inv_area2, p.inv_w(), f1, f2);
+    let lanes = |v: __m256| {
+        let mut out = [0.0f32; 8];
+        // SAFETY: eight `f32` lanes into an array of eight.
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), v) };
+        out
+    };
+    (w.map(lanes), [0, 1, 2, 3].map(|k| lanes(perspective_channel(p, &w, k))))
 }
 
 /// Eight 32-bit lanes of `p`, those of `m` read and the others zero: from `p + at[0]`, or,

@@ -295,6 +295,53 @@ pub enum SpanColor {
     /// off, may hold anything). The narrow sample kernels, which evaluate colour at the
     /// centres of partly covered pixels (possibly outside the triangle), clamp it.
     SmoothRgb([[f64; 3]; 3], u8),
+    /// A 3D pipeline triangle whose fragment shader is a fixed function of its
+    /// perspective-correct vertex colours ([`crate::pipeline::InterpolatedColor`]).
+    Perspective(PerspectiveColor),
+}
+
+/// What a 3D pipeline triangle's fragments are when its fragment shader only passes on
+/// interpolated vertex colours ([`crate::pipeline::FragmentShader::interpolated_color`]): the
+/// pipeline's own arithmetic, so that kernels computing it in lanes write what the shader
+/// would have. At barycentric numerators `(e1, e2)`: the perspective-correct weights of
+/// `(e1, e2) / area2` and `1 / w` (`f64`, as the fragment stage computes them), the colours
+/// weighted in `f32` as `Varyings::weighted` weights a `Vec4` (`c0 w0 + c1 w1 + c2 w2`, left
+/// to right), times `scale`, sRGB-encoded; the alpha `alpha`, or the weighted one, as 8-bit
+/// linear ([`crate::color::unorm8`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PerspectiveColor {
+    /// Linear RGBA at the three vertices.
+    pub colors: [[f32; 4]; 3],
+    /// Multiplies the weighted colour, channel by channel.
+    pub scale: [f32; 4],
+    /// Every fragment's alpha, in place of the weighted one.
+    pub alpha: Option<f32>,
+    /// The vertices' `1 / w`.
+    pub inv_w: [f32; 3],
+    /// `1 / area2` of the triangle (as its setup has it).
+    pub inv_area2: f64,
+}
+
+impl PerspectiveColor {
+    /// The vertices' `1 / w` as the weights take them, and whether they are one positive
+    /// value (then the weights are the screen-space ones, with no division).
+    #[inline(always)]
+    fn inv_w(&self) -> ([f64; 3], bool) {
+        let q = self.inv_w.map(f64::from);
+        (q, crate::pipeline::is_affine(q))
+    }
+
+    /// The colour at barycentric numerators `(e1, e2)`, lane by lane as the fragment stage
+    /// computes it: the definition the kernels are tested against.
+    #[must_use]
+    pub fn at(&self, e1: f64, e2: f64) -> [u8; 4] {
+        let (q, _) = self.inv_w();
+        let w = crate::pipeline::perspective_weights(e1 * self.inv_area2, e2 * self.inv_area2, q);
+        let [c0, c1, c2] = self.colors.map(Vec4::from_array);
+        let c = (c0 * w[0] + c1 * w[1] + c2 * w[2]) * Vec4::from_array(self.scale);
+        let [r, g, b] = crate::color::linear_to_srgb8_rgb([c.x, c.y, c.z]);
+        [r, g, b, crate::color::unorm8(self.alpha.unwrap_or(c.w))]
+    }
 }
 
 impl SpanColor {
@@ -327,7 +374,7 @@ impl SpanColor {
     #[must_use]
     pub fn at(&self, f1: f64, f2: f64) -> [u8; 4] {
         #[cfg(target_arch = "x86_64")]
-        if !matches!(self, Self::Flat(_)) && SimdLevel::Avx2.is_available() {
+        if matches!(self, Self::Smooth(_) | Self::SmoothRgb(..)) && SimdLevel::Avx2.is_available() {
             // SAFETY: AVX2 and FMA support was just checked at run time.
             return unsafe { avx2::color_at(self, f1, f2) };
         }
@@ -347,6 +394,7 @@ impl SpanColor {
             Self::Flat(c) => *c,
             Self::Smooth([r, g, b, a]) => [q(r), q(g), q(b), q(a)],
             Self::SmoothRgb([r, g, b], alpha) => [q(r), q(g), q(b), *alpha],
+            Self::Perspective(p) => p.at(f1, f2),
         }
     }
 }
@@ -1103,6 +1151,13 @@ macro_rules! with_rgba {
                 let $rgba = move |f1, f2| $smooth::<$clamp_rgb>(&p, Some(alpha), f1, f2);
                 $body
             }
+            // Each kernel module's `perspective`: the sRGB encoder's clamps make any lane
+            // safe, inside the triangle or not.
+            SpanColor::Perspective(p) => {
+                let (table, (q, affine)) = (crate::color::srgb8_table(), p.inv_w());
+                let $rgba = move |f1, f2| perspective(&p, (q, affine), table, f1, f2);
+                $body
+            }
         }
     };
     (clamped $color:expr, $lanes:ty, $flat:expr, $smooth:ident, $rgba:ident => $body:expr) => {
@@ -1393,6 +1448,9 @@ mod tests {
     /// alpha); now and then one of four planes with a NaN or infinite channel (the quantizers
     /// map NaN to 0 and clamp infinities).
     fn random_color(rng: &mut SmallRng, round: usize) -> SpanColor {
+        if rng.random_range(0..4) == 0 {
+            return SpanColor::Perspective(random_perspective(rng, round));
+        }
         if rng.random() {
             return SpanColor::Flat([rng.random(), rng.random(), rng.random(), rng.random()]);
         }
@@ -1411,6 +1469,29 @@ mod tests {
             planes[round % 4][0] = [f64::NAN, f64::INFINITY, -f64::INFINITY][round % 3];
         }
         SpanColor::Smooth(planes)
+    }
+
+    /// A random [`PerspectiveColor`]: colours in [0, 1] or a little outside it (NaN and
+    /// infinities now and then), a scale of ones or a random one, a constant alpha or none,
+    /// `1 / w` equal (affine weights), random, or summing to zero or less somewhere (thirds),
+    /// `1 / area2` of a small triangle or a large one.
+    fn random_perspective(rng: &mut SmallRng, round: usize) -> PerspectiveColor {
+        let value = |rng: &mut SmallRng| rng.random_range(-0.1..1.1f32);
+        let mut colors: [[f32; 4]; 3] =
+            std::array::from_fn(|_| std::array::from_fn(|_| value(rng)));
+        if round.is_multiple_of(53) {
+            colors[round % 3][round % 4] = [f32::NAN, f32::INFINITY, -f32::INFINITY][round % 3];
+        }
+        let scale = if rng.random() { [1.0; 4] } else { std::array::from_fn(|_| rng.random()) };
+        let alpha = rng.random::<bool>().then(|| value(rng));
+        let q = rng.random_range(0.01..10.0f32);
+        let inv_w = match rng.random_range(0..4) {
+            0 => [q; 3],
+            1 => [q, -q, rng.random_range(-1.0..1.0)],
+            _ => std::array::from_fn(|_| rng.random_range(0.01..10.0)),
+        };
+        let area2 = [rng.random_range(1..1 << 12), rng.random_range(1..1u64 << 40)][round % 2];
+        PerspectiveColor { colors, scale, alpha, inv_w, inv_area2: 1.0 / area2 as f64 }
     }
 
     /// The narrow kernels against the scalar one on random boxes (1 to 8 columns, 1 to 6
@@ -1975,6 +2056,109 @@ mod tests {
                     assert_eq!(shade_narrow_samples(level, job), 60);
                     let drawn = out.iter().filter(|&&c| c == want).count();
                     assert_eq!(drawn, 60, "{level:?} 4x narrow: {out:?}, {want:?}");
+                }
+            }
+        }
+    }
+
+    /// The kernels' perspective weights and colour channels, lane by lane, are the fragment
+    /// stage's: `perspective_weights` of the scaled numerators, the colours weighted left to
+    /// right and scaled, bit for bit (NaN as NaN), on random colours (see
+    /// [`random_perspective`]) at numerators up to 2^42, near zero, and at the vertices.
+    #[test]
+    fn perspective_lanes_match_the_fragment_stage() {
+        let same = |a: f32, b: f32| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+        let mut rng = SmallRng::seed_from_u64(61);
+        for round in 0..20_000 {
+            let p = random_perspective(&mut rng, round);
+            let area2 = (1.0 / p.inv_area2).round();
+            let numerator = |rng: &mut SmallRng| match rng.random_range(0..4) {
+                0 => rng.random_range(-(1i64 << 42)..1 << 42) as f64,
+                1 => rng.random_range(-300..300) as f64,
+                2 => [0.0, area2][rng.random_range(0..2)],
+                _ => rng.random_range(-area2..2.0 * area2).round(),
+            };
+            let f1: [f64; 8] = std::array::from_fn(|_| numerator(&mut rng));
+            let f2: [f64; 8] = std::array::from_fn(|_| numerator(&mut rng));
+            let q = p.inv_w.map(f64::from);
+            let want = |l: usize| {
+                let w = crate::pipeline::perspective_weights(
+                    f1[l] * p.inv_area2,
+                    f2[l] * p.inv_area2,
+                    q,
+                );
+                let [c0, c1, c2] = p.colors.map(Vec4::from_array);
+                (w, (c0 * w[0] + c1 * w[1] + c2 * w[2]) * Vec4::from_array(p.scale))
+            };
+            let check = |l: usize, w: [f32; 3], c: [f32; 4], level: &str| {
+                let (ww, wc) = want(l);
+                let ok = (0..3).all(|k| same(w[k], ww[k])) && (0..4).all(|k| same(c[k], wc[k]));
+                assert!(
+                    ok,
+                    "{level} lane {l}: {w:?} {c:?}, want {ww:?} {wc:?} ({p:?} at {}, {})",
+                    f1[l], f2[l]
+                );
+            };
+            #[cfg(target_arch = "x86_64")]
+            {
+                if SimdLevel::Avx512.is_available() {
+                    // SAFETY: AVX-512 support was just checked.
+                    let (w, c) = unsafe { avx512::perspective_probe(&p, f1, f2) };
+                    (0..8).for_each(|l| check(l, w.map(|w| w[l]), c.map(|c| c[l]), "AVX-512"));
+                }
+                if SimdLevel::Avx2.is_available() {
+                    for half in 0..2 {
+                        let part = |f: [f64; 8]| std::array::from_fn(|l| f[4 * half + l]);
+                        // SAFETY: AVX2 support was just checked.
+                        let (w, c) = unsafe { avx2::perspective_probe(&p, part(f1), part(f2)) };
+                        for l in 0..4 {
+                            check(4 * half + l, w.map(|w| w[l]), c.map(|c| c[l]), "AVX2");
+                        }
+                    }
+                }
+            }
+            let _ = (check, round);
+        }
+    }
+
+    /// The kernels' sRGB and alpha encoders are `linear_to_srgb8` and `unorm8` for every
+    /// kind of value: every bucket's first value and its neighbours (where the table's
+    /// thresholds lie), values around 2^-13 and 1, zeros, subnormals, infinities, NaN, and
+    /// random bit patterns.
+    #[test]
+    fn encoders_match_scalar() {
+        #[cfg(target_arch = "x86_64")]
+        if SimdLevel::Avx2.is_available() {
+            let mut values: Vec<f32> = vec![0.0, -0.0, 1e-40, -1e-40, 1.0, f32::NAN, -f32::NAN];
+            values.extend([f32::INFINITY, f32::NEG_INFINITY, f32::MAX, f32::MIN_POSITIVE]);
+            for bucket in 1..=127u32 << 8 {
+                let first = bucket << 15;
+                for b in [first.wrapping_sub(1), first, first + 1, first + (1 << 14)] {
+                    values.push(f32::from_bits(b));
+                }
+            }
+            // Each table bucket's threshold and the value below it.
+            for (k, entry) in crate::color::srgb8_table().iter().enumerate() {
+                let first =
+                    ((k + crate::color::FIRST_BUCKET) as u32) << crate::color::MANTISSA_SHIFT;
+                let t = (entry & 0xffff).min(crate::color::LOW_MASK);
+                values.extend([first | t, first | t.saturating_sub(1)].map(f32::from_bits));
+            }
+            let mut rng = SmallRng::seed_from_u64(62);
+            values.extend((0..200_000).map(|_| f32::from_bits(rng.random())));
+            values.extend((0..200_000).map(|_| rng.random_range(-0.1..1.1f32)));
+            for chunk in values.chunks(8) {
+                let v: [f32; 8] = std::array::from_fn(|l| chunk.get(l).copied().unwrap_or(0.5));
+                // SAFETY: AVX2 support was just checked.
+                let (srgb, alpha) = unsafe { avx2::encode_probe(v) };
+                for l in 0..8 {
+                    let want = (crate::color::linear_to_srgb8(v[l]), crate::color::unorm8(v[l]));
+                    assert_eq!(
+                        (srgb[l], alpha[l]),
+                        (u32::from(want.0), u32::from(want.1)),
+                        "{}",
+                        v[l]
+                    );
                 }
             }
         }
