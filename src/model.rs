@@ -10,7 +10,7 @@ use crate::camera::Camera;
 use crate::color::srgb_decode;
 use crate::error::Error;
 use crate::mesh::Mesh;
-use crate::pipeline::{FaceCull, Fragment, FragmentShader, Pipeline};
+use crate::pipeline::{FaceCull, Fragment, FragmentShader, InterpolatedColor, Pipeline};
 use crate::render::DrawStats;
 use crate::shade::DepthTest;
 use crate::target::Target;
@@ -297,6 +297,20 @@ impl ModelFragment<'_> {
         }
     }
 
+    /// What [`ModelFragment::material_albedo`] multiplies a colour by, where that is a
+    /// constant (`None` where it samples a texture): one for a material index past the list
+    /// (the colour is returned as it is, which a product with one gives bit for bit).
+    fn material_scale(&self, material: u32) -> Option<Vec4> {
+        let mesh = self.surface.mesh;
+        let k = material as usize;
+        let Some(m) = mesh.materials.get(k) else { return Some(Vec4::ONE) };
+        let texture = self.surface.textures.textures.get(k).and_then(Option::as_ref);
+        if texture.is_some() && mesh.texcoords.is_some() {
+            return None;
+        }
+        Some(Vec3::from(m.diffuse.map(srgb_decode)).extend(1.0))
+    }
+
     /// [`ModelFragment::albedo_at`] on a triangle with material index `material`.
     #[inline(never)]
     fn material_albedo(&self, uv: Vec2, color: Vec4, material: u32) -> Vec4 {
@@ -382,6 +396,16 @@ impl FragmentShader<Vec4> for ColorFragment<'_> {
 
     fn may_discard(&self) -> bool {
         false
+    }
+
+    /// The lit vertex colours times the triangle's material colour (a constant: this shader
+    /// is only drawn without texture coordinates).
+    fn interpolated_color(&self, v: [&Vec4; 3], primitive: u32) -> Option<InterpolatedColor> {
+        let scale = match &self.0.surface.mesh.triangle_materials {
+            None => Vec4::ONE,
+            Some(materials) => self.0.material_scale(materials[primitive as usize])?,
+        };
+        Some(InterpolatedColor { colors: v.map(|c| *c), scale, alpha: None })
     }
 }
 
@@ -668,9 +692,10 @@ mod tests {
     }
 
     /// Without texture coordinates, unlit and Gouraud lighting interpolate the colour alone
-    /// ([`ColorFragment`]), alpha included: the same bits as the full varyings, without
-    /// materials, with plain ones, and with a textured one (which, without coordinates, takes
-    /// its diffuse colour).
+    /// ([`ColorFragment`], shaded in the SIMD kernels at 1x), alpha included: the same bits
+    /// as the full varyings (the fragment stage), without materials, with plain ones, with a
+    /// textured one (which, without coordinates, takes its diffuse colour), and with an index
+    /// past the materials (the colour as it is).
     #[test]
     fn color_varyings_draw_what_the_full_ones_draw() {
         let mesh = coloured_sphere(3000, 0.8);
@@ -680,7 +705,7 @@ mod tests {
         let red = Material { diffuse: [0.9, 0.2, 0.1], ..Material::default() };
         with_materials.materials = vec![Material::default(), red.clone(), red];
         let count = with_materials.triangles.len() as u32;
-        with_materials.triangle_materials = Some((0..count).map(|t| t % 3).collect());
+        with_materials.triangle_materials = Some((0..count).map(|t| t % 4).collect());
         let texels: Vec<u8> = (0..4 * 8 * 8).map(|k| (k * 37 % 251) as u8).collect();
         let textures = MaterialTextures {
             textures: vec![None, None, Some(Texture::from_srgba8(8, 8, &texels))],

@@ -49,7 +49,7 @@ use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
 use crate::shade::{
     self, DepthTest, FragmentOutput, LANES, PassedLanes, PlaneEquation, TriangleFragments,
 };
-use crate::simd::{self, Corner, CornerGroup, OUTSIDE, SimdLevel};
+use crate::simd::{self, Corner, CornerGroup, OUTSIDE, PerspectiveColor, SimdLevel, SpanColor};
 use crate::target::Target;
 use crate::varyings::Varyings;
 
@@ -104,11 +104,72 @@ pub trait FragmentShader<V>: Sync {
     fn may_discard(&self) -> bool {
         true
     }
+
+    /// For the triangle `primitive` with vertex varyings `varyings`: `Some` when
+    /// [`FragmentShader::shade`] gives every fragment of it the colour `InterpolatedColor`
+    /// describes, and never discards there. The tiled backend then shades the triangle in
+    /// SIMD kernels, which compute that colour as the pipeline's own arithmetic does, bit for
+    /// bit, without calling `shade` (except where a target keeps normals). `None` by default;
+    /// a shader that says `Some` and then computes something else draws wrong pictures.
+    fn interpolated_color(&self, _varyings: [&V; 3], _primitive: u32) -> Option<InterpolatedColor> {
+        None
+    }
 }
 
 impl<V, F: Fn(&Fragment<V>) -> Option<Vec4> + Sync> FragmentShader<V> for F {
     fn shade(&self, fragment: &Fragment<V>) -> Option<Vec4> {
         self(fragment)
+    }
+}
+
+/// A triangle's fragment colour as a fixed function of its vertex colours
+/// ([`FragmentShader::interpolated_color`]): `weighted * scale`, where `weighted` is the
+/// perspective-correct interpolation of `colors` as [`Varyings::weighted`] computes it for a
+/// `Vec4` (`c0 * w0 + c1 * w1 + c2 * w2` in `f32`, left to right) and the product is
+/// component-wise; with `alpha`, every fragment's alpha is that value instead.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InterpolatedColor {
+    /// Linear RGBA at the three vertices.
+    pub colors: [Vec4; 3],
+    /// Multiplies the interpolated colour (a material's albedo); [`Vec4::ONE`] for none.
+    pub scale: Vec4,
+    /// Every fragment's alpha, when it is not interpolated.
+    pub alpha: Option<f32>,
+}
+
+/// The fragment shader that outputs the interpolated vertex colour: linear RGBA (`Vec4`
+/// varyings), or linear RGB, opaque (`Vec3`). The tiled backend shades it in SIMD kernels
+/// ([`FragmentShader::interpolated_color`]), which are much faster than a closure computing
+/// the same: use it for Gouraud-shaded and vertex-coloured meshes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct VertexColor;
+
+impl FragmentShader<Vec4> for VertexColor {
+    fn shade(&self, f: &Fragment<Vec4>) -> Option<Vec4> {
+        Some(f.varyings)
+    }
+
+    fn may_discard(&self) -> bool {
+        false
+    }
+
+    fn interpolated_color(&self, v: [&Vec4; 3], _: u32) -> Option<InterpolatedColor> {
+        Some(InterpolatedColor { colors: v.map(|c| *c), scale: Vec4::ONE, alpha: None })
+    }
+}
+
+impl FragmentShader<Vec3> for VertexColor {
+    fn shade(&self, f: &Fragment<Vec3>) -> Option<Vec4> {
+        Some(f.varyings.extend(1.0))
+    }
+
+    fn may_discard(&self) -> bool {
+        false
+    }
+
+    fn interpolated_color(&self, v: [&Vec3; 3], _: u32) -> Option<InterpolatedColor> {
+        let colors = v.map(|c| c.extend(0.0));
+        Some(InterpolatedColor { colors, scale: Vec4::ONE, alpha: Some(1.0) })
     }
 }
 
@@ -139,6 +200,9 @@ pub struct Pipeline {
     /// How the tiled backend spreads the work over threads (meshes over 2^20 vertices are
     /// binned whatever it says: each band would shade their vertices again).
     pub schedule: Schedule,
+    /// The tiled backend's SIMD level (`None`: the best the CPU has, or `TRIRAST_SIMD`).
+    /// Every level draws the same pixels.
+    pub simd: Option<SimdLevel>,
 }
 
 impl Pipeline {
@@ -170,6 +234,14 @@ impl Pipeline {
         self
     }
 
+    /// Sets the tiled backend's SIMD level (which must be available; a level the CPU lacks
+    /// runs scalar code).
+    #[must_use]
+    pub fn with_simd(mut self, level: SimdLevel) -> Self {
+        self.simd = Some(level);
+        self
+    }
+
     /// Draws indexed triangles: each vertex of `vertices` through `vertex_shader` once, each
     /// triangle of `triangles` (indices into `vertices`) clipped, rasterized and shaded.
     ///
@@ -194,7 +266,7 @@ impl Pipeline {
         // Small meshes: every vertex shaded once, up front. Large ones: per batch of
         // triangles (below), so memory stays bounded whatever the mesh size.
         let whole = vertices.len() <= VERTEX_CACHE;
-        let level = SimdLevel::detect();
+        let level = self.simd.unwrap_or_else(SimdLevel::detect);
         // The batches `bin::pipelined` will cut (given this length, it cuts the same).
         let batch_len = bin::even_batch_len(triangles.len(), batch::<VS::Varyings>());
         let index_ranges: Vec<(u32, u32)> =
@@ -274,7 +346,11 @@ impl Pipeline {
         let want_normal = target.normals.is_some();
         // What the tile loop will bin for, so that batches are binned as they are prepared.
         let bin_target = bin::BinTarget::of(target, self.depth_test);
-        let shade = ShaderStage { shader: fragment_shader, want_normal };
+        // Kernels write no normals. Multisampled, they compute a pixel's colour once per
+        // sample lane, where the fragment stage computes it once per pixel: the Phong-less
+        // bunny at 4x was 10-15% slower with them.
+        let kernel = (!want_normal && target.samples().count() == 1).then_some(level);
+        let shade = ShaderStage { shader: fragment_shader, want_normal, kernel };
         let mut stats = DrawStats { submitted: triangles.len(), ..DrawStats::default() };
         let count = |stats: &mut DrawStats, r: &Result<_, Skipped>| match r {
             Ok(_) => stats.rasterized += 1,
@@ -508,6 +584,9 @@ impl<V: Varyings> TriangleData<V> {
 struct ShaderStage<'a, FS> {
     shader: &'a FS,
     want_normal: bool,
+    /// The level the kernels shade at, where the shader's colours allow it
+    /// ([`FragmentShader::interpolated_color`]); `None`: never.
+    kernel: Option<SimdLevel>,
 }
 
 impl<FS> Clone for ShaderStage<'_, FS> {
@@ -574,6 +653,26 @@ where
         let fragment = t.fragment(x, y, z, w);
         let c = self.shader.shade(&fragment)?;
         Some(self.output(&fragment, c))
+    }
+
+    #[inline(always)]
+    fn span_color(&self, t: &TriangleData<V>) -> Option<(SimdLevel, SpanColor)> {
+        let level = self.kernel?;
+        let varyings = [&t.varyings0, &t.varyings1, &t.varyings2];
+        let c = self.shader.interpolated_color(varyings, t.primitive)?;
+        let color = PerspectiveColor {
+            colors: c.colors.map(|c| c.to_array()),
+            scale: c.scale.to_array(),
+            alpha: c.alpha,
+            inv_w: t.inv_w,
+            inv_area2: t.inv_area2,
+        };
+        Some((level, SpanColor::Perspective(color)))
+    }
+
+    #[inline(always)]
+    fn has_span_colors(&self) -> bool {
+        self.kernel.is_some()
     }
 
     /// [`TriangleFragments::fragment`] of each lane. With perspective, the weights of all
@@ -1105,7 +1204,7 @@ mod tests {
                 passed.z[l] = rng.random();
             }
             for want_normal in [false, true] {
-                let stage = ShaderStage { shader: &Everything, want_normal };
+                let stage = ShaderStage { shader: &Everything, want_normal, kernel: None };
                 let mut lanes = [None; LANES];
                 stage.lanes(&triangle, &passed, &mut lanes);
                 for (l, got) in lanes.iter().enumerate().take(passed.len) {

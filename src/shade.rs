@@ -489,6 +489,14 @@ pub trait FragmentStage {
     fn lanes(&mut self, lanes: &PassedLanes, out: &mut [Option<FragmentOutput>; LANES]) {
         lanes.each_into(out, |x, y, e1, e2, z| self.fragment(x, y, e1, e2, z));
     }
+
+    /// The triangle's colour as the kernels compute it, and their level, when the kernels
+    /// may shade its fragments instead of [`FragmentStage::fragment`]: they write what it
+    /// would, bit for bit (the 3D pipeline's interpolated vertex colours,
+    /// [`SpanColor::Perspective`]). `None` by default.
+    fn span_color(&self) -> Option<(SimdLevel, SpanColor)> {
+        None
+    }
 }
 
 impl<F: FnMut(i32, i32, f64, f64, f32) -> Option<FragmentOutput>> FragmentStage for F {
@@ -526,6 +534,17 @@ pub trait TriangleFragments<T>: Sync {
             *out = t.and_then(|t| self.fragment(t, x, y, e1, e2, z));
         }
     }
+
+    /// [`FragmentStage::span_color`] for the triangle with data `t`.
+    fn span_color(&self, _t: &T) -> Option<(SimdLevel, SpanColor)> {
+        None
+    }
+
+    /// Whether [`TriangleFragments::span_color`] may be `Some`: the tile loops then leave
+    /// small triangles to the kernels rather than gather their fragments in a shared queue.
+    fn has_span_colors(&self) -> bool {
+        false
+    }
 }
 
 impl<T, F> TriangleFragments<T> for F
@@ -550,6 +569,11 @@ impl<T, F: TriangleFragments<T>> FragmentStage for OfTriangle<'_, T, F> {
     #[inline(always)]
     fn lanes(&mut self, lanes: &PassedLanes, out: &mut [Option<FragmentOutput>; LANES]) {
         self.0.lanes(self.1, lanes, out);
+    }
+
+    #[inline(always)]
+    fn span_color(&self) -> Option<(SimdLevel, SpanColor)> {
+        self.0.span_color(self.1)
     }
 }
 
@@ -632,6 +656,9 @@ pub fn shade_triangle(
     kernel: Option<(SimdLevel, &SpanColor)>,
     fragment: impl FragmentStage,
 ) -> u64 {
+    // Where the draw call has no kernel, the stage's own (the 3D pipeline's vertex colours).
+    let own = if kernel.is_none() { fragment.span_color() } else { None };
+    let kernel = kernel.or(own.as_ref().map(|(level, color)| (*level, color)));
     let samples = target.samples();
     let n = samples.count();
     if n == 1 {

@@ -317,6 +317,12 @@ pub(super) fn unorm8(v: __m256) -> __m256i {
     _mm256_cvttps_epi32(v)
 }
 
+/// What [`perspective`] reads besides the colour: the sRGB encoder's table.
+#[inline]
+fn perspective_tables() -> &'static [u32; ENCODE_BUCKETS] {
+    crate::color::srgb8_table()
+}
+
 /// Four lanes of [`PerspectiveColor::at`], as the AVX-512 `perspective` computes eight:
 /// weights in `f64`, colours in `f32`, the encoder on the low half of [`srgb8`]'s lanes.
 #[inline]
@@ -328,13 +334,19 @@ fn perspective(
     f1: __m256d,
     f2: __m256d,
 ) -> __m128i {
+    // Written out, without closures or `map` (see the AVX-512 `perspective`).
     let w = perspective_weights(p.inv_area2, q, f1, f2);
-    let low = |v: __m256i| _mm256_castsi256_si128(v);
-    let channel = |k| _mm256_castps128_ps256(perspective_channel(p, &w, k));
-    let [r, g, b] = [0, 1, 2].map(|k| low(srgb8(channel(k), table)));
+    let r = srgb8(_mm256_castps128_ps256(perspective_channel(p, &w, 0)), table);
+    let g = srgb8(_mm256_castps128_ps256(perspective_channel(p, &w, 1)), table);
+    let b = srgb8(_mm256_castps128_ps256(perspective_channel(p, &w, 2)), table);
+    let (r, g, b) =
+        (_mm256_castsi256_si128(r), _mm256_castsi256_si128(g), _mm256_castsi256_si128(b));
     let a = match p.alpha {
         Some(a) => _mm_set1_epi32(i32::from(crate::color::unorm8(a)) << 24),
-        None => _mm_slli_epi32::<24>(low(unorm8(channel(3)))),
+        None => {
+            let a = unorm8(_mm256_castps128_ps256(perspective_channel(p, &w, 3)));
+            _mm_slli_epi32::<24>(_mm256_castsi256_si128(a))
+        }
     };
     _mm_or_si128(_mm_or_si128(r, _mm_slli_epi32::<8>(g)), _mm_or_si128(_mm_slli_epi32::<16>(b), a))
 }
@@ -352,21 +364,28 @@ fn perspective_weights(
     let (l1, l2) = (_mm256_mul_pd(f1, inv_area2), _mm256_mul_pd(f2, inv_area2));
     let l0 = _mm256_sub_pd(_mm256_sub_pd(_mm256_set1_pd(1.0), l1), l2);
     if affine {
-        return [l0, l1, l2].map(|l| _mm256_cvtpd_ps(l));
+        return [_mm256_cvtpd_ps(l0), _mm256_cvtpd_ps(l1), _mm256_cvtpd_ps(l2)];
     }
-    let w = [(l0, q[0]), (l1, q[1]), (l2, q[2])].map(|(l, q)| _mm256_mul_pd(l, _mm256_set1_pd(q)));
-    let sum = _mm256_add_pd(_mm256_add_pd(w[0], w[1]), w[2]);
+    let w0 = _mm256_mul_pd(l0, _mm256_set1_pd(q[0]));
+    let w1 = _mm256_mul_pd(l1, _mm256_set1_pd(q[1]));
+    let w2 = _mm256_mul_pd(l2, _mm256_set1_pd(q[2]));
+    let sum = _mm256_add_pd(_mm256_add_pd(w0, w1), w2);
     // `sum > 0`, false for NaN: thirds elsewhere (1/3 in `f64` narrows to the `f32` third).
     let positive = _mm256_cmp_pd::<_CMP_GT_OQ>(sum, _mm256_setzero_pd());
     let third = _mm256_set1_pd(1.0 / 3.0);
-    w.map(|w| _mm256_cvtpd_ps(_mm256_blendv_pd(third, _mm256_div_pd(w, sum), positive)))
+    [
+        _mm256_cvtpd_ps(_mm256_blendv_pd(third, _mm256_div_pd(w0, sum), positive)),
+        _mm256_cvtpd_ps(_mm256_blendv_pd(third, _mm256_div_pd(w1, sum), positive)),
+        _mm256_cvtpd_ps(_mm256_blendv_pd(third, _mm256_div_pd(w2, sum), positive)),
+    ]
 }
 
 /// Channel `k` of the colour at weights `w`: `(c0 w0 + c1 w1 + c2 w2) scale`, left to right.
 #[inline]
 #[target_feature(enable = "avx2")]
 fn perspective_channel(p: &PerspectiveColor, w: &[__m128; 3], k: usize) -> __m128 {
-    let [c0, c1, c2] = p.colors.map(|c| _mm_set1_ps(c[k]));
+    let [c0, c1, c2] = p.colors;
+    let (c0, c1, c2) = (_mm_set1_ps(c0[k]), _mm_set1_ps(c1[k]), _mm_set1_ps(c2[k]));
     let t = _mm_add_ps(_mm_mul_ps(c0, w[0]), _mm_mul_ps(c1, w[1]));
     let t = _mm_add_ps(t, _mm_mul_ps(c2, w[2]));
     _mm_mul_ps(t, _mm_set1_ps(p.scale[k]))

@@ -109,8 +109,12 @@ fn perspective(
     f1: __m512d,
     f2: __m512d,
 ) -> __m256i {
+    // Written out, without closures or `map`: a closure here was called, not inlined, a
+    // quarter of the bunny's frame.
     let w = perspective_weights(p.inv_area2, q, f1, f2);
-    let [r, g, b] = [0, 1, 2].map(|k| super::avx2::srgb8(perspective_channel(p, &w, k), table));
+    let r = super::avx2::srgb8(perspective_channel(p, &w, 0), table);
+    let g = super::avx2::srgb8(perspective_channel(p, &w, 1), table);
+    let b = super::avx2::srgb8(perspective_channel(p, &w, 2), table);
     let a = match p.alpha {
         Some(a) => _mm256_set1_epi32(i32::from(crate::color::unorm8(a)) << 24),
         None => _mm256_slli_epi32::<24>(super::avx2::unorm8(perspective_channel(p, &w, 3))),
@@ -119,6 +123,12 @@ fn perspective(
         _mm256_or_si256(r, _mm256_slli_epi32::<8>(g)),
         _mm256_or_si256(_mm256_slli_epi32::<16>(b), a),
     )
+}
+
+/// What [`perspective`] reads besides the colour: the sRGB encoder's table.
+#[inline]
+fn perspective_tables() -> &'static [u32; ENCODE_BUCKETS] {
+    crate::color::srgb8_table()
 }
 
 /// Eight lanes of `crate::pipeline::perspective_weights(f1 inv_area2, f2 inv_area2, q)`.
@@ -134,21 +144,28 @@ fn perspective_weights(
     let (l1, l2) = (_mm512_mul_pd(f1, inv_area2), _mm512_mul_pd(f2, inv_area2));
     let l0 = _mm512_sub_pd(_mm512_sub_pd(_mm512_set1_pd(1.0), l1), l2);
     if affine {
-        return [l0, l1, l2].map(|l| _mm512_cvtpd_ps(l));
+        return [_mm512_cvtpd_ps(l0), _mm512_cvtpd_ps(l1), _mm512_cvtpd_ps(l2)];
     }
-    let w = [(l0, q[0]), (l1, q[1]), (l2, q[2])].map(|(l, q)| _mm512_mul_pd(l, _mm512_set1_pd(q)));
-    let sum = _mm512_add_pd(_mm512_add_pd(w[0], w[1]), w[2]);
+    let w0 = _mm512_mul_pd(l0, _mm512_set1_pd(q[0]));
+    let w1 = _mm512_mul_pd(l1, _mm512_set1_pd(q[1]));
+    let w2 = _mm512_mul_pd(l2, _mm512_set1_pd(q[2]));
+    let sum = _mm512_add_pd(_mm512_add_pd(w0, w1), w2);
     // `sum > 0`, false for NaN: thirds elsewhere.
     let positive = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(sum, _mm512_setzero_pd());
     let third = _mm256_set1_ps(1.0 / 3.0);
-    w.map(|w| _mm256_mask_blend_ps(positive, third, _mm512_cvtpd_ps(_mm512_div_pd(w, sum))))
+    [
+        _mm256_mask_blend_ps(positive, third, _mm512_cvtpd_ps(_mm512_div_pd(w0, sum))),
+        _mm256_mask_blend_ps(positive, third, _mm512_cvtpd_ps(_mm512_div_pd(w1, sum))),
+        _mm256_mask_blend_ps(positive, third, _mm512_cvtpd_ps(_mm512_div_pd(w2, sum))),
+    ]
 }
 
 /// Channel `k` of the colour at weights `w`: `(c0 w0 + c1 w1 + c2 w2) scale`, left to right.
 #[inline]
 #[target_feature(enable = "avx512f,avx512vl")]
 fn perspective_channel(p: &PerspectiveColor, w: &[__m256; 3], k: usize) -> __m256 {
-    let [c0, c1, c2] = p.colors.map(|c| _mm256_set1_ps(c[k]));
+    let [c0, c1, c2] = p.colors;
+    let (c0, c1, c2) = (_mm256_set1_ps(c0[k]), _mm256_set1_ps(c1[k]), _mm256_set1_ps(c2[k]));
     let t = _mm256_add_ps(_mm256_mul_ps(c0, w[0]), _mm256_mul_ps(c1, w[1]));
     let t = _mm256_add_ps(t, _mm256_mul_ps(c2, w[2]));
     _mm256_mul_ps(t, _mm256_set1_ps(p.scale[k]))

@@ -1154,7 +1154,7 @@ macro_rules! with_rgba {
             // Each kernel module's `perspective`: the sRGB encoder's clamps make any lane
             // safe, inside the triangle or not.
             SpanColor::Perspective(p) => {
-                let (table, (q, affine)) = (crate::color::srgb8_table(), p.inv_w());
+                let (table, (q, affine)) = (perspective_tables(), p.inv_w());
                 let $rgba = move |f1, f2| perspective(&p, (q, affine), table, f1, f2);
                 $body
             }
@@ -2147,18 +2147,20 @@ mod tests {
             let mut rng = SmallRng::seed_from_u64(62);
             values.extend((0..200_000).map(|_| f32::from_bits(rng.random())));
             values.extend((0..200_000).map(|_| rng.random_range(-0.1..1.1f32)));
-            for chunk in values.chunks(8) {
-                let v: [f32; 8] = std::array::from_fn(|l| chunk.get(l).copied().unwrap_or(0.5));
-                // SAFETY: AVX2 support was just checked.
-                let (srgb, alpha) = unsafe { avx2::encode_probe(v) };
-                for l in 0..8 {
-                    let want = (crate::color::linear_to_srgb8(v[l]), crate::color::unorm8(v[l]));
-                    assert_eq!(
-                        (srgb[l], alpha[l]),
-                        (u32::from(want.0), u32::from(want.1)),
-                        "{}",
-                        v[l]
-                    );
+            for chunk in values.chunks(16) {
+                let v: [f32; 16] = std::array::from_fn(|l| chunk.get(l).copied().unwrap_or(0.5));
+                let want = |l: usize| {
+                    let (s, a) = (crate::color::linear_to_srgb8(v[l]), crate::color::unorm8(v[l]));
+                    (u32::from(s), u32::from(a))
+                };
+                for half in 0..2 {
+                    let part = std::array::from_fn(|l| v[8 * half + l]);
+                    // SAFETY: AVX2 support was just checked.
+                    let (srgb, alpha) = unsafe { avx2::encode_probe(part) };
+                    for l in 0..8 {
+                        let k = 8 * half + l;
+                        assert_eq!((srgb[l], alpha[l]), want(k), "AVX2: {}", v[k]);
+                    }
                 }
             }
         }
