@@ -107,10 +107,11 @@ pub trait FragmentShader<V>: Sync {
 
     /// For the triangle `primitive` with vertex varyings `varyings`: `Some` when
     /// [`FragmentShader::shade`] gives every fragment of it the colour `InterpolatedColor`
-    /// describes, and never discards there. The tiled backend then shades the triangle in
+    /// describes, and never discards there. The tiled backend may then shade the triangle in
     /// SIMD kernels, which compute that colour as the pipeline's own arithmetic does, bit for
-    /// bit, without calling `shade` (except where a target keeps normals). `None` by default;
-    /// a shader that says `Some` and then computes something else draws wrong pictures.
+    /// bit, without calling `shade` (it does at 1x, on targets without a normal buffer, for
+    /// triangles of more than a few pixels). `None` by default; a shader that says `Some` and
+    /// then computes something else draws wrong pictures.
     fn interpolated_color(&self, _varyings: [&V; 3], _primitive: u32) -> Option<InterpolatedColor> {
         None
     }
@@ -347,7 +348,7 @@ impl Pipeline {
         // What the tile loop will bin for, so that batches are binned as they are prepared.
         let bin_target = bin::BinTarget::of(target, self.depth_test);
         // Kernels write no normals. Multisampled, they compute a pixel's colour once per
-        // sample lane, where the fragment stage computes it once per pixel: the Phong-less
+        // sample lane, where the fragment stage computes it once per pixel: the Gouraud
         // bunny at 4x was 10-15% slower with them.
         let kernel = (!want_normal && target.samples().count() == 1).then_some(level);
         let shade = ShaderStage { shader: fragment_shader, want_normal, kernel };
@@ -668,11 +669,6 @@ where
             inv_area2: t.inv_area2,
         };
         Some((level, SpanColor::Perspective(color)))
-    }
-
-    #[inline(always)]
-    fn has_span_colors(&self) -> bool {
-        self.kernel.is_some()
     }
 
     /// [`TriangleFragments::fragment`] of each lane. With perspective, the weights of all

@@ -539,12 +539,6 @@ pub trait TriangleFragments<T>: Sync {
     fn span_color(&self, _t: &T) -> Option<(SimdLevel, SpanColor)> {
         None
     }
-
-    /// Whether [`TriangleFragments::span_color`] may be `Some`: the tile loops then leave
-    /// small triangles to the kernels rather than gather their fragments in a shared queue.
-    fn has_span_colors(&self) -> bool {
-        false
-    }
 }
 
 impl<T, F> TriangleFragments<T> for F

@@ -1444,9 +1444,10 @@ mod tests {
         ]
     }
 
-    /// A random flat or smooth colour (four planes, or three within [0, 255] and a constant
-    /// alpha); now and then one of four planes with a NaN or infinite channel (the quantizers
-    /// map NaN to 0 and clamp infinities).
+    /// A random colour: a quarter of them a 3D pipeline triangle's vertex colours
+    /// ([`random_perspective`]), the rest flat or smooth (four planes, or three within
+    /// [0, 255] and a constant alpha); now and then one of four planes with a NaN or infinite
+    /// channel (the quantizers map NaN to 0 and clamp infinities).
     fn random_color(rng: &mut SmallRng, round: usize) -> SpanColor {
         if rng.random_range(0..4) == 0 {
             return SpanColor::Perspective(random_perspective(rng, round));
@@ -2117,6 +2118,7 @@ mod tests {
                     }
                 }
             }
+            // Unused where there is no x86_64 kernel to check.
             let _ = (check, round);
         }
     }
