@@ -109,9 +109,9 @@ pub trait FragmentShader<V>: Sync {
     /// [`FragmentShader::shade`] gives every fragment of it the colour `InterpolatedColor`
     /// describes, and never discards there. The tiled backend may then shade the triangle in
     /// SIMD kernels, which compute that colour as the pipeline's own arithmetic does, bit for
-    /// bit, without calling `shade` (it does at 1x, on targets without a normal buffer, for
-    /// triangles of more than a few pixels). `None` by default; a shader that says `Some` and
-    /// then computes something else draws wrong pictures.
+    /// bit, without calling `shade` (it does with AVX-512, at 1x, on targets without a normal
+    /// buffer, for triangles of more than a few pixels). `None` by default; a shader that says
+    /// `Some` and then computes something else draws wrong pictures.
     fn interpolated_color(&self, _varyings: [&V; 3], _primitive: u32) -> Option<InterpolatedColor> {
         None
     }
@@ -349,8 +349,11 @@ impl Pipeline {
         let bin_target = bin::BinTarget::of(target, self.depth_test);
         // Kernels write no normals. Multisampled, they compute a pixel's colour once per
         // sample lane, where the fragment stage computes it once per pixel: the Gouraud
-        // bunny at 4x was 10-15% slower with them.
-        let kernel = (!want_normal && target.samples().count() == 1).then_some(level);
+        // bunny at 4x was 10-15% slower with them. Four lanes a step (AVX2) pay more for
+        // their gathers and divisions than the fragment stage does (the bunny on one thread:
+        // 11.3 ms through the stage, 14.2 ms through the AVX2 kernels), so AVX-512 only.
+        let wide = level == SimdLevel::Avx512 && level.is_available();
+        let kernel = (wide && !want_normal && target.samples().count() == 1).then_some(level);
         let shade = ShaderStage { shader: fragment_shader, want_normal, kernel };
         let mut stats = DrawStats { submitted: triangles.len(), ..DrawStats::default() };
         let count = |stats: &mut DrawStats, r: &Result<_, Skipped>| match r {

@@ -1082,8 +1082,9 @@ impl trirast::pipeline::FragmentShader<Vec4> for Tinted {
 /// from 0.3 to 4, triangles crossing the near plane and the sides, slivers, two-pixel
 /// triangles, ones of hundreds of pixels; colours a little outside [0, 1]), into targets with
 /// ids and overdraw at 1x and 4x: the reference's buffers and counts at every SIMD level, on
-/// 1, 2 and 7 threads, binned and banded; and at 1x the kernels did shade, calling the shader
-/// for few of the fragments the reference shaded.
+/// 1, 2 and 7 threads, binned and banded; and at 1x with AVX-512 (the one level that takes
+/// them) the kernels did shade, calling the shader for few of the fragments the reference
+/// shaded.
 #[test]
 fn vertex_colours_match_the_reference() {
     let mut rng = SmallRng::seed_from_u64(41);
@@ -1138,7 +1139,7 @@ fn vertex_colours_match_the_reference() {
                         assert_same(a, b, &format!("{what}, shader {k}"));
                     }
                     let calls = counted.0.into_inner();
-                    if samples == SampleCount::X1 {
+                    if samples == SampleCount::X1 && level == SimdLevel::Avx512 {
                         assert!(
                             4 * calls < reference_calls,
                             "{what}: {calls} of {reference_calls}"

@@ -307,6 +307,27 @@ pub(super) fn srgb8(v: __m256, table: &[u32; ENCODE_BUCKETS]) -> __m256i {
     _mm256_add_epi32(_mm256_add_epi32(value, _mm256_set1_epi32(1)), below)
 }
 
+/// [`srgb8`] of four lanes, with a gather of four.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn srgb8_x4(v: __m128, table: &[u32; ENCODE_BUCKETS]) -> __m128i {
+    use crate::color::{FIRST_BUCKET, FIRST_ENCODED, LOW_MASK, MANTISSA_SHIFT};
+    let v = _mm_min_ps(_mm_max_ps(v, _mm_set1_ps(FIRST_ENCODED)), _mm_set1_ps(1.0));
+    let bits = _mm_castps_si128(v);
+    let bucket = _mm_sub_epi32(
+        _mm_srli_epi32::<{ MANTISSA_SHIFT as i32 }>(bits),
+        _mm_set1_epi32(FIRST_BUCKET as i32),
+    );
+    let bucket = _mm_min_epu32(bucket, _mm_set1_epi32(ENCODE_BUCKETS as i32 - 1));
+    // SAFETY: every lane of `bucket` is below `ENCODE_BUCKETS`, an index into `table`.
+    let entry = unsafe { _mm_i32gather_epi32::<4>(table.as_ptr().cast(), bucket) };
+    let low = _mm_and_si128(bits, _mm_set1_epi32(LOW_MASK as i32));
+    let threshold = _mm_and_si128(entry, _mm_set1_epi32(0xffff));
+    let value = _mm_srli_epi32::<16>(entry);
+    let below = _mm_cmpgt_epi32(threshold, low);
+    _mm_add_epi32(_mm_add_epi32(value, _mm_set1_epi32(1)), below)
+}
+
 /// [`crate::color::unorm8`] of eight lanes, in `i32` lanes: `max` maps NaN to 0 (and
 /// `-0.0` to `0.0`, which gives the same 0), `* 255 + 0.5` as two roundings, truncated.
 #[inline]
@@ -324,7 +345,8 @@ fn perspective_tables() -> &'static [u32; ENCODE_BUCKETS] {
 }
 
 /// Four lanes of [`PerspectiveColor::at`], as the AVX-512 `perspective` computes eight:
-/// weights in `f64`, colours in `f32`, the encoder on the low half of [`srgb8`]'s lanes.
+/// weights in `f64`, colours in `f32`, the encoder's lookups gathered four at a time
+/// ([`srgb8_x4`]).
 #[inline]
 #[target_feature(enable = "avx2,fma")]
 fn perspective(
@@ -336,11 +358,9 @@ fn perspective(
 ) -> __m128i {
     // Written out, without closures or `map` (see the AVX-512 `perspective`).
     let w = perspective_weights(p.inv_area2, q, f1, f2);
-    let r = srgb8(_mm256_castps128_ps256(perspective_channel(p, &w, 0)), table);
-    let g = srgb8(_mm256_castps128_ps256(perspective_channel(p, &w, 1)), table);
-    let b = srgb8(_mm256_castps128_ps256(perspective_channel(p, &w, 2)), table);
-    let (r, g, b) =
-        (_mm256_castsi256_si128(r), _mm256_castsi256_si128(g), _mm256_castsi256_si128(b));
+    let r = srgb8_x4(perspective_channel(p, &w, 0), table);
+    let g = srgb8_x4(perspective_channel(p, &w, 1), table);
+    let b = srgb8_x4(perspective_channel(p, &w, 2), table);
     let a = match p.alpha {
         Some(a) => _mm_set1_epi32(i32::from(crate::color::unorm8(a)) << 24),
         None => {
@@ -414,7 +434,8 @@ pub(super) unsafe fn perspective_probe(
     (w.map(lanes), [0, 1, 2, 3].map(|k| lanes(perspective_channel(p, &w, k))))
 }
 
-/// [`srgb8`] and [`unorm8`] of eight values, for the tests.
+/// [`srgb8`] (and [`srgb8_x4`], asserted to agree with it) and [`unorm8`] of eight values,
+/// for the tests.
 ///
 /// # Safety
 /// The CPU must support AVX2.
@@ -430,7 +451,11 @@ pub(super) unsafe fn encode_probe(v: [f32; 8]) -> ([u32; 8], [u32; 8]) {
     };
     // SAFETY: eight `f32` from an array of eight.
     let v = unsafe { _mm256_loadu_ps(v.as_ptr()) };
-    (lanes(srgb8(v, table)), lanes(unorm8(v)))
+    let (lo, hi) = (_mm256_castps256_ps128(v), _mm256_extractf128_ps::<1>(v));
+    let x4 = _mm256_set_m128i(srgb8_x4(hi, table), srgb8_x4(lo, table));
+    let eight = srgb8(v, table);
+    assert_eq!(lanes(x4), lanes(eight), "four and eight lanes");
+    (lanes(eight), lanes(unorm8(v)))
 }
 
 /// Four lanes of `-1` (covered) or `0`, from the low four bits of an index.
