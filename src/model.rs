@@ -297,34 +297,30 @@ impl ModelFragment<'_> {
         }
     }
 
-    /// What [`ModelFragment::material_albedo`] multiplies a colour by, where that is a
-    /// constant (`None` where it samples a texture): one for a material index past the list
-    /// (the colour is returned as it is, which a product with one gives bit for bit).
-    fn material_scale(&self, material: u32) -> Option<Vec4> {
+    /// What material `material` multiplies a colour by: its texture where the mesh has
+    /// coordinates for it, else its diffuse colour; one for an index past the list (the colour
+    /// as it is, which a product with one gives bit for bit). The one definition the fragment
+    /// shader ([`ModelFragment::material_albedo`]) and the kernels' constant
+    /// ([`ColorFragment::interpolated_color`]) share.
+    fn material_factor(&self, material: u32) -> MaterialFactor<'_> {
         let mesh = self.surface.mesh;
         let k = material as usize;
-        let Some(m) = mesh.materials.get(k) else { return Some(Vec4::ONE) };
-        let texture = self.surface.textures.textures.get(k).and_then(Option::as_ref);
-        if texture.is_some() && mesh.texcoords.is_some() {
-            return None;
+        let Some(m) = mesh.materials.get(k) else { return MaterialFactor::Constant(Vec4::ONE) };
+        match self.surface.textures.textures.get(k).and_then(Option::as_ref) {
+            Some(t) if mesh.texcoords.is_some() => MaterialFactor::Texture(t),
+            _ => MaterialFactor::Constant(Vec3::from(m.diffuse.map(srgb_decode)).extend(1.0)),
         }
-        Some(Vec3::from(m.diffuse.map(srgb_decode)).extend(1.0))
     }
 
     /// [`ModelFragment::albedo_at`] on a triangle with material index `material`.
     #[inline(never)]
     fn material_albedo(&self, uv: Vec2, color: Vec4, material: u32) -> Vec4 {
-        let mesh = self.surface.mesh;
-        let k = material as usize;
-        let Some(m) = mesh.materials.get(k) else { return color };
-        let texture = self.surface.textures.textures.get(k).and_then(Option::as_ref);
-        let base = match texture {
-            Some(t) if mesh.texcoords.is_some() => {
-                t.sample(uv, self.options.filter, self.options.wrap)
+        match self.material_factor(material) {
+            MaterialFactor::Texture(t) => {
+                color * t.sample(uv, self.options.filter, self.options.wrap)
             }
-            _ => Vec3::from(m.diffuse.map(srgb_decode)).extend(1.0),
-        };
-        color * base
+            MaterialFactor::Constant(c) => color * c,
+        }
     }
 
     fn normal_at(&self, f: &Fragment<ModelVaryings>) -> Vec3 {
@@ -389,6 +385,14 @@ impl FragmentShader<SurfaceVaryings> for SurfaceFragment<'_> {
 /// of each).
 struct ColorFragment<'a>(ModelFragment<'a>);
 
+/// What a material multiplies a colour by ([`ModelFragment::material_factor`]).
+enum MaterialFactor<'a> {
+    /// Its texture, sampled at the fragment's coordinates.
+    Texture(&'a Texture),
+    /// A constant.
+    Constant(Vec4),
+}
+
 impl FragmentShader<Vec4> for ColorFragment<'_> {
     fn shade(&self, f: &Fragment<Vec4>) -> Option<Vec4> {
         Some(self.0.albedo_at(Vec2::ZERO, f.varyings, f.primitive))
@@ -403,7 +407,10 @@ impl FragmentShader<Vec4> for ColorFragment<'_> {
     fn interpolated_color(&self, v: [&Vec4; 3], primitive: u32) -> Option<InterpolatedColor> {
         let scale = match &self.0.surface.mesh.triangle_materials {
             None => Vec4::ONE,
-            Some(materials) => self.0.material_scale(materials[primitive as usize])?,
+            Some(materials) => match self.0.material_factor(materials[primitive as usize]) {
+                MaterialFactor::Constant(c) => c,
+                MaterialFactor::Texture(_) => return None,
+            },
         };
         Some(InterpolatedColor { colors: v.map(|c| *c), scale, alpha: None })
     }

@@ -339,12 +339,6 @@ pub(super) fn unorm8(v: __m256) -> __m256i {
     _mm256_cvttps_epi32(v)
 }
 
-/// What [`perspective`] reads besides the colour: the sRGB encoder's table.
-#[inline]
-fn perspective_tables() -> &'static [u32; ENCODE_BUCKETS] {
-    crate::color::srgb8_table()
-}
-
 /// Four lanes of [`PerspectiveColor::at`], as the AVX-512 `perspective` computes eight:
 /// weights in `f64`, colours in `f32`, the encoder's lookups gathered four at a time
 /// ([`srgb8_x4`]).

@@ -125,12 +125,6 @@ fn perspective(
     )
 }
 
-/// What [`perspective`] reads besides the colour: the sRGB encoder's table.
-#[inline]
-fn perspective_tables() -> &'static [u32; ENCODE_BUCKETS] {
-    crate::color::srgb8_table()
-}
-
 /// Eight lanes of `crate::pipeline::perspective_weights(f1 inv_area2, f2 inv_area2, q)`.
 #[inline]
 #[target_feature(enable = "avx512f,avx512vl")]

@@ -1154,7 +1154,7 @@ macro_rules! with_rgba {
             // Each kernel module's `perspective`: the sRGB encoder's clamps make any lane
             // safe, inside the triangle or not.
             SpanColor::Perspective(p) => {
-                let (table, (q, affine)) = (perspective_tables(), p.inv_w());
+                let (table, (q, affine)) = (crate::color::srgb8_table(), p.inv_w());
                 let $rgba = move |f1, f2| perspective(&p, (q, affine), table, f1, f2);
                 $body
             }
