@@ -354,7 +354,7 @@ impl Pipeline {
         // 11.3 ms through the stage, 14.2 ms through the AVX2 kernels), so AVX-512 only.
         let wide = level == SimdLevel::Avx512 && level.is_available();
         let kernel = (wide && !want_normal && target.samples().count() == 1).then_some(level);
-        let shade = ShaderStage { shader: fragment_shader, want_normal, kernel };
+        let shade = ShaderStage { shader: fragment_shader, want_normal, kernel, level };
         let mut stats = DrawStats { submitted: triangles.len(), ..DrawStats::default() };
         let count = |stats: &mut DrawStats, r: &Result<_, Skipped>| match r {
             Ok(_) => stats.rasterized += 1,
@@ -591,6 +591,8 @@ struct ShaderStage<'a, FS> {
     /// The level the kernels shade at, where the shader's colours allow it
     /// ([`FragmentShader::interpolated_color`]); `None`: never.
     kernel: Option<SimdLevel>,
+    /// The level lanes of fragments are encoded at ([`simd::srgb8_lanes`]).
+    level: SimdLevel,
 }
 
 impl<FS> Clone for ShaderStage<'_, FS> {
@@ -618,7 +620,9 @@ impl<FS> ShaderStage<'_, FS> {
     }
 
     /// Lane `l` of `passed` as a fragment of `t` with perspective-correct weights `w`, shaded:
-    /// the body of each loop of [`TriangleFragments::lanes`] and `lanes_of`.
+    /// the body of each loop of [`TriangleFragments::lanes`] and `lanes_of`. Its linear
+    /// colour goes to `linear`, for [`ShaderStage::encode_lanes`] to encode with the others';
+    /// the output's colour is left for it.
     #[inline(always)]
     fn shade_lane<V: Varyings>(
         &self,
@@ -626,12 +630,33 @@ impl<FS> ShaderStage<'_, FS> {
         passed: &PassedLanes,
         l: usize,
         w: [f32; 3],
+        linear: &mut [f32; 4],
     ) -> Option<FragmentOutput>
     where
         FS: FragmentShader<V>,
     {
         let fragment = t.fragment(passed.x[l], passed.y[l], passed.z[l], w);
-        self.shader.shade(&fragment).map(|c| self.output(&fragment, c))
+        let c = self.shader.shade(&fragment)?;
+        *linear = c.to_array();
+        let normal = if self.want_normal {
+            self.shader.normal(&fragment).map(|n| n.to_array())
+        } else {
+            None
+        };
+        Some(FragmentOutput { color: [0; 4], normal })
+    }
+
+    /// The colours of lanes `out` shaded (by [`ShaderStage::shade_lane`]) from their linear
+    /// colours `linear`, all eight encoded at once ([`simd::srgb8_lanes`]; lanes past those
+    /// in use encode leftovers, and are not read).
+    #[inline(always)]
+    fn encode_lanes(&self, linear: &[[f32; 4]; LANES], out: &mut [Option<FragmentOutput>; LANES]) {
+        let colors = simd::srgb8_lanes(self.level, linear);
+        for (out, color) in out.iter_mut().zip(colors) {
+            if let Some(out) = out {
+                out.color = color.to_le_bytes();
+            }
+        }
     }
 }
 
@@ -689,10 +714,12 @@ where
             // No division: the weights are the screen-space ones, computed where they are used.
             // (One loop for both kinds, taking its weights from a closure, made the grid 7%
             // slower, so each kind has its loop around `shade_lane`.)
+            let mut linear = [[0.0; 4]; LANES];
             for (l, out) in out.iter_mut().enumerate().take(passed.len) {
                 let (l1, l2) = (passed.e1[l] * t.inv_area2, passed.e2[l] * t.inv_area2);
-                *out = self.shade_lane(t, passed, l, affine_weights(l1, l2));
+                *out = self.shade_lane(t, passed, l, affine_weights(l1, l2), &mut linear[l]);
             }
+            self.encode_lanes(&linear, out);
             return;
         }
         // One array per weight, so that each load below reads exactly what one store wrote.
@@ -706,9 +733,11 @@ where
         for (l, (e1, e2)) in numerators.enumerate() {
             [w[0][l], w[1][l], w[2][l]] = divided_weights(e1 * t.inv_area2, e2 * t.inv_area2, q);
         }
+        let mut linear = [[0.0; 4]; LANES];
         for (l, out) in out.iter_mut().enumerate().take(passed.len) {
-            *out = self.shade_lane(t, passed, l, [w[0][l], w[1][l], w[2][l]]);
+            *out = self.shade_lane(t, passed, l, [w[0][l], w[1][l], w[2][l]], &mut linear[l]);
         }
+        self.encode_lanes(&linear, out);
     }
 
     /// [`TriangleFragments::lanes`] for lanes of several triangles: each lane's triangle
@@ -734,10 +763,12 @@ where
             let (l1, l2) = (passed.e1[l] * k[0][l], passed.e2[l] * k[0][l]);
             [w[0][l], w[1][l], w[2][l]] = perspective_weights(l1, l2, [k[1][l], k[2][l], k[3][l]]);
         }
+        let mut linear = [[0.0; 4]; LANES];
         for (l, out) in out.iter_mut().enumerate().take(passed.len) {
             let t = tris[l].expect("a queued lane has its triangle");
-            *out = self.shade_lane(t, passed, l, [w[0][l], w[1][l], w[2][l]]);
+            *out = self.shade_lane(t, passed, l, [w[0][l], w[1][l], w[2][l]], &mut linear[l]);
         }
+        self.encode_lanes(&linear, out);
     }
 }
 
@@ -1157,16 +1188,18 @@ mod tests {
         struct Everything;
         impl FragmentShader<Vec3> for Everything {
             fn shade(&self, f: &Fragment<Vec3>) -> Option<Vec4> {
-                // Discards some fragments; each channel of the colour (in [0, 1), so that the
-                // 8-bit output keeps the differences) depends on a field of the fragment.
+                // Discards some fragments; each channel of the colour (in [-0.1, 1.1), so that
+                // the 8-bit output keeps the differences and the clamps are reached) depends
+                // on a field of the fragment.
                 let v = f.varyings;
                 let keep = v.x.fract() < 0.8 && (f.front_facing || f.x % 3 != 0);
                 keep.then(|| {
+                    let spread = |c: f32| c.fract() * 1.2 - 0.1;
                     Vec4::new(
-                        (v.x + 0.01 * f.x as f32).fract(),
-                        (v.y + 0.01 * f.y as f32).fract(),
-                        (v.z + 0.05 * f.primitive as f32).fract(),
-                        f.depth,
+                        spread(v.x + 0.01 * f.x as f32),
+                        spread(v.y + 0.01 * f.y as f32),
+                        spread(v.z + 0.05 * f.primitive as f32),
+                        spread(f.depth),
                     )
                 })
             }
@@ -1175,7 +1208,10 @@ mod tests {
             }
         }
         let mut rng = SmallRng::seed_from_u64(11);
+        // Every level encodes the lanes' colours as the single fragment does.
+        let levels = SimdLevel::available();
         for round in 0..2000 {
+            let level = levels[round as usize % levels.len()];
             let q0 = rng.random_range(0.01..10.0f32);
             let inv_w = if round % 3 == 0 {
                 [q0; 3]
@@ -1203,7 +1239,7 @@ mod tests {
                 passed.z[l] = rng.random();
             }
             for want_normal in [false, true] {
-                let stage = ShaderStage { shader: &Everything, want_normal, kernel: None };
+                let stage = ShaderStage { shader: &Everything, want_normal, kernel: None, level };
                 let mut lanes = [None; LANES];
                 stage.lanes(&triangle, &passed, &mut lanes);
                 for (l, got) in lanes.iter().enumerate().take(passed.len) {

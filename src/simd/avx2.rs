@@ -307,6 +307,48 @@ pub(super) fn srgb8(v: __m256, table: &[u32; ENCODE_BUCKETS]) -> __m256i {
     _mm256_add_epi32(_mm256_add_epi32(value, _mm256_set1_epi32(1)), below)
 }
 
+/// [`super::srgb8_lanes`]: the eight colours transposed into a register per channel (each
+/// pair of lanes `l`, `l + 4` loaded into one register, then unpacked and shuffled), red,
+/// green and blue through [`srgb8`], alpha through [`unorm8`].
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn srgb8_lanes(
+    colors: &[[f32; 4]; 8],
+    table: &[u32; ENCODE_BUCKETS],
+) -> [u32; 8] {
+    let pair = |l: usize| {
+        // SAFETY: lanes `l` and `l + 4` (`l < 4`) are four `f32`s each, in `colors`; the
+        // loads need no alignment.
+        unsafe {
+            let lo = _mm_loadu_ps(colors[l].as_ptr());
+            let hi = _mm_loadu_ps(colors[l + 4].as_ptr());
+            _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(lo), hi)
+        }
+    };
+    let (c04, c15, c26, c37) = (pair(0), pair(1), pair(2), pair(3));
+    // Per 128-bit half: [r0 r1 g0 g1], [b0 b1 a0 a1], [r2 r3 g2 g3], [b2 b3 a2 a3] (lanes 4-7
+    // in the upper halves).
+    let (rg01, ba01) = (_mm256_unpacklo_ps(c04, c15), _mm256_unpackhi_ps(c04, c15));
+    let (rg23, ba23) = (_mm256_unpacklo_ps(c26, c37), _mm256_unpackhi_ps(c26, c37));
+    let r = _mm256_shuffle_ps::<0x44>(rg01, rg23);
+    let g = _mm256_shuffle_ps::<0xEE>(rg01, rg23);
+    let b = _mm256_shuffle_ps::<0x44>(ba01, ba23);
+    let a = _mm256_shuffle_ps::<0xEE>(ba01, ba23);
+    let rgba = _mm256_or_si256(
+        _mm256_or_si256(srgb8(r, table), _mm256_slli_epi32::<8>(srgb8(g, table))),
+        _mm256_or_si256(
+            _mm256_slli_epi32::<16>(srgb8(b, table)),
+            _mm256_slli_epi32::<24>(unorm8(a)),
+        ),
+    );
+    let mut out = [0u32; 8];
+    // SAFETY: `out` holds eight `u32`s, 32 bytes; the store needs no alignment.
+    unsafe { _mm256_storeu_si256(out.as_mut_ptr().cast(), rgba) };
+    out
+}
+
 /// [`srgb8`] of four lanes, with a gather of four (for the AVX2 kernels' four lanes; the
 /// AVX-512 kernels' eight take [`srgb8`]: as two of these, the bunny was 8% slower).
 #[inline]

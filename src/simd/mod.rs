@@ -212,6 +212,32 @@ pub fn row_masks_scalar(
     }
 }
 
+/// RGBA8 of eight lanes of linear colour, as the 3D pipeline's fragment stage writes them:
+/// [`crate::color::linear_to_srgb8_rgb`] of red, green and blue, [`crate::color::unorm8`] of
+/// alpha, the bytes of each `u32` low to high. From AVX2 on, the lanes transposed into one
+/// register per channel and the encoder's table entries gathered eight at a time: one at a
+/// time, the lookups were about a twentieth of the grid's frame. The same table and the
+/// same clamps, so every level gives the same bytes.
+#[inline]
+#[must_use]
+pub fn srgb8_lanes(level: SimdLevel, colors: &[[f32; 4]; 8]) -> [u32; 8] {
+    #[cfg(target_arch = "x86_64")]
+    if level.has_avx2() {
+        // SAFETY: AVX2 and FMA support was just checked at run time.
+        return unsafe { avx2::srgb8_lanes(colors, crate::color::srgb8_table()) };
+    }
+    srgb8_lanes_scalar(colors)
+}
+
+/// [`srgb8_lanes`] a lane at a time.
+#[must_use]
+pub fn srgb8_lanes_scalar(colors: &[[f32; 4]; 8]) -> [u32; 8] {
+    colors.map(|[r, g, b, a]| {
+        let [r, g, b] = crate::color::linear_to_srgb8_rgb([r, g, b]);
+        u32::from_le_bytes([r, g, b, crate::color::unorm8(a)])
+    })
+}
+
 /// `floor` of four values as integers, each first clamped to `[-2^30, 2^30]` so the
 /// conversion cannot overflow; NaN gives `i32::MIN`. Rust's `as i32` saturates and handles
 /// NaN for every value separately, six times a splat; on x86_64 this is three SSE2
@@ -2164,6 +2190,46 @@ mod tests {
                         assert_eq!((srgb[l], alpha[l]), want(k), "AVX2: {}", v[k]);
                     }
                 }
+            }
+        }
+    }
+
+    /// Eight lanes' colours encode at every level as lane by lane: each channel in its byte,
+    /// each lane in its place (the AVX2 transpose), for channels drawn from special values
+    /// (NaN, infinities, zeros, 2^-13, 1 and their neighbours) and random ones in and out of
+    /// [0, 1]. The encoders themselves are checked value by value above.
+    #[test]
+    fn srgb8_lanes_match_scalar() {
+        let first = crate::color::FIRST_ENCODED;
+        let special = [
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            0.0,
+            -0.0,
+            first,
+            f32::from_bits(first.to_bits() - 1),
+            1.0,
+            f32::from_bits(1.0f32.to_bits() + 1),
+            f32::from_bits(1.0f32.to_bits() - 1),
+        ];
+        let mut rng = SmallRng::seed_from_u64(63);
+        for round in 0..50_000 {
+            let colors: [[f32; 4]; 8] = std::array::from_fn(|_| {
+                std::array::from_fn(|_| match rng.random_range(0..4) {
+                    0 if round % 2 == 0 => special[rng.random_range(0..special.len())],
+                    1 => f32::from_bits(rng.random()),
+                    _ => rng.random_range(-0.1..1.1),
+                })
+            });
+            let want = srgb8_lanes_scalar(&colors);
+            for (l, c) in colors.iter().enumerate() {
+                let [r, g, b] = crate::color::linear_to_srgb8_rgb([c[0], c[1], c[2]]);
+                let a = crate::color::unorm8(c[3]);
+                assert_eq!(want[l].to_le_bytes(), [r, g, b, a], "{c:?}");
+            }
+            for level in SimdLevel::available() {
+                assert_eq!(srgb8_lanes(level, &colors), want, "{level:?}: {colors:?}");
             }
         }
     }
