@@ -140,6 +140,22 @@ pub trait Record: Copy + Send + Sync {
     fn kept(&self) -> Option<&Prepared<Self::Payload>> {
         None
     }
+
+    /// Sets eight records up for the narrow kernel at once, at `level`, within `tile`, into
+    /// `out` ([`crate::simd::narrow_eight`]), returning the lanes set up (bit `l`: record
+    /// `l`), which the tile loop then hands to [`crate::simd::shade_narrow_eight`]. None by
+    /// default: records whose triangles take no narrow kernel, or are kept whole, are drawn
+    /// one by one.
+    #[inline(always)]
+    fn narrow_eight(
+        records: &[&Self; 8],
+        tile: &PixelRect,
+        level: SimdLevel,
+        out: &mut crate::simd::NarrowEight,
+    ) -> u8 {
+        let _ = (records, tile, level, out);
+        0
+    }
 }
 
 impl<T: Copy + Send + Sync> Record for Prepared<T> {
@@ -789,7 +805,9 @@ pub(crate) fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 /// ([`TriangleFragments::fragment`]), or at 1x up to eight at a time
 /// ([`TriangleFragments::lanes`]); `None` discards a fragment, which only `may_discard`
 /// allows. Where `kernel(payload)` gives a span kernel, it shades instead 1x spans and
-/// narrow triangles, and multisampled pixels whose samples are all covered.
+/// narrow triangles, and multisampled pixels whose samples are all covered. With `eight`,
+/// at 1x, records are set up for the narrow kernel eight at a time at that level where
+/// their kind can be ([`Record::narrow_eight`]).
 ///
 /// Hierarchical depth (`Less` or `LessEqual`, no overdraw buffer, which counts hidden
 /// fragments too; at any sample count, with depths bounded over each pixel's samples): each
@@ -807,6 +825,7 @@ pub fn draw_binned<S, K, F>(
     kernel: K,
     fragments: F,
     may_discard: bool,
+    eight: Option<SimdLevel>,
 ) -> u64
 where
     S: Record,
@@ -816,6 +835,8 @@ where
     let coverage = prepared.coverage();
     let clip = &coverage.clip;
     let samples = target.samples();
+    // The narrow kernel is for one sample per pixel.
+    let eight_level = eight.filter(|_| samples.count() == 1);
     debug_assert_eq!(coverage.multisampled, samples.count() > 1, "prepared for other samples");
     let bin_target = BinTarget::of(target, depth_test);
     let computed;
@@ -843,7 +864,8 @@ where
         if whole_tile {
             band.prefetch(tile);
         }
-        for (j, &i) in list.iter().enumerate() {
+        // Triangle `j` of the list, on its own.
+        let mut one = |band: &mut TargetBand<'_>, j: usize| {
             if let Some(&ahead) = list.get(j + PREFETCH_AHEAD) {
                 crate::simd::prefetch(prepared.get(ahead));
             }
@@ -853,29 +875,53 @@ where
             if let Some(r) = near.and_then(|setup| coverage_bounds(&setup, true, tile)) {
                 band.prefetch(&PixelRect { y1: r.y1.min(r.y0 + 7), ..r });
             }
-            let record = prepared.get(i);
-            covered += shade_record(
-                band,
-                record,
-                tile,
-                depth_test,
-                shared,
-                stages,
-                &mut queue,
-                |band, p| {
-                    let kernel = kernel(&p.payload);
-                    let shade = |band: &mut TargetBand<'_>, rect: &PixelRect| {
-                        shade_prepared(band, p, rect, depth_test, kernel, &fragments)
-                    };
-                    if hidden(&p.setup) {
-                        // Its fragments were counted while binning.
-                        tile_depth.shade(band, tile, p, !may_discard, shade);
-                        0
+            let record = prepared.get(list[j]);
+            shade_record(band, record, tile, depth_test, shared, stages, &mut queue, |band, p| {
+                let kernel = kernel(&p.payload);
+                let shade = |band: &mut TargetBand<'_>, rect: &PixelRect| {
+                    shade_prepared(band, p, rect, depth_test, kernel, &fragments)
+                };
+                if hidden(&p.setup) {
+                    // Its fragments were counted while binning.
+                    tile_depth.shade(band, tile, p, !may_discard, shade);
+                    0
+                } else {
+                    shade(band, tile)
+                }
+            })
+        };
+        let mut eight = crate::simd::NarrowEight::default();
+        let mut j = 0;
+        while j < list.len() {
+            // Eight records set up at once where their kind can be (`Record::narrow_eight`):
+            // the lanes set up drawn by the narrow kernel, the others on their own, in order.
+            // Such records keep no triangle whole, so none shares the queue: it stays empty.
+            if let Some(level) = eight_level
+                && let Some(next) = list.get(j..j + 8)
+            {
+                for &ahead in list.iter().skip(j + 8).take(8) {
+                    crate::simd::prefetch(prepared.get(ahead));
+                }
+                let records: [&S; 8] = std::array::from_fn(|l| prepared.get(next[l]));
+                let lanes = S::narrow_eight(&records, tile, level, &mut eight);
+                let mut l = 0;
+                while l < 8 {
+                    let run = (lanes >> l).trailing_ones() as usize;
+                    if run > 0 {
+                        let lanes = l..l + run;
+                        covered +=
+                            crate::simd::shade_narrow_eight(level, &eight, lanes, band, depth_test);
+                        l += run;
                     } else {
-                        shade(band, tile)
+                        covered += one(band, j + l);
+                        l += 1;
                     }
-                },
-            );
+                }
+                j += 8;
+                continue;
+            }
+            covered += one(band, j);
+            j += 1;
         }
         queue.flush(band, &fragments);
         covered
@@ -1259,6 +1305,7 @@ mod binned_tests {
                     Some(FragmentOutput { color: c.color_at(e1, e2), normal: None })
                 },
                 false,
+                None,
             );
             (fragments, target.color, target.depth, target.ids, target.overdraw)
         };

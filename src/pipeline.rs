@@ -496,6 +496,7 @@ impl Pipeline {
                         |_| None,
                         shade,
                         fragment_shader.may_discard(),
+                        None,
                     );
                 };
                 bin::pipelined(triangles, batch_len, prepared, prepare, draw);

@@ -13,13 +13,15 @@
 use std::arch::x86_64::*;
 
 use super::{
-    KernelTarget, NarrowJob, NarrowSamplesJob, PerspectiveColor, SampleSpanJob, SpanColor, SpanJob,
-    WindowGroup,
+    KernelTarget, NarrowEight, NarrowJob, NarrowSamplesJob, PerspectiveColor, SampleSpanJob,
+    SpanColor, SpanJob, WindowGroup,
 };
 use crate::color::ENCODE_BUCKETS;
 use crate::fixed;
-use crate::setup::{CullMode, Vertex};
+use crate::render::WindowRecord;
+use crate::setup::{CullMode, PixelRect, Vertex};
 use crate::shade::DepthTest;
+use crate::target::TargetBand;
 
 /// [`super::row_masks`]: a row's eight pixels in one register per edge; the pixels out are
 /// the negative lanes of `e0 | e1 | e2`.
@@ -320,13 +322,56 @@ pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
 #[inline]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
 unsafe fn narrow_rows(job: &mut NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) -> __m256i) -> u64 {
-    let n = job.target.checked_len();
     job.assert_narrow();
+    let box_ = NarrowBox {
+        edges: job.edges.map(|e| e as f64),
+        step_x: job.step_x.map(|s| s as f64),
+        step_y: job.step_y.map(|s| s as f64),
+        bias: job.bias.map(|b| b as f64),
+        columns: job.columns,
+        rows: job.rows,
+        first: job.first,
+        stride: job.stride,
+    };
+    // SAFETY: the CPU supports AVX-512 F, VL and DQ (this function's contract); the box is
+    // narrow (asserted above).
+    unsafe { narrow_box(&box_, &mut job.target, rgba) }
+}
+
+/// A narrow kernel's box and edges, as [`NarrowJob`] holds them, in `f64` (integers below
+/// 2^53: exact).
+struct NarrowBox {
+    edges: [f64; 3],
+    step_x: [f64; 3],
+    step_y: [f64; 3],
+    bias: [f64; 2],
+    columns: usize,
+    rows: usize,
+    first: usize,
+    stride: usize,
+}
+
+/// The narrow kernel's loop over box `b` into `t`: each row of the box one group of eight
+/// lanes (two rows for boxes up to four wide), coverage the sign bits of `e0 | e1 | e2`.
+///
+/// # Safety
+/// The CPU must support AVX-512 F, VL and DQ; `b` must be narrow (1 to 8 columns, a row or
+/// more).
+#[inline]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+unsafe fn narrow_box(
+    b: &NarrowBox,
+    t: &mut KernelTarget<'_>,
+    rgba: impl Fn(__m512d, __m512d) -> __m256i,
+) -> u64 {
+    debug_assert!((1..=8).contains(&b.columns) && b.rows > 0, "a narrow box");
+    let n = t.checked_len();
     // Checked arithmetic: the offsets below stay in the buffers only if this holds.
-    assert!(job.end(job.columns) <= n, "the box must lie in the buffers");
+    let end = (b.rows - 1).checked_mul(b.stride).and_then(|o| o.checked_add(b.first + b.columns));
+    assert!(end.is_some_and(|end| end <= n), "the box must lie in the buffers");
     // Boxes up to four pixels wide (most small triangles) take two rows per group: lanes 0-3
     // the first, 4-7 the second.
-    let pair = job.columns <= 4;
+    let pair = b.columns <= 4;
     let (column, row_of_lane, rows_per_group) = if pair {
         (_mm512_setr_pd(0.0, 1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0), 1.0, 2)
     } else {
@@ -337,17 +382,18 @@ unsafe fn narrow_rows(job: &mut NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) -
     // Edge k's offset from the group's first pixel, per lane.
     let offsets: [__m512d; 3] = std::array::from_fn(|k| {
         _mm512_add_pd(
-            _mm512_mul_pd(column, _mm512_set1_pd(job.step_x[k] as f64)),
-            _mm512_mul_pd(row_of_lane, _mm512_set1_pd(job.step_y[k] as f64)),
+            _mm512_mul_pd(column, _mm512_set1_pd(b.step_x[k])),
+            _mm512_mul_pd(row_of_lane, _mm512_set1_pd(b.step_y[k])),
         )
     });
-    let row_bits = (1u32 << job.columns) - 1;
+    let row_bits = (1u32 << b.columns) - 1;
     let columns = if pair { row_bits | row_bits << 4 } else { row_bits } as __mmask8;
-    let bias = job.bias.map(|b| _mm512_set1_pd(b as f64));
-    let mut row = job.edges.map(|e| e as f64);
-    let step_y = job.step_y.map(|s| (rows_per_group * s) as f64);
+    let bias = b.bias.map(|b| _mm512_set1_pd(b));
+    let mut row = b.edges;
+    // Exact: `rows_per_group * s` is an integer below 2^53.
+    let step_y = b.step_y.map(|s| rows_per_group as f64 * s);
     let mut covered = 0u64;
-    for r in (0..job.rows).step_by(rows_per_group as usize) {
+    for r in (0..b.rows).step_by(rows_per_group as usize) {
         let e: [__m512d; 3] =
             std::array::from_fn(|k| _mm512_add_pd(_mm512_set1_pd(row[k]), offsets[k]));
         let any = _mm512_or_si512(
@@ -355,25 +401,218 @@ unsafe fn narrow_rows(job: &mut NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) -
             _mm512_castpd_si512(e[2]),
         );
         let (f1, f2) = (_mm512_sub_pd(e[1], bias[0]), _mm512_sub_pd(e[2], bias[1]));
-        let at = job.first + r * job.stride;
+        let at = b.first + r * b.stride;
         if pair {
             // A last row of its own leaves the upper lanes masked off, at the same address.
             let (second, lanes) =
-                if r + 1 < job.rows { (at + job.stride, columns) } else { (at, columns & 0xF) };
+                if r + 1 < b.rows { (at + b.stride, columns) } else { (at, columns & 0xF) };
             let cover = !_mm512_movepi64_mask(any) & lanes;
             covered += u64::from(cover.count_ones());
             // SAFETY: both rows' first pixels are in the buffers and so are their `columns`
             // lanes, a superset of `cover` (asserted above).
-            unsafe {
-                group::<false, true>(&mut job.target, [at, second], f1, f2, cover, None, &rgba)
-            };
+            unsafe { group::<false, true>(t, [at, second], f1, f2, cover, None, &rgba) };
         } else {
             let cover = !_mm512_movepi64_mask(any) & columns;
             covered += u64::from(cover.count_ones());
             // SAFETY: as above, for one row.
-            unsafe { group::<false, false>(&mut job.target, [at, at], f1, f2, cover, None, &rgba) };
+            unsafe { group::<false, false>(t, [at, at], f1, f2, cover, None, &rgba) };
         }
         row = std::array::from_fn(|k| row[k] + step_y[k]);
+    }
+    covered
+}
+
+/// [`super::narrow_eight`]: the eight records loaded as one 512-bit register each (sixteen
+/// 32-bit words, see [`WindowRecord`]), transposed into one 256-bit register per word, and
+/// set up side by side: the box from the snapped vertices and clipped to `tile`
+/// ([`crate::setup::sample_bounds`]' centres, by shifts), the edges at its first pixel's
+/// centre ([`crate::setup::TriangleSetup::edges_at`], in `f64` lanes: products of integers
+/// below 2^25, exact), the depth and colour planes (`(a_i - a0) * inv_area2`, the
+/// operations of [`crate::shade::PlaneEquation::with_inv_area2`]).
+///
+/// # Safety
+/// The CPU must support AVX-512 F, VL and DQ.
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2")]
+pub(super) unsafe fn narrow_eight(
+    records: &[&WindowRecord; 8],
+    tile: &PixelRect,
+    out: &mut NarrowEight,
+) -> u8 {
+    // SAFETY: a record is 64 bytes, aligned to 64 (`repr(C, align(64))`, no padding: its
+    // layout is asserted beside it), so each load reads one whole initialized record.
+    let r: [__m512i; 8] = std::array::from_fn(|l| unsafe {
+        _mm512_load_si512(std::ptr::from_ref(records[l]).cast::<__m512i>())
+    });
+    // Per 128-bit lane j of records 0-3: words 4j + i side by side in `b[i]`; of records
+    // 4-7 in `c[i]`.
+    let quad = |r: &[__m512i]| {
+        let (a0, a1) = (_mm512_unpacklo_epi32(r[0], r[1]), _mm512_unpackhi_epi32(r[0], r[1]));
+        let (a2, a3) = (_mm512_unpacklo_epi32(r[2], r[3]), _mm512_unpackhi_epi32(r[2], r[3]));
+        [
+            _mm512_unpacklo_epi64(a0, a2),
+            _mm512_unpackhi_epi64(a0, a2),
+            _mm512_unpacklo_epi64(a1, a3),
+            _mm512_unpackhi_epi64(a1, a3),
+        ]
+    };
+    let (b, c) = (quad(&r[..4]), quad(&r[4..]));
+    let mut word = [_mm256_setzero_si256(); 16];
+    for i in 0..4 {
+        // [b lane 0, c lane 0, b lane 1, c lane 1]: words i and 4 + i of all eight records;
+        // lanes 2 and 3 the same for words 8 + i and 12 + i.
+        let lo = _mm512_shuffle_i32x4::<0b01_00_01_00>(b[i], c[i]);
+        let lo = _mm512_shuffle_i32x4::<0b11_01_10_00>(lo, lo);
+        let hi = _mm512_shuffle_i32x4::<0b11_10_11_10>(b[i], c[i]);
+        let hi = _mm512_shuffle_i32x4::<0b11_01_10_00>(hi, hi);
+        word[i] = _mm512_castsi512_si256(lo);
+        word[4 + i] = _mm512_extracti64x4_epi64::<1>(lo);
+        word[8 + i] = _mm512_castsi512_si256(hi);
+        word[12 + i] = _mm512_extracti64x4_epi64::<1>(hi);
+    }
+    let [x0, y0, x1, y1, x2, y2] = [word[0], word[1], word[2], word[3], word[4], word[5]];
+    let inv_area2 = _mm512_castsi512_pd(_mm512_or_si512(
+        _mm512_cvtepu32_epi64(word[12]),
+        _mm512_slli_epi64::<32>(_mm512_cvtepu32_epi64(word[13])),
+    ));
+    // The box: pixels whose centre `256 p + 128` lies in the snapped extent, within the
+    // tile (arithmetic shifts floor; `+ 255` makes the first one a ceiling).
+    let half = _mm256_set1_epi32(fixed::HALF);
+    let min = |a, b, c| _mm256_min_epi32(_mm256_min_epi32(a, b), c);
+    let max = |a, b, c| _mm256_max_epi32(_mm256_max_epi32(a, b), c);
+    let first = |v| {
+        _mm256_srai_epi32::<8>(_mm256_add_epi32(_mm256_sub_epi32(v, half), _mm256_set1_epi32(255)))
+    };
+    let last = |v| _mm256_srai_epi32::<8>(_mm256_sub_epi32(v, half));
+    let (bx0, by0) = (first(min(x0, x1, x2)), first(min(y0, y1, y2)));
+    let (bx1, by1) = (last(max(x0, x1, x2)), last(max(y0, y1, y2)));
+    let px0 = _mm256_max_epi32(bx0, _mm256_set1_epi32(tile.x0));
+    let py0 = _mm256_max_epi32(by0, _mm256_set1_epi32(tile.y0));
+    let px1 = _mm256_min_epi32(bx1, _mm256_set1_epi32(tile.x1));
+    let py1 = _mm256_min_epi32(by1, _mm256_set1_epi32(tile.y1));
+    let one = _mm256_set1_epi32(1);
+    let columns = _mm256_add_epi32(_mm256_sub_epi32(px1, px0), one);
+    let rows = _mm256_add_epi32(_mm256_sub_epi32(py1, py0), one);
+    // Narrow before clipping, as `bin::coverage_algorithm` asks of the kernel's triangles.
+    let narrow = _mm256_cmpgt_epi32_mask(
+        _mm256_set1_epi32(crate::raster::edge::NARROW),
+        _mm256_sub_epi32(bx1, bx0),
+    );
+    let reaches = _mm256_cmpgt_epi32_mask(columns, _mm256_setzero_si256())
+        & _mm256_cmpgt_epi32_mask(rows, _mm256_setzero_si256());
+    let flags = word[15];
+    let smooth = _mm256_test_epi32_mask(flags, _mm256_set1_epi32(0xFF00));
+    let alpha = _mm256_srli_epi32::<24>(word[9]);
+    let one_alpha = _mm256_cmpeq_epi32_mask(alpha, _mm256_srli_epi32::<24>(word[10]))
+        & _mm256_cmpeq_epi32_mask(alpha, _mm256_srli_epi32::<24>(word[11]));
+    let lanes = narrow & reaches & smooth & one_alpha;
+    // The edges, each leaving vertex `k + 1` for vertex `k + 2`, inside positive: negated
+    // for counter-clockwise triangles.
+    let clockwise = _mm256_test_epi32_mask(flags, _mm256_set1_epi32(0xFF));
+    let oriented = |d: __m256i| _mm256_mask_sub_epi32(d, !clockwise, _mm256_setzero_si256(), d);
+    let xs = [x0, x1, x2];
+    let ys = [y0, y1, y2];
+    let sample = |p: __m256i| _mm256_add_epi32(_mm256_slli_epi32::<8>(p), half);
+    let (sx, sy) = (sample(px0), sample(py0));
+    let f64s = |v: __m256i| _mm512_cvtepi32_pd(v);
+    let put = |out: &mut [f64; 8], v: __m512d| {
+        // SAFETY: eight `f64`s, 64 bytes; the store needs no alignment.
+        unsafe { _mm512_storeu_pd(out.as_mut_ptr(), v) }
+    };
+    let step = _mm512_set1_pd(f64::from(fixed::ONE));
+    for k in 0..3 {
+        let (a, b) = ((k + 1) % 3, (k + 2) % 3);
+        let ea = oriented(_mm256_sub_epi32(ys[a], ys[b]));
+        let eb = oriented(_mm256_sub_epi32(xs[b], xs[a]));
+        // `FillRule::bias`: 0 on owned edges (`a > 0`, or `a == 0` and `b > 0`), else -1.
+        let zero = _mm256_setzero_si256();
+        let owned = _mm256_cmpgt_epi32_mask(ea, zero)
+            | (_mm256_cmpeq_epi32_mask(ea, zero) & _mm256_cmpgt_epi32_mask(eb, zero));
+        let bias = _mm256_mask_mov_epi32(_mm256_set1_epi32(-1), owned, zero);
+        let (ea, eb) = (f64s(ea), f64s(eb));
+        let dx = f64s(_mm256_sub_epi32(sx, xs[a]));
+        let dy = f64s(_mm256_sub_epi32(sy, ys[a]));
+        let value =
+            _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(ea, dx), _mm512_mul_pd(eb, dy)), f64s(bias));
+        put(&mut out.edges[k], value);
+        put(&mut out.step_x[k], _mm512_mul_pd(ea, step));
+        put(&mut out.step_y[k], _mm512_mul_pd(eb, step));
+        if k > 0 {
+            put(&mut out.bias[k - 1], f64s(bias));
+        }
+    }
+    let plane = |a: [__m512d; 3], out: &mut [[f64; 8]; 3]| {
+        let g = |v: __m512d| _mm512_mul_pd(_mm512_sub_pd(v, a[0]), inv_area2);
+        put(&mut out[0], a[0]);
+        put(&mut out[1], g(a[1]));
+        put(&mut out[2], g(a[2]));
+    };
+    let z = |w: __m256i| _mm512_cvtps_pd(_mm256_castsi256_ps(w));
+    plane([z(word[6]), z(word[7]), z(word[8])], &mut out.depth);
+    for ch in 0..3 {
+        let byte = |w: __m256i| {
+            let shifted = _mm256_srlv_epi32(w, _mm256_set1_epi32(8 * ch as i32));
+            f64s(_mm256_and_si256(shifted, _mm256_set1_epi32(0xFF)))
+        };
+        plane([byte(word[9]), byte(word[10]), byte(word[11])], &mut out.color[ch]);
+    }
+    let store = |out: &mut [i32; 8], v: __m256i| {
+        // SAFETY: eight `i32`s, 32 bytes; the store needs no alignment.
+        unsafe { _mm256_storeu_si256(out.as_mut_ptr().cast(), v) }
+    };
+    store(&mut out.alpha, alpha);
+    store(&mut out.x0, px0);
+    store(&mut out.y0, py0);
+    store(&mut out.columns, columns);
+    store(&mut out.rows, rows);
+    store(&mut out.id, word[14]);
+    lanes
+}
+
+/// [`super::shade_narrow_eight`]: each lane of `lanes` through the narrow kernel's loop, its
+/// values broadcast from `eight`.
+///
+/// # Safety
+/// The CPU must support AVX-512 F, VL and DQ.
+#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+pub(super) unsafe fn shade_narrow_eight(
+    eight: &NarrowEight,
+    lanes: std::ops::Range<usize>,
+    target: &mut TargetBand<'_>,
+    depth_test: DepthTest,
+) -> u64 {
+    let mut covered = 0;
+    for l in lanes {
+        let (columns, rows) = (eight.columns[l], eight.rows[l]);
+        assert!((1..=8).contains(&columns) && rows > 0, "not a narrow box");
+        // Lane `l` of each row, read in place (`map` would copy the rows first).
+        let lane3 = |rows: &[[f64; 8]; 3]| [rows[0][l], rows[1][l], rows[2][l]];
+        let box_ = NarrowBox {
+            edges: lane3(&eight.edges),
+            step_x: lane3(&eight.step_x),
+            step_y: lane3(&eight.step_y),
+            bias: [eight.bias[0][l], eight.bias[1][l]],
+            columns: columns as usize,
+            rows: rows as usize,
+            first: target.index(eight.x0[l], eight.y0[l]),
+            stride: target.stride(),
+        };
+        let planes = [lane3(&eight.color[0]), lane3(&eight.color[1]), lane3(&eight.color[2])];
+        let alpha = eight.alpha[l] as u8;
+        let color = SpanColor::SmoothRgb(planes, alpha);
+        let mut t = KernelTarget {
+            depth_plane: lane3(&eight.depth),
+            color: &color,
+            depth_test,
+            id: eight.id[l],
+            depth: &mut *target.depth,
+            color_out: &mut *target.color,
+            ids: target.ids.as_deref_mut(),
+            overdraw: target.overdraw.as_deref_mut(),
+        };
+        let rgba = |f1, f2| smooth::<false>(&planes, Some(alpha), f1, f2);
+        // SAFETY: the CPU supports AVX-512 F, VL and DQ (this function's contract); the box
+        // is narrow (asserted above).
+        covered += unsafe { narrow_box(&box_, &mut t, rgba) };
     }
     covered
 }

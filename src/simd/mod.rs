@@ -686,6 +686,89 @@ impl NarrowJob<'_> {
     }
 }
 
+/// Eight window triangles set up for the narrow kernel at once ([`narrow_eight`]), lane `l`
+/// for the `l`-th record: what a [`NarrowJob`] holds for one, side by side, one 64-byte row
+/// per value. Values are as the job's, in `f64` (integers below 2^53, exact), and the colour
+/// is a [`SpanColor::SmoothRgb`]'s planes and alpha.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(64))]
+pub struct NarrowEight {
+    /// [`NarrowJob::edges`].
+    pub edges: [[f64; 8]; 3],
+    /// [`NarrowJob::step_x`].
+    pub step_x: [[f64; 8]; 3],
+    /// [`NarrowJob::step_y`].
+    pub step_y: [[f64; 8]; 3],
+    /// [`NarrowJob::bias`].
+    pub bias: [[f64; 8]; 2],
+    /// [`KernelTarget::depth_plane`], coefficient by coefficient.
+    pub depth: [[f64; 8]; 3],
+    /// The red, green and blue planes, coefficient by coefficient.
+    pub color: [[[f64; 8]; 3]; 3],
+    /// The alpha shared by the vertices.
+    pub alpha: [i32; 8],
+    /// The box's first pixel (column, row).
+    pub x0: [i32; 8],
+    /// See `x0`.
+    pub y0: [i32; 8],
+    /// [`NarrowJob::columns`].
+    pub columns: [i32; 8],
+    /// [`NarrowJob::rows`].
+    pub rows: [i32; 8],
+    /// [`KernelTarget::id`].
+    pub id: [i32; 8],
+}
+
+/// Sets up eight window records (`records`) for the narrow kernel within `tile` at `level`
+/// into `out`, as the tile loop would one by one ([`TriangleSetup::from_kept`], the box
+/// within the tile, [`TriangleSetup::edges_at`] its first pixel's centre,
+/// [`crate::shade::TriangleShader::span_parts_of`]): returns the lanes set up (bit `l`),
+/// those whose triangle is smooth with one alpha (a [`SpanColor::SmoothRgb`]), at most
+/// [`NARROW_COLUMNS`] wide and reaches the tile. Only AVX-512 has this path (none at the
+/// others: the records are then drawn one by one). The records, one cache line each, are
+/// transposed in registers and set up side by side: one by one, the setup and the calls
+/// around it (rebuilding the record's setup and planes, the job, the dispatch) took more of
+/// a frame of small triangles than the kernel's loop.
+#[inline]
+pub fn narrow_eight(
+    level: SimdLevel,
+    records: &[&crate::render::WindowRecord; 8],
+    tile: &PixelRect,
+    out: &mut NarrowEight,
+) -> u8 {
+    #[cfg(target_arch = "x86_64")]
+    if level == SimdLevel::Avx512 && level.is_available() {
+        // SAFETY: AVX-512 support was just checked at run time.
+        return unsafe { avx512::narrow_eight(records, tile, out) };
+    }
+    let _ = (level, records, tile, out);
+    0
+}
+
+/// Shades lanes `lanes` of `eight` (set up by [`narrow_eight`] at AVX-512, in that order)
+/// into `target` with `depth_test`, as [`shade_narrow`] shades each; returns the number of
+/// covered pixels.
+///
+/// # Panics
+/// If `level` is not an available AVX-512, a lane's box is not narrow, or the buffers do not
+/// hold it.
+pub fn shade_narrow_eight(
+    level: SimdLevel,
+    eight: &NarrowEight,
+    lanes: std::ops::Range<usize>,
+    target: &mut crate::target::TargetBand<'_>,
+    depth_test: DepthTest,
+) -> u64 {
+    assert!(level == SimdLevel::Avx512 && level.is_available(), "narrow_eight is AVX-512");
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: AVX-512 support was just checked at run time.
+    unsafe {
+        avx512::shade_narrow_eight(eight, lanes, target, depth_test)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    unreachable!("no AVX-512 here: {eight:?} {lanes:?} {target:?} {depth_test:?}")
+}
+
 /// Shades a small triangle at `level`; returns the number of covered pixels. At AVX2, a box
 /// whose last four-pixel group would reach past the buffers (the target's last row, right
 /// edge) takes the scalar kernel; AVX-512 masks its loads and stores to the box.
