@@ -28,7 +28,7 @@ use crate::render::{DrawStats, Schedule};
 use crate::setup::PixelRect;
 use crate::shade::{self, DepthTest, TriangleFragments};
 use crate::simd::{SimdLevel, SpanColor};
-use crate::target::Target;
+use crate::target::{Target, TargetBand};
 
 /// Consecutive triangles whose joint bounding box [`plan`] measures.
 const RUN: usize = 16;
@@ -207,14 +207,15 @@ impl Bands {
     /// band gives `prepare(range, sink)` the triangles `range` a chunk at a time, with its rows
     /// (within `coverage`'s clip) as the sink's clip rectangle, and shades the pieces at once,
     /// with the span kernels `kernel(payload)` gives and the fragment stage `fragments`
-    /// otherwise (as [`bin::draw_binned`]). Returns the counts (the first band's; see the
+    /// otherwise, and with `eight` records set up eight at a time at that level where they
+    /// can be (as [`bin::draw_binned`]). Returns the counts (the first band's; see the
     /// module's doc) and the covered samples.
     pub fn draw<S, K, F, P>(
         &self,
         target: &mut Target,
         coverage: Coverage,
         depth_test: DepthTest,
-        kernel: K,
+        (kernel, eight): (K, Option<SimdLevel>),
         fragments: F,
         prepare: P,
     ) -> (DrawStats, u64)
@@ -225,6 +226,8 @@ impl Bands {
         P: Fn(std::ops::Range<usize>, &mut Sink<'_, S>) + Sync,
     {
         let len = self.triangles;
+        // The narrow kernel is for one sample per pixel.
+        let eight_level = eight.filter(|_| target.samples().count() == 1);
         let per_band: Vec<(DrawStats, u64)> = target
             .bands_from(&self.starts)
             .into_par_iter()
@@ -232,6 +235,7 @@ impl Bands {
                 let clip = coverage.clip.intersect(&band.rect()).unwrap_or(PixelRect::EMPTY);
                 let coverage = Coverage { clip, ..coverage };
                 let mut records: Vec<S> = Vec::with_capacity(bin::CHUNK);
+                let mut eight = crate::simd::NarrowEight::default();
                 let mut covers = Vec::with_capacity(bin::CHUNK);
                 let mut stats = DrawStats::default();
                 let mut covered = 0;
@@ -243,9 +247,10 @@ impl Bands {
                     // Small triangles' fragments share a queue (see `bin::shade_record`).
                     let mut queue = shade::SharedLaneQueue::new();
                     let stages = (&kernel, &fragments);
-                    for (record, rect) in records.iter().zip(&covers) {
-                        covered += bin::shade_record(
-                            &mut band,
+                    let mut one = |band: &mut TargetBand<'_>, k: usize| {
+                        let (record, rect) = (&records[k], &covers[k]);
+                        bin::shade_record(
+                            band,
                             record,
                             rect,
                             depth_test,
@@ -256,7 +261,24 @@ impl Bands {
                                 let kernel = kernel(&p.payload);
                                 bin::shade_prepared(band, p, rect, depth_test, kernel, &fragments)
                             },
-                        );
+                        )
+                    };
+                    // Eight at a time where the records allow (as `bin::draw_binned`; a
+                    // record's rectangle is its box within `clip`).
+                    let mut k = 0;
+                    while k < records.len() {
+                        if let Some(level) = eight_level
+                            && let Some(next) = records.get(k..k + 8)
+                        {
+                            let next = std::array::from_fn(|l| &next[l]);
+                            let run = (level, &clip, depth_test);
+                            let one = |band: &mut TargetBand<'_>, l| one(band, k + l);
+                            covered += bin::shade_eight(&mut band, &next, run, &mut eight, one);
+                            k += 8;
+                            continue;
+                        }
+                        covered += one(&mut band, k);
+                        k += 1;
                     }
                     queue.flush(&mut band, &fragments);
                 }

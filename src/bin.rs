@@ -759,6 +759,34 @@ where
     record.with(|p| draw(band, p))
 }
 
+/// Shades eight records in order within `clip` with `depth_test`, those
+/// [`Record::narrow_eight`] sets up at `level` (into `eight`) through the narrow kernel, the
+/// others with `one(band, l)` (record `l` on its own); returns the samples covered. Such
+/// records keep no triangle whole, so none of them shares a lane queue: the caller's stays
+/// as it was.
+#[inline(always)]
+pub(crate) fn shade_eight<S: Record>(
+    band: &mut TargetBand<'_>,
+    records: &[&S; 8],
+    (level, clip, depth_test): (SimdLevel, &PixelRect, DepthTest),
+    eight: &mut crate::simd::NarrowEight,
+    mut one: impl FnMut(&mut TargetBand<'_>, usize) -> u64,
+) -> u64 {
+    let lanes = S::narrow_eight(records, clip, level, eight);
+    let (mut covered, mut l) = (0, 0);
+    while l < 8 {
+        let run = (lanes >> l).trailing_ones() as usize;
+        if run > 0 {
+            covered += crate::simd::shade_narrow_eight(level, eight, l..l + run, band, depth_test);
+            l += run;
+        } else {
+            covered += one(band, l);
+            l += 1;
+        }
+    }
+    covered
+}
+
 /// Shades prepared triangle `p` within `rect`: with the span kernel `kernel` where there is
 /// one, otherwise its fragments through `fragments` (what the band and tile loops draw for
 /// a triangle that does not share a lane queue).
@@ -893,30 +921,15 @@ where
         let mut eight = crate::simd::NarrowEight::default();
         let mut j = 0;
         while j < list.len() {
-            // Eight records set up at once where their kind can be (`Record::narrow_eight`):
-            // the lanes set up drawn by the narrow kernel, the others on their own, in order.
-            // Such records keep no triangle whole, so none shares the queue: it stays empty.
             if let Some(level) = eight_level
                 && let Some(next) = list.get(j..j + 8)
             {
                 for &ahead in list.iter().skip(j + 8).take(8) {
                     crate::simd::prefetch(prepared.get(ahead));
                 }
-                let records: [&S; 8] = std::array::from_fn(|l| prepared.get(next[l]));
-                let lanes = S::narrow_eight(&records, tile, level, &mut eight);
-                let mut l = 0;
-                while l < 8 {
-                    let run = (lanes >> l).trailing_ones() as usize;
-                    if run > 0 {
-                        let lanes = l..l + run;
-                        covered +=
-                            crate::simd::shade_narrow_eight(level, &eight, lanes, band, depth_test);
-                        l += run;
-                    } else {
-                        covered += one(band, j + l);
-                        l += 1;
-                    }
-                }
+                let records = std::array::from_fn(|l| prepared.get(next[l]));
+                let run = (level, tile, depth_test);
+                covered += shade_eight(band, &records, run, &mut eight, |band, l| one(band, j + l));
                 j += 8;
                 continue;
             }

@@ -413,7 +413,7 @@ impl Pipeline {
                         target,
                         front.coverage,
                         self.depth_test,
-                        |_| None,
+                        (|_| None, None),
                         shade,
                         |range, sink| {
                             // The band's rows are the clip rectangle.

@@ -278,6 +278,8 @@ fn draw_tiled<C: WindowColor>(
     let visible = clip.unwrap_or(PixelRect::EMPTY);
     let coverage = bin::Coverage { clip: visible, multisampled };
     let kernel = window_kernel::<C>(level);
+    // Narrow triangles set up eight at a time (`simd::narrow_eight`), at AVX-512.
+    let eight = (level == SimdLevel::Avx512).then_some(level);
     let threads = rayon::current_num_threads();
     // Every band sets window triangles up in full: beyond two threads that costs more than
     // bands save (a coherent grid of 1,000,000 window triangles: 101 -> 77 ms banded on one
@@ -296,7 +298,7 @@ fn draw_tiled<C: WindowColor>(
             target,
             coverage,
             options.depth_test,
-            kernel,
+            (kernel, eight),
             window_fragment,
             |range, sink: &mut bin::Sink<'_, C::Record>| {
                 set_up_window::<C>(triangles, 0, range, options, level, sink);
@@ -322,7 +324,6 @@ fn draw_tiled<C: WindowColor>(
     let draw = |_, prepared: &bin::PreparedBatch<C::Record>| {
         if clip.is_some() {
             let test = options.depth_test;
-            let eight = (level == SimdLevel::Avx512).then_some(level);
             fragments +=
                 bin::draw_binned(target, prepared, test, kernel, window_fragment, false, eight);
         }
