@@ -668,8 +668,9 @@ mod tests {
     /// Eight window records set up at once for the narrow kernel (AVX-512) are, lane by lane,
     /// what the tile loop derives from each record alone, bit for bit: the box within the
     /// tile (`TriangleSetup::from_kept`), `edges_at` the centre of its first pixel, the depth
-    /// and colour planes (`span_parts_of`); and exactly the lanes that the kernel takes alone
-    /// are set up (narrow before clipping, reaching the tile, smooth with one alpha). Random
+    /// plane and the colour (`span_parts_of`: flat, smooth with one alpha, smooth); and
+    /// exactly the lanes that the kernel takes alone are set up (narrow before clipping,
+    /// reaching the tile). Random
     /// triangles of one to a dozen pixels and larger, both windings, far out in the
     /// fixed-point range, flat and smooth, one alpha and three, finite, NaN and infinite
     /// depths, random tiles around them.
@@ -679,7 +680,7 @@ mod tests {
             return;
         }
         let mut rng = SmallRng::seed_from_u64(22);
-        let (mut lanes_set_up, mut lanes_left) = (0, 0);
+        let (mut lanes_set_up, mut lanes_left, mut kinds) = (0, 0, [0; 3]);
         for round in 0..20_000 {
             let far = round % 5 == 0;
             let (cx, cy) = if far {
@@ -709,7 +710,7 @@ mod tests {
                         )
                     });
                     let setup = TriangleSetup::new(&v, CullMode::None).ok()?;
-                    let smooth = rng.random_range(0..8) > 0;
+                    let smooth = rng.random_range(0..4) > 0;
                     let inv_area2 = 1.0 / setup.area2 as f64;
                     Some(WindowRecord::new(&v, &setup, inv_area2, smooth, (round * 8 + k) as i32))
                 })
@@ -736,11 +737,7 @@ mod tests {
                     record.smooth,
                 );
                 let r = b.intersect(&tile).filter(|_| b.x1 - b.x0 < crate::raster::edge::NARROW);
-                let want = r.zip(match color {
-                    SpanColor::SmoothRgb(planes, alpha) => Some((planes, alpha)),
-                    _ => None,
-                });
-                let Some((r, (planes, alpha))) = want else {
+                let Some(r) = r else {
                     assert_eq!(lanes >> l & 1, 0, "round {round}, lane {l}: {record:?} {tile:?}");
                     lanes_left += 1;
                     continue;
@@ -763,13 +760,33 @@ mod tests {
                 let want_bias = bias.map(|b| (b as f64).to_bits());
                 assert_eq!([eight.bias[0][l], eight.bias[1][l]].map(f64::to_bits), want_bias);
                 assert_eq!(lane(&eight.depth), bits(depth.coefficients()), "{what}");
-                for (c, plane) in planes.iter().enumerate() {
-                    assert_eq!(lane(&eight.color[c]), bits(*plane), "{what}, channel {c}");
+                // The colour as the kernel takes it: the kind, and its planes or value.
+                let (smooth, one_alpha) = (eight.smooth >> l & 1, eight.one_alpha >> l & 1);
+                let planes = |n: usize| &eight.color[..n];
+                match color {
+                    SpanColor::Flat(c) => {
+                        assert_eq!((smooth, eight.flat[l].to_le_bytes()), (0, c), "{what}");
+                    }
+                    SpanColor::SmoothRgb(want, alpha) => {
+                        assert_eq!((smooth, one_alpha), (1, 1), "{what}");
+                        for (c, (got, want)) in planes(3).iter().zip(want).enumerate() {
+                            assert_eq!(lane(got), bits(want), "{what}, channel {c}");
+                        }
+                        assert_eq!(eight.alpha[l], i32::from(alpha), "{what}");
+                    }
+                    SpanColor::Smooth(want) => {
+                        assert_eq!((smooth, one_alpha), (1, 0), "{what}");
+                        for (c, (got, want)) in planes(4).iter().zip(want).enumerate() {
+                            assert_eq!(lane(got), bits(want), "{what}, channel {c}");
+                        }
+                    }
+                    SpanColor::Perspective(_) => unreachable!("a window record's colour"),
                 }
-                assert_eq!(eight.alpha[l], i32::from(alpha), "{what}");
+                kinds[usize::from(smooth * (1 + one_alpha))] += 1;
             }
         }
         assert!(lanes_set_up > 10_000 && lanes_left > 10_000, "{lanes_set_up} {lanes_left}");
+        assert!(kinds.iter().all(|&k| k > 1_000), "flat, smooth, smooth, one alpha: {kinds:?}");
     }
 
     /// The boxes `band::plan` samples from window triangles: a grid of two-pixel triangles is

@@ -500,11 +500,11 @@ pub(super) unsafe fn narrow_eight(
     let reaches = _mm256_cmpgt_epi32_mask(columns, _mm256_setzero_si256())
         & _mm256_cmpgt_epi32_mask(rows, _mm256_setzero_si256());
     let flags = word[15];
-    let smooth = _mm256_test_epi32_mask(flags, _mm256_set1_epi32(0xFF00));
+    out.smooth = _mm256_test_epi32_mask(flags, _mm256_set1_epi32(0xFF00));
     let alpha = _mm256_srli_epi32::<24>(word[9]);
-    let one_alpha = _mm256_cmpeq_epi32_mask(alpha, _mm256_srli_epi32::<24>(word[10]))
+    out.one_alpha = _mm256_cmpeq_epi32_mask(alpha, _mm256_srli_epi32::<24>(word[10]))
         & _mm256_cmpeq_epi32_mask(alpha, _mm256_srli_epi32::<24>(word[11]));
-    let lanes = narrow & reaches & smooth & one_alpha;
+    let lanes = narrow & reaches;
     // The edges, each leaving vertex `k + 1` for vertex `k + 2`, inside positive: negated
     // for counter-clockwise triangles.
     let clockwise = _mm256_test_epi32_mask(flags, _mm256_set1_epi32(0xFF));
@@ -548,18 +548,29 @@ pub(super) unsafe fn narrow_eight(
     };
     let z = |w: __m256i| _mm512_cvtps_pd(_mm256_castsi256_ps(w));
     plane([z(word[6]), z(word[7]), z(word[8])], &mut out.depth);
-    for ch in 0..3 {
+    let mut flat = _mm256_setzero_si256();
+    for ch in 0..4 {
         let byte = |w: __m256i| {
             let shifted = _mm256_srlv_epi32(w, _mm256_set1_epi32(8 * ch as i32));
-            f64s(_mm256_and_si256(shifted, _mm256_set1_epi32(0xFF)))
+            _mm256_and_si256(shifted, _mm256_set1_epi32(0xFF))
         };
-        plane([byte(word[9]), byte(word[10]), byte(word[11])], &mut out.color[ch]);
+        let (c0, c1, c2) = (byte(word[9]), byte(word[10]), byte(word[11]));
+        plane([f64s(c0), f64s(c1), f64s(c2)], &mut out.color[ch]);
+        // `flat_color`'s `(2 * sum + 3) / 6`: the division as a multiply and shift, exact
+        // for numerators up to 1533 (43691 / 2^18 exceeds 1/6 by less than 1.3e-6, which
+        // lifts no quotient to the next integer).
+        let sum = _mm256_add_epi32(_mm256_add_epi32(c0, c1), c2);
+        let twice = _mm256_add_epi32(_mm256_add_epi32(sum, sum), _mm256_set1_epi32(3));
+        let mean = _mm256_srli_epi32::<18>(_mm256_mullo_epi32(twice, _mm256_set1_epi32(43691)));
+        flat = _mm256_or_si256(flat, _mm256_sllv_epi32(mean, _mm256_set1_epi32(8 * ch as i32)));
     }
     let store = |out: &mut [i32; 8], v: __m256i| {
         // SAFETY: eight `i32`s, 32 bytes; the store needs no alignment.
         unsafe { _mm256_storeu_si256(out.as_mut_ptr().cast(), v) }
     };
     store(&mut out.alpha, alpha);
+    // SAFETY: eight `u32`s, 32 bytes; the store needs no alignment.
+    unsafe { _mm256_storeu_si256(out.flat.as_mut_ptr().cast(), flat) };
     store(&mut out.x0, px0);
     store(&mut out.y0, py0);
     store(&mut out.columns, columns);
@@ -598,7 +609,14 @@ pub(super) unsafe fn shade_narrow_eight(
         };
         let planes = [lane3(&eight.color[0]), lane3(&eight.color[1]), lane3(&eight.color[2])];
         let alpha = eight.alpha[l] as u8;
-        let color = SpanColor::SmoothRgb(planes, alpha);
+        let color = if eight.smooth >> l & 1 == 0 {
+            SpanColor::Flat(eight.flat[l].to_le_bytes())
+        } else if eight.one_alpha >> l & 1 == 1 {
+            SpanColor::SmoothRgb(planes, alpha)
+        } else {
+            let [r, g, b] = planes;
+            SpanColor::Smooth([r, g, b, lane3(&eight.color[3])])
+        };
         let mut t = KernelTarget {
             depth_plane: lane3(&eight.depth),
             color: &color,
@@ -609,10 +627,11 @@ pub(super) unsafe fn shade_narrow_eight(
             ids: target.ids.as_deref_mut(),
             overdraw: target.overdraw.as_deref_mut(),
         };
-        let rgba = |f1, f2| smooth::<false>(&planes, Some(alpha), f1, f2);
         // SAFETY: the CPU supports AVX-512 F, VL and DQ (this function's contract); the box
         // is narrow (asserted above).
-        covered += unsafe { narrow_box(&box_, &mut t, rgba) };
+        covered += with_rgba!(color, __m512d, _mm256_set1_epi32, smooth, rgba => unsafe {
+            narrow_box(&box_, &mut t, rgba)
+        });
     }
     covered
 }

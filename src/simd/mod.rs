@@ -688,8 +688,9 @@ impl NarrowJob<'_> {
 
 /// Eight window triangles set up for the narrow kernel at once ([`narrow_eight`]), lane `l`
 /// for the `l`-th record: what a [`NarrowJob`] holds for one, side by side, one 64-byte row
-/// per value. Values are as the job's, in `f64` (integers below 2^53, exact), and the colour
-/// is a [`SpanColor::SmoothRgb`]'s planes and alpha.
+/// per value. Values are as the job's, in `f64` (integers below 2^53, exact); the colour is
+/// the [`SpanColor`] the record's own setup gives: [`SpanColor::Flat`] (not `smooth`),
+/// [`SpanColor::SmoothRgb`] (`smooth` and `one_alpha`) or [`SpanColor::Smooth`].
 #[derive(Clone, Copy, Debug, Default)]
 #[repr(C, align(64))]
 pub struct NarrowEight {
@@ -703,10 +704,15 @@ pub struct NarrowEight {
     pub bias: [[f64; 8]; 2],
     /// [`KernelTarget::depth_plane`], coefficient by coefficient.
     pub depth: [[f64; 8]; 3],
-    /// The red, green and blue planes, coefficient by coefficient.
-    pub color: [[[f64; 8]; 3]; 3],
-    /// The alpha shared by the vertices.
+    /// The red, green, blue and alpha planes, coefficient by coefficient.
+    pub color: [[[f64; 8]; 3]; 4],
+    /// The alpha shared by the vertices (of `one_alpha` lanes).
     pub alpha: [i32; 8],
+    /// The flat colour, RGBA8 low byte first (of lanes not `smooth`).
+    pub flat: [u32; 8],
+    /// The lanes with Gouraud colour.
+    pub smooth: u8,
+    /// The lanes whose vertices share one alpha.
     /// The box's first pixel (column, row).
     pub x0: [i32; 8],
     /// See `x0`.
@@ -717,14 +723,16 @@ pub struct NarrowEight {
     pub rows: [i32; 8],
     /// [`KernelTarget::id`].
     pub id: [i32; 8],
+    /// See `alpha`.
+    pub one_alpha: u8,
 }
 
 /// Sets up eight window records (`records`) for the narrow kernel within `tile` at `level`
 /// into `out`, as the tile loop would one by one ([`TriangleSetup::from_kept`], the box
 /// within the tile, [`TriangleSetup::edges_at`] its first pixel's centre,
 /// [`crate::shade::TriangleShader::span_parts_of`]): returns the lanes set up (bit `l`),
-/// those whose triangle is smooth with one alpha (a [`SpanColor::SmoothRgb`]), at most
-/// [`NARROW_COLUMNS`] wide and reaches the tile. Only AVX-512 has this path (none at the
+/// those whose triangle's box is at most [`NARROW_COLUMNS`] wide and reaches the tile. Only
+/// AVX-512 has this path (none at the
 /// others: the records are then drawn one by one). The records, one cache line each, are
 /// transposed in registers and set up side by side: one by one, the setup and the calls
 /// around it (rebuilding the record's setup and planes, the job, the dispatch) took more of
