@@ -227,7 +227,8 @@ impl Bands {
     {
         let len = self.triangles;
         // The narrow kernel is for one sample per pixel.
-        let eight_level = eight.filter(|_| target.samples().count() == 1);
+        let single = target.samples().count() == 1;
+        let eight_level = eight.filter(|_| single);
         let per_band: Vec<(DrawStats, u64)> = target
             .bands_from(&self.starts)
             .into_par_iter()
@@ -236,6 +237,7 @@ impl Bands {
                 let coverage = Coverage { clip, ..coverage };
                 let mut records: Vec<S> = Vec::with_capacity(bin::CHUNK);
                 let mut eight = crate::simd::NarrowEight::default();
+                let mut small = crate::simd::SmallEight::default();
                 let mut covers = Vec::with_capacity(bin::CHUNK);
                 let mut stats = DrawStats::default();
                 let mut covered = 0;
@@ -247,7 +249,7 @@ impl Bands {
                     // Small triangles' fragments share a queue (see `bin::shade_record`).
                     let mut queue = shade::SharedLaneQueue::new();
                     let stages = (&kernel, &fragments);
-                    let mut one = |band: &mut TargetBand<'_>, k: usize| {
+                    let one = |band: &mut TargetBand<'_>, queue: &mut _, k: usize| {
                         let (record, rect) = (&records[k], &covers[k]);
                         bin::shade_record(
                             band,
@@ -256,28 +258,43 @@ impl Bands {
                             depth_test,
                             |_| true,
                             stages,
-                            &mut queue,
+                            queue,
                             |band, p| {
                                 let kernel = kernel(&p.payload);
                                 bin::shade_prepared(band, p, rect, depth_test, kernel, &fragments)
                             },
                         )
                     };
-                    // Eight at a time where the records allow (as `bin::draw_binned`; a
-                    // record's rectangle is its box within `clip`).
+                    // Eight at a time where the records allow (as `bin::draw_binned`: window
+                    // triangles at `eight_level`, their rectangle their box within `clip`;
+                    // otherwise the smallest triangles' coverage, at 1x).
                     let mut k = 0;
                     while k < records.len() {
-                        if let Some(level) = eight_level
+                        if (eight_level.is_some() || single)
                             && let Some(next) = records.get(k..k + 8)
                         {
                             let next = std::array::from_fn(|l| &next[l]);
-                            let run = (level, &clip, depth_test);
-                            let one = |band: &mut TargetBand<'_>, l| one(band, k + l);
-                            covered += bin::shade_eight(&mut band, &next, run, &mut eight, one);
+                            covered += match eight_level {
+                                Some(level) => {
+                                    let run = (level, &clip, depth_test);
+                                    let one =
+                                        |band: &mut TargetBand<'_>, l| one(band, &mut queue, k + l);
+                                    bin::shade_eight(&mut band, &next, run, &mut eight, one)
+                                }
+                                None => {
+                                    let rects = std::array::from_fn(|l| &covers[k + l]);
+                                    let run = (rects, depth_test, |_: &_| true, stages);
+                                    let queue = (&mut queue, &mut small);
+                                    let one = |band: &mut TargetBand<'_>, queue: &mut _, l| {
+                                        one(band, queue, k + l)
+                                    };
+                                    bin::shade_small_eight(&mut band, &next, run, queue, one)
+                                }
+                            };
                             k += 8;
                             continue;
                         }
-                        covered += one(&mut band, k);
+                        covered += one(&mut band, &mut queue, k);
                         k += 1;
                     }
                     queue.flush(&mut band, &fragments);

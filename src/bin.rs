@@ -787,6 +787,76 @@ pub(crate) fn shade_eight<S: Record>(
     covered
 }
 
+/// Shades eight records in order as [`shade_record`] would each: the smallest triangles
+/// that share the lane queue and whose boxes are at most 4 x 4 pixels with their coverage
+/// computed together ([`crate::simd::small_eight`], into `small`) and their pixels queued
+/// as [`shade::shade_small_triangle`] queues them; the others with `one(band, queue, l)`
+/// (record `l` through `shade_record`). Each record `l` is clipped to `rects[l]`.
+#[inline(always)]
+pub(crate) fn shade_small_eight<'a, S, K, F>(
+    band: &mut TargetBand<'_>,
+    records: &[&'a S; 8],
+    (rects, depth_test, shared, (kernel, fragments)): (
+        [&PixelRect; 8],
+        DepthTest,
+        impl Fn(&Prepared<S::Payload>) -> bool,
+        (&K, &F),
+    ),
+    (queue, small): (&mut shade::SharedLaneQueue<'a, S::Payload>, &mut crate::simd::SmallEight),
+    mut one: impl FnMut(&mut TargetBand<'_>, &mut shade::SharedLaneQueue<'a, S::Payload>, usize) -> u64,
+) -> u64
+where
+    S: Record,
+    K: Fn(&S::Payload) -> Option<(SimdLevel, &SpanColor)>,
+    F: TriangleFragments<S::Payload>,
+{
+    debug_assert_eq!(band.samples().count(), 1, "a shared queue at 1x only");
+    let mut lanes = [crate::simd::SmallLane::default(); 8];
+    let mut boxes = [PixelRect::EMPTY; 8];
+    let mut smallest = 0u8;
+    for (l, record) in records.iter().enumerate() {
+        let Some(p) = record.kept() else { continue };
+        let b = &p.setup.bounds;
+        // `shade_record`'s test for the shared queue, and a box this coverage takes.
+        if p.setup.area2 <= shade::SHARED_QUEUE_AREA2
+            && b.x1 - b.x0 < 4
+            && b.y1 - b.y0 < 4
+            && kernel(&p.payload).is_none()
+            && shared(p)
+            && let Some(r) = b.intersect(rects[l])
+        {
+            let (xy, clockwise) = (p.setup.xy, p.setup.clockwise);
+            lanes[l] = crate::simd::SmallLane { xy, clockwise, first: [r.x0, r.y0] };
+            boxes[l] = r;
+            smallest |= 1 << l;
+        }
+    }
+    if smallest != 0 {
+        crate::simd::small_eight(SimdLevel::detected(), &lanes, small);
+    }
+    let mut covered = 0;
+    for (l, record) in records.iter().enumerate() {
+        covered += match record.kept() {
+            Some(p) if smallest >> l & 1 == 1 => {
+                let (depth, t) = (&p.depth, &p.payload);
+                let lane = (&*small, l);
+                shade::shade_small_lane(
+                    band,
+                    lane,
+                    &boxes[l],
+                    depth,
+                    (depth_test, p.id),
+                    t,
+                    fragments,
+                    queue,
+                )
+            }
+            _ => one(band, queue, l),
+        };
+    }
+    covered
+}
+
 /// Shades prepared triangle `p` within `rect`: with the span kernel `kernel` where there is
 /// one, otherwise its fragments through `fragments` (what the band and tile loops draw for
 /// a triangle that does not share a lane queue).
@@ -893,7 +963,7 @@ where
             band.prefetch(tile);
         }
         // Triangle `j` of the list, on its own.
-        let mut one = |band: &mut TargetBand<'_>, j: usize| {
+        let mut one = |band: &mut TargetBand<'_>, queue: &mut _, j: usize| {
             if let Some(&ahead) = list.get(j + PREFETCH_AHEAD) {
                 crate::simd::prefetch(prepared.get(ahead));
             }
@@ -904,7 +974,7 @@ where
                 band.prefetch(&PixelRect { y1: r.y1.min(r.y0 + 7), ..r });
             }
             let record = prepared.get(list[j]);
-            shade_record(band, record, tile, depth_test, shared, stages, &mut queue, |band, p| {
+            shade_record(band, record, tile, depth_test, shared, stages, queue, |band, p| {
                 let kernel = kernel(&p.payload);
                 let shade = |band: &mut TargetBand<'_>, rect: &PixelRect| {
                     shade_prepared(band, p, rect, depth_test, kernel, &fragments)
@@ -919,21 +989,36 @@ where
             })
         };
         let mut eight = crate::simd::NarrowEight::default();
+        let mut small = crate::simd::SmallEight::default();
         let mut j = 0;
         while j < list.len() {
-            if let Some(level) = eight_level
+            // Eight at a time: window triangles at `eight_level`, otherwise the smallest
+            // triangles' coverage (at 1x).
+            if (eight_level.is_some() || samples.count() == 1)
                 && let Some(next) = list.get(j..j + 8)
             {
                 for &ahead in list.iter().skip(j + 8).take(8) {
                     crate::simd::prefetch(prepared.get(ahead));
                 }
                 let records = std::array::from_fn(|l| prepared.get(next[l]));
-                let run = (level, tile, depth_test);
-                covered += shade_eight(band, &records, run, &mut eight, |band, l| one(band, j + l));
+                covered += match eight_level {
+                    Some(level) => {
+                        let run = (level, tile, depth_test);
+                        let one = |band: &mut TargetBand<'_>, l| one(band, &mut queue, j + l);
+                        shade_eight(band, &records, run, &mut eight, one)
+                    }
+                    None => {
+                        let queue = (&mut queue, &mut small);
+                        let one =
+                            |band: &mut TargetBand<'_>, queue: &mut _, l| one(band, queue, j + l);
+                        let run = ([tile; 8], depth_test, shared, stages);
+                        shade_small_eight(band, &records, run, queue, one)
+                    }
+                };
                 j += 8;
                 continue;
             }
-            covered += one(band, j);
+            covered += one(band, &mut queue, j);
             j += 1;
         }
         queue.flush(band, &fragments);

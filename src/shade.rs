@@ -1355,6 +1355,43 @@ pub(crate) fn shade_small_triangle<'a, T, F: TriangleFragments<T>>(
     }))
 }
 
+/// [`shade_small_triangle`] of lane `l` of `eight` ([`simd::small_eight`]: the edges and
+/// the inside pixels of a box of at most 4 x 4 pixels, computed with seven others), whose
+/// box within the clip rectangle is `r`: the same fragments in the same order, the same
+/// queue.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(crate) fn shade_small_lane<'a, T, F: TriangleFragments<T>>(
+    target: &mut TargetBand<'_>,
+    (eight, l): (&simd::SmallEight, usize),
+    r: &PixelRect,
+    depth: &PlaneEquation,
+    (depth_test, id): (DepthTest, i32),
+    t: &'a T,
+    stage: &F,
+    queue: &mut SharedLaneQueue<'a, T>,
+) -> u64 {
+    debug_assert_eq!(target.samples().count(), 1, "a shared queue at 1x only");
+    debug_assert!(r.x1 - r.x0 < 4 && r.y1 - r.y0 < 4, "a box of at most 4 x 4 pixels");
+    // The lanes queued so far are now an earlier triangle's.
+    (queue.earlier, queue.current) = (queue.earlier | queue.current, 0);
+    let columns = (r.x1 - r.x0 + 1) as u32;
+    let wide = |v: &[[i32; 8]; 3]| [i64::from(v[0][l]), i64::from(v[1][l]), i64::from(v[2][l])];
+    let (step_x, step_y) = (wide(&eight.step_x), wide(&eight.step_y));
+    let bias = [i64::from(eight.bias[0][l]), i64::from(eight.bias[1][l])];
+    let mut row = wide(&eight.edges);
+    let mut pixel = |target: &mut TargetBand<'_>, at, f1, f2| {
+        queue.pixel(target, depth, depth_test, at, f1, f2, (t, id, stage));
+    };
+    let mut covered = 0;
+    for (k, py) in (r.y0..=r.y1).enumerate() {
+        let mask = eight.inside[l] >> (4 * k) & ((1 << columns) - 1);
+        covered += row_pixels(target, &mut pixel, mask, (&row, step_x, bias), (r.x0, py));
+        row = std::array::from_fn(|k| row[k] + step_y[k]);
+    }
+    covered
+}
+
 /// Calls `pixel(target, (i, x, y), f1, f2)` for each pixel of box `r` (at most
 /// [`raster::edge::NARROW`] wide) triangle `setup` covers, row by row, left to
 /// right, with its buffer index and barycentric numerators; returns how many. Row coverage is

@@ -6,7 +6,7 @@ use glam::Vec4;
 
 use super::{
     Corner, CornerGroup, CornerTests, KernelTarget, NarrowJob, NarrowSamplesJob, PerspectiveColor,
-    SampleSpanJob, SpanColor, SpanJob, WindowGroup,
+    SampleSpanJob, SmallEight, SmallLane, SpanColor, SpanJob, WindowGroup,
 };
 use crate::clip::MIN_W;
 use crate::color::ENCODE_BUCKETS;
@@ -305,6 +305,93 @@ pub(super) fn srgb8(v: __m256, table: &[u32; ENCODE_BUCKETS]) -> __m256i {
     let value = _mm256_srli_epi32::<16>(entry);
     let below = _mm256_cmpgt_epi32(threshold, low);
     _mm256_add_epi32(_mm256_add_epi32(value, _mm256_set1_epi32(1)), below)
+}
+
+/// `f` of each of eight lanes, in one register (`f` a plain function: inlined, where a
+/// closure called through `dyn` would be called per lane).
+#[inline]
+#[target_feature(enable = "avx2")]
+fn lanes_i32(lanes: &[SmallLane; 8], f: fn(&SmallLane) -> i32) -> __m256i {
+    _mm256_setr_epi32(
+        f(&lanes[0]),
+        f(&lanes[1]),
+        f(&lanes[2]),
+        f(&lanes[3]),
+        f(&lanes[4]),
+        f(&lanes[5]),
+        f(&lanes[6]),
+        f(&lanes[7]),
+    )
+}
+
+/// [`super::small_eight`]: each lane's vertices and box assembled in registers from the
+/// lanes (scalar loads: vector loads of what the caller just stored one value at a time
+/// would wait for the stores), the edges as `TriangleSetup::edges_at` computes them, and
+/// the 16 pixels of each 4 x 4 box tested by stepping the edge values, their sign bits
+/// gathered into one mask per lane.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn small_eight(lanes: &[SmallLane; 8], out: &mut SmallEight) {
+    let each = |f: fn(&SmallLane) -> i32| lanes_i32(lanes, f);
+    let x = [each(|l| l.xy[0][0]), each(|l| l.xy[1][0]), each(|l| l.xy[2][0])];
+    let y = [each(|l| l.xy[0][1]), each(|l| l.xy[1][1]), each(|l| l.xy[2][1])];
+    let sign = each(|l| if l.clockwise { 1 } else { -1 });
+    let half = _mm256_set1_epi32(fixed::HALF);
+    let sx = _mm256_add_epi32(_mm256_slli_epi32::<8>(each(|l| l.first[0])), half);
+    let sy = _mm256_add_epi32(_mm256_slli_epi32::<8>(each(|l| l.first[1])), half);
+    let put = |out: &mut [i32; 8], v: __m256i| {
+        // SAFETY: eight `i32`s, 32 bytes; the store needs no alignment.
+        unsafe { _mm256_storeu_si256(out.as_mut_ptr().cast(), v) }
+    };
+    let zero = _mm256_setzero_si256();
+    let mut value = [zero; 3];
+    let mut step_x = [zero; 3];
+    let mut step_y = [zero; 3];
+    for k in 0..3 {
+        let (a, b) = ((k + 1) % 3, (k + 2) % 3);
+        // `vpsignd`: negated where the sign is -1 (counter-clockwise).
+        let ea = _mm256_sign_epi32(_mm256_sub_epi32(y[a], y[b]), sign);
+        let eb = _mm256_sign_epi32(_mm256_sub_epi32(x[b], x[a]), sign);
+        // `FillRule::bias`: 0 on owned edges (`a > 0`, or `a == 0` and `b > 0`), else -1.
+        let owned = _mm256_or_si256(
+            _mm256_cmpgt_epi32(ea, zero),
+            _mm256_and_si256(_mm256_cmpeq_epi32(ea, zero), _mm256_cmpgt_epi32(eb, zero)),
+        );
+        let bias = _mm256_andnot_si256(owned, _mm256_set1_epi32(-1));
+        let dx = _mm256_sub_epi32(sx, x[a]);
+        let dy = _mm256_sub_epi32(sy, y[a]);
+        value[k] = _mm256_add_epi32(
+            _mm256_add_epi32(_mm256_mullo_epi32(ea, dx), _mm256_mullo_epi32(eb, dy)),
+            bias,
+        );
+        step_x[k] = _mm256_slli_epi32::<8>(ea);
+        step_y[k] = _mm256_slli_epi32::<8>(eb);
+        put(&mut out.edges[k], value[k]);
+        put(&mut out.step_x[k], step_x[k]);
+        put(&mut out.step_y[k], step_y[k]);
+        if k > 0 {
+            put(&mut out.bias[k - 1], bias);
+        }
+    }
+    // Bit `4 r + c` of each lane: the sign of `e0 | e1 | e2` there (set: outside), the
+    // values stepped from pixel to pixel.
+    let mut outside = zero;
+    let mut row = value;
+    for r in 0..4 {
+        let mut v = row;
+        for c in 0..4 {
+            let any = _mm256_or_si256(_mm256_or_si256(v[0], v[1]), v[2]);
+            let at = _mm_cvtsi32_si128(4 * r + c);
+            outside = _mm256_or_si256(outside, _mm256_sll_epi32(_mm256_srli_epi32::<31>(any), at));
+            v = std::array::from_fn(|k| _mm256_add_epi32(v[k], step_x[k]));
+        }
+        row = std::array::from_fn(|k| _mm256_add_epi32(row[k], step_y[k]));
+    }
+    let inside = _mm256_andnot_si256(outside, _mm256_set1_epi32(0xFFFF));
+    // SAFETY: eight `u32`s, 32 bytes; the store needs no alignment.
+    unsafe { _mm256_storeu_si256(out.inside.as_mut_ptr().cast(), inside) };
 }
 
 /// [`super::srgb8_lanes`]: the eight colours transposed into a register per channel (each
