@@ -236,9 +236,9 @@ impl Bands {
                 let clip = coverage.clip.intersect(&band.rect()).unwrap_or(PixelRect::EMPTY);
                 let coverage = Coverage { clip, ..coverage };
                 let mut records: Vec<S> = Vec::with_capacity(bin::CHUNK);
+                let mut covers = Vec::with_capacity(bin::CHUNK);
                 let mut eight = crate::simd::NarrowEight::default();
                 let mut small = crate::simd::SmallEight::default();
-                let mut covers = Vec::with_capacity(bin::CHUNK);
                 let mut stats = DrawStats::default();
                 let mut covered = 0;
                 for first in (0..len).step_by(bin::CHUNK) {
@@ -270,9 +270,7 @@ impl Bands {
                     // otherwise the smallest triangles' coverage, at 1x).
                     let mut k = 0;
                     while k < records.len() {
-                        if (eight_level.is_some() || single)
-                            && let Some(next) = records.get(k..k + 8)
-                        {
+                        if single && let Some(next) = records.get(k..k + 8) {
                             let next = std::array::from_fn(|l| &next[l]);
                             covered += match eight_level {
                                 Some(level) => {

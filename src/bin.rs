@@ -992,9 +992,9 @@ where
         let mut small = crate::simd::SmallEight::default();
         let mut j = 0;
         while j < list.len() {
-            // Eight at a time: window triangles at `eight_level`, otherwise the smallest
-            // triangles' coverage (at 1x).
-            if (eight_level.is_some() || samples.count() == 1)
+            // Eight at a time (at 1x): window triangles at `eight_level`, otherwise the
+            // smallest triangles' coverage.
+            if samples.count() == 1
                 && let Some(next) = list.get(j..j + 8)
             {
                 for &ahead in list.iter().skip(j + 8).take(8) {

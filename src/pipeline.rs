@@ -612,12 +612,16 @@ impl<FS> ShaderStage<'_, FS> {
         FS: FragmentShader<V>,
     {
         let [r, g, b] = linear_to_srgb8_rgb([c.x, c.y, c.z]);
-        let normal = if self.want_normal {
-            self.shader.normal(fragment).map(|n| n.to_array())
-        } else {
-            None
-        };
-        FragmentOutput { color: [r, g, b, unorm8(c.w)], normal }
+        FragmentOutput { color: [r, g, b, unorm8(c.w)], normal: self.normal(fragment) }
+    }
+
+    /// The normal `fragment` writes, where the target keeps normals.
+    #[inline(always)]
+    fn normal<V>(&self, fragment: &Fragment<V>) -> Option<[f32; 3]>
+    where
+        FS: FragmentShader<V>,
+    {
+        if self.want_normal { self.shader.normal(fragment).map(|n| n.to_array()) } else { None }
     }
 
     /// Lane `l` of `passed` as a fragment of `t` with perspective-correct weights `w`, shaded:
@@ -639,12 +643,7 @@ impl<FS> ShaderStage<'_, FS> {
         let fragment = t.fragment(passed.x[l], passed.y[l], passed.z[l], w);
         let c = self.shader.shade(&fragment)?;
         *linear = c.to_array();
-        let normal = if self.want_normal {
-            self.shader.normal(&fragment).map(|n| n.to_array())
-        } else {
-            None
-        };
-        Some(FragmentOutput { color: [0; 4], normal })
+        Some(FragmentOutput { color: [0; 4], normal: self.normal(&fragment) })
     }
 
     /// The colours of lanes `out` shaded (by [`ShaderStage::shade_lane`]) from their linear

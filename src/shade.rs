@@ -1384,8 +1384,8 @@ pub(crate) fn shade_small_lane<'a, T, F: TriangleFragments<T>>(
         queue.pixel(target, depth, depth_test, at, f1, f2, (t, id, stage));
     };
     let mut covered = 0;
-    for (k, py) in (r.y0..=r.y1).enumerate() {
-        let mask = eight.inside[l] >> (4 * k) & ((1 << columns) - 1);
+    for (n, py) in (r.y0..=r.y1).enumerate() {
+        let mask = eight.inside[l] >> (4 * n) & ((1 << columns) - 1);
         covered += row_pixels(target, &mut pixel, mask, (&row, step_x, bias), (r.x0, py));
         row = std::array::from_fn(|k| row[k] + step_y[k]);
     }

@@ -367,7 +367,8 @@ unsafe fn narrow_box(
     debug_assert!((1..=8).contains(&b.columns) && b.rows > 0, "a narrow box");
     let n = t.checked_len();
     // Checked arithmetic: the offsets below stay in the buffers only if this holds.
-    let end = (b.rows - 1).checked_mul(b.stride).and_then(|o| o.checked_add(b.first + b.columns));
+    let end = (b.rows.saturating_sub(1).checked_mul(b.stride))
+        .and_then(|o| o.checked_add(b.first)?.checked_add(b.columns));
     assert!(end.is_some_and(|end| end <= n), "the box must lie in the buffers");
     // Boxes up to four pixels wide (most small triangles) take two rows per group: lanes 0-3
     // the first, 4-7 the second.
