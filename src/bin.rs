@@ -787,6 +787,9 @@ pub(crate) fn shade_eight<S: Record>(
     covered
 }
 
+/// How many of eight records [`shade_small_eight`] takes together, at least.
+const SMALL_EIGHT_MIN: u32 = 4;
+
 /// Shades eight records in order as [`shade_record`] would each: the smallest triangles
 /// that share the lane queue and whose boxes are at most 4 x 4 pixels with their coverage
 /// computed together ([`crate::simd::small_eight`], into `small`) and their pixels queued
@@ -831,7 +834,10 @@ where
             smallest |= 1 << l;
         }
     }
-    if smallest != 0 {
+    // A few small triangles among larger ones (the bunny's) cost more together than alone.
+    if smallest.count_ones() < SMALL_EIGHT_MIN {
+        smallest = 0;
+    } else {
         crate::simd::small_eight(SimdLevel::detected(), &lanes, small);
     }
     let mut covered = 0;
