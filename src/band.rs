@@ -227,8 +227,13 @@ impl Bands {
     {
         let len = self.triangles;
         // The narrow kernel is for one sample per pixel.
-        let single = target.samples().count() == 1;
-        let eight_level = eight.filter(|_| single);
+        // Eight at a time (at 1x): window triangles at `eight`, otherwise the smallest
+        // triangles' coverage.
+        let kind = match eight {
+            _ if target.samples().count() > 1 => bin::Eight::None,
+            Some(level) => bin::Eight::Narrow(level),
+            None => bin::Eight::Small,
+        };
         let per_band: Vec<(DrawStats, u64)> = target
             .bands_from(&self.starts)
             .into_par_iter()
@@ -237,8 +242,7 @@ impl Bands {
                 let coverage = Coverage { clip, ..coverage };
                 let mut records: Vec<S> = Vec::with_capacity(bin::CHUNK);
                 let mut covers = Vec::with_capacity(bin::CHUNK);
-                let mut eight = crate::simd::NarrowEight::default();
-                let mut small = crate::simd::SmallEight::default();
+                let mut setup = bin::EightSetup::default();
                 let mut stats = DrawStats::default();
                 let mut covered = 0;
                 for first in (0..len).step_by(bin::CHUNK) {
@@ -265,35 +269,20 @@ impl Bands {
                             },
                         )
                     };
-                    // Eight at a time where the records allow (as `bin::draw_binned`: window
-                    // triangles at `eight_level`, their rectangle their box within `clip`;
-                    // otherwise the smallest triangles' coverage, at 1x).
-                    let mut k = 0;
-                    while k < records.len() {
-                        if single && let Some(next) = records.get(k..k + 8) {
-                            let next = std::array::from_fn(|l| &next[l]);
-                            covered += match eight_level {
-                                Some(level) => {
-                                    let run = (level, &clip, depth_test);
-                                    let one =
-                                        |band: &mut TargetBand<'_>, l| one(band, &mut queue, k + l);
-                                    bin::shade_eight(&mut band, &next, run, &mut eight, one)
-                                }
-                                None => {
-                                    let rects = std::array::from_fn(|l| &covers[k + l]);
-                                    let run = (rects, depth_test, |_: &_| true, stages);
-                                    let queue = (&mut queue, &mut small);
-                                    let one = |band: &mut TargetBand<'_>, queue: &mut _, l| {
-                                        one(band, queue, k + l)
-                                    };
-                                    bin::shade_small_eight(&mut band, &next, run, queue, one)
-                                }
-                            };
-                            k += 8;
-                            continue;
+                    // Eight at a time where the records allow (as `bin::draw_binned`).
+                    for (c, next) in records.chunks(8).enumerate() {
+                        let mut refs = [&next[0]; 8];
+                        for (r, record) in refs.iter_mut().zip(next) {
+                            *r = record;
                         }
-                        covered += one(&mut band, &mut queue, k);
-                        k += 1;
+                        let refs = &refs[..next.len()];
+                        let stages = (|_: &_| true, stages);
+                        let one = |band: &mut TargetBand<'_>, queue: &mut _, l| {
+                            one(band, queue, 8 * c + l)
+                        };
+                        let run = (kind, &clip, depth_test);
+                        let setup = (&mut queue, &mut setup);
+                        covered += bin::shade_eight(&mut band, refs, run, stages, setup, one);
                     }
                     queue.flush(&mut band, &fragments);
                 }

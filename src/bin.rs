@@ -759,53 +759,43 @@ where
     record.with(|p| draw(band, p))
 }
 
-/// Shades eight records in order within `clip` with `depth_test`, those
-/// [`Record::narrow_eight`] sets up at `level` (into `eight`) through the narrow kernel, the
-/// others with `one(band, l)` (record `l` on its own); returns the samples covered. Such
-/// records keep no triangle whole, so none of them shares a lane queue: the caller's stays
-/// as it was.
-#[inline(always)]
-pub(crate) fn shade_eight<S: Record>(
-    band: &mut TargetBand<'_>,
-    records: &[&S; 8],
-    (level, clip, depth_test): (SimdLevel, &PixelRect, DepthTest),
-    eight: &mut crate::simd::NarrowEight,
-    mut one: impl FnMut(&mut TargetBand<'_>, usize) -> u64,
-) -> u64 {
-    let lanes = S::narrow_eight(records, clip, level, eight);
-    let (mut covered, mut l) = (0, 0);
-    while l < 8 {
-        let run = (lanes >> l).trailing_ones() as usize;
-        if run > 0 {
-            covered += crate::simd::shade_narrow_eight(level, eight, l..l + run, band, depth_test);
-            l += run;
-        } else {
-            covered += one(band, l);
-            l += 1;
-        }
-    }
-    covered
+/// What the tile and band loops set up for eight records at once ([`shade_eight`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Eight {
+    /// Window triangles for the narrow kernel at this level ([`Record::narrow_eight`]).
+    Narrow(SimdLevel),
+    /// The smallest triangles' coverage ([`crate::simd::small_eight`]).
+    Small,
+    /// Nothing (multisampled targets): each record on its own.
+    None,
 }
 
-/// How many of eight records [`shade_small_eight`] takes together, at least.
+/// The buffers [`shade_eight`] sets records up in, kept by a loop from one call to the next.
+#[derive(Default)]
+pub(crate) struct EightSetup {
+    narrow: crate::simd::NarrowEight,
+    small: crate::simd::SmallEight,
+}
+
+/// How many of eight records [`shade_eight`] takes together as small triangles, at least: a
+/// few among larger ones (the bunny's) cost more together than alone.
 const SMALL_EIGHT_MIN: u32 = 4;
 
-/// Shades eight records in order as [`shade_record`] would each: the smallest triangles
-/// that share the lane queue and whose boxes are at most 4 x 4 pixels with their coverage
-/// computed together ([`crate::simd::small_eight`], into `small`) and their pixels queued
-/// as [`shade::shade_small_triangle`] queues them; the others with `one(band, queue, l)`
-/// (record `l` through `shade_record`). Each record `l` is clipped to `rects[l]`.
+/// Shades up to eight records in order within `clip` (the tile, or the band's rows) with
+/// `depth_test`, as [`shade_record`] would each: eight of them set up together as `kind`
+/// says, where they can be (window triangles through the narrow kernel,
+/// [`crate::simd::shade_narrow_eight`]; the smallest triangles that share the lane queue,
+/// with boxes of at most 4 x 4 pixels, queued as [`shade::shade_small_triangle`] queues
+/// them, [`shade::shade_small_lane`]), the others with `one(band, queue, l)` (record `l`
+/// through `shade_record`). `one` is called from this one place, so that it is inlined: from
+/// two, it was left out of line, a call per record (bunny 3-5% slower on two threads).
 #[inline(always)]
-pub(crate) fn shade_small_eight<'a, S, K, F>(
+pub(crate) fn shade_eight<'a, S, K, F>(
     band: &mut TargetBand<'_>,
-    records: &[&'a S; 8],
-    (rects, depth_test, shared, (kernel, fragments)): (
-        [&PixelRect; 8],
-        DepthTest,
-        impl Fn(&Prepared<S::Payload>) -> bool,
-        (&K, &F),
-    ),
-    (queue, small): (&mut shade::SharedLaneQueue<'a, S::Payload>, &mut crate::simd::SmallEight),
+    records: &[&'a S],
+    (kind, clip, depth_test): (Eight, &PixelRect, DepthTest),
+    (shared, (kernel, fragments)): (impl Fn(&Prepared<S::Payload>) -> bool, (&K, &F)),
+    (queue, setup): (&mut shade::SharedLaneQueue<'a, S::Payload>, &mut EightSetup),
     mut one: impl FnMut(&mut TargetBand<'_>, &mut shade::SharedLaneQueue<'a, S::Payload>, usize) -> u64,
 ) -> u64
 where
@@ -813,20 +803,66 @@ where
     K: Fn(&S::Payload) -> Option<(SimdLevel, &SpanColor)>,
     F: TriangleFragments<S::Payload>,
 {
-    debug_assert_eq!(band.samples().count(), 1, "a shared queue at 1x only");
-    let mut lanes = [crate::simd::SmallLane::default(); 8];
+    debug_assert!(records.len() <= 8, "eight records at most");
     let mut boxes = [PixelRect::EMPTY; 8];
+    let lanes = match (kind, <&[&S; 8]>::try_from(records)) {
+        (Eight::Narrow(level), Ok(eight)) => S::narrow_eight(eight, clip, level, &mut setup.narrow),
+        (Eight::Small, Ok(eight)) => small_lanes(eight, (clip, shared, kernel), setup, &mut boxes),
+        _ => 0,
+    };
+    let (mut covered, mut l) = (0, 0);
+    while l < records.len() {
+        let run = (lanes >> l).trailing_ones() as usize;
+        if run == 0 {
+            covered += one(band, queue, l);
+            l += 1;
+            continue;
+        }
+        covered += match kind {
+            Eight::Narrow(level) => {
+                crate::simd::shade_narrow_eight(level, &setup.narrow, l..l + run, band, depth_test)
+            }
+            _ => (l..l + run)
+                .map(|m| {
+                    let p = records[m].kept().expect("a small lane keeps its triangle");
+                    let (lane, id) = ((&setup.small, m), (depth_test, p.id));
+                    let depth = &p.depth;
+                    shade::shade_small_lane(
+                        band, lane, &boxes[m], depth, id, &p.payload, fragments, queue,
+                    )
+                })
+                .sum(),
+        };
+        l += run;
+    }
+    covered
+}
+
+/// The lanes of eight records that [`shade_eight`] takes together as small triangles
+/// (`shade_record`'s test for the shared queue, and a box of at most 4 x 4 pixels that
+/// reaches `clip`), their coverage set up in `setup` and their boxes within `clip` in
+/// `boxes`; none where fewer than [`SMALL_EIGHT_MIN`] are.
+#[inline(always)]
+fn small_lanes<S: Record, K>(
+    records: &[&S; 8],
+    (clip, shared, kernel): (&PixelRect, impl Fn(&Prepared<S::Payload>) -> bool, &K),
+    setup: &mut EightSetup,
+    boxes: &mut [PixelRect; 8],
+) -> u8
+where
+    K: Fn(&S::Payload) -> Option<(SimdLevel, &SpanColor)>,
+{
+    let mut lanes = [crate::simd::SmallLane::default(); 8];
     let mut smallest = 0u8;
     for (l, record) in records.iter().enumerate() {
         let Some(p) = record.kept() else { continue };
         let b = &p.setup.bounds;
-        // `shade_record`'s test for the shared queue, and a box this coverage takes.
         if p.setup.area2 <= shade::SHARED_QUEUE_AREA2
             && b.x1 - b.x0 < 4
             && b.y1 - b.y0 < 4
             && kernel(&p.payload).is_none()
             && shared(p)
-            && let Some(r) = b.intersect(rects[l])
+            && let Some(r) = b.intersect(clip)
         {
             let (xy, clockwise) = (p.setup.xy, p.setup.clockwise);
             lanes[l] = crate::simd::SmallLane { xy, clockwise, first: [r.x0, r.y0] };
@@ -834,33 +870,11 @@ where
             smallest |= 1 << l;
         }
     }
-    // A few small triangles among larger ones (the bunny's) cost more together than alone.
     if smallest.count_ones() < SMALL_EIGHT_MIN {
-        smallest = 0;
-    } else {
-        crate::simd::small_eight(SimdLevel::detected(), &lanes, small);
+        return 0;
     }
-    let mut covered = 0;
-    for (l, record) in records.iter().enumerate() {
-        covered += match record.kept() {
-            Some(p) if smallest >> l & 1 == 1 => {
-                let (depth, t) = (&p.depth, &p.payload);
-                let lane = (&*small, l);
-                shade::shade_small_lane(
-                    band,
-                    lane,
-                    &boxes[l],
-                    depth,
-                    (depth_test, p.id),
-                    t,
-                    fragments,
-                    queue,
-                )
-            }
-            _ => one(band, queue, l),
-        };
-    }
-    covered
+    crate::simd::small_eight(SimdLevel::detected(), &lanes, &mut setup.small);
+    smallest
 }
 
 /// Shades prepared triangle `p` within `rect`: with the span kernel `kernel` where there is
@@ -994,38 +1008,27 @@ where
                 }
             })
         };
-        let mut eight = crate::simd::NarrowEight::default();
-        let mut small = crate::simd::SmallEight::default();
-        let mut j = 0;
-        while j < list.len() {
-            // Eight at a time (at 1x): window triangles at `eight_level`, otherwise the
-            // smallest triangles' coverage.
-            if samples.count() == 1
-                && let Some(next) = list.get(j..j + 8)
-            {
-                for &ahead in list.iter().skip(j + 8).take(8) {
-                    crate::simd::prefetch(prepared.get(ahead));
-                }
-                let records = std::array::from_fn(|l| prepared.get(next[l]));
-                covered += match eight_level {
-                    Some(level) => {
-                        let run = (level, tile, depth_test);
-                        let one = |band: &mut TargetBand<'_>, l| one(band, &mut queue, j + l);
-                        shade_eight(band, &records, run, &mut eight, one)
-                    }
-                    None => {
-                        let queue = (&mut queue, &mut small);
-                        let one =
-                            |band: &mut TargetBand<'_>, queue: &mut _, l| one(band, queue, j + l);
-                        let run = ([tile; 8], depth_test, shared, stages);
-                        shade_small_eight(band, &records, run, queue, one)
-                    }
-                };
-                j += 8;
-                continue;
+        // Eight at a time (at 1x): window triangles at `eight_level`, otherwise the smallest
+        // triangles' coverage.
+        let kind = match eight_level {
+            Some(level) => Eight::Narrow(level),
+            None if samples.count() == 1 => Eight::Small,
+            None => Eight::None,
+        };
+        let mut setup = EightSetup::default();
+        for (c, next) in list.chunks(8).enumerate() {
+            for &ahead in list.iter().skip(8 * (c + 1)).take(8) {
+                crate::simd::prefetch(prepared.get(ahead));
             }
-            covered += one(band, &mut queue, j);
-            j += 1;
+            let mut records = [prepared.get(next[0]); 8];
+            for (r, &i) in records.iter_mut().zip(next) {
+                *r = prepared.get(i);
+            }
+            let records = &records[..next.len()];
+            let stages = (shared, stages);
+            let one = |band: &mut TargetBand<'_>, queue: &mut _, l| one(band, queue, 8 * c + l);
+            let run = (kind, tile, depth_test);
+            covered += shade_eight(band, records, run, stages, (&mut queue, &mut setup), one);
         }
         queue.flush(band, &fragments);
         covered
