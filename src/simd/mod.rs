@@ -713,7 +713,6 @@ pub struct NarrowEight {
     pub flat: [u32; 8],
     /// The lanes with Gouraud colour.
     pub smooth: u8,
-    /// The lanes whose vertices share one alpha.
     /// The box's first pixel (column, row).
     pub x0: [i32; 8],
     /// See `x0`.
@@ -724,7 +723,7 @@ pub struct NarrowEight {
     pub rows: [i32; 8],
     /// [`KernelTarget::id`].
     pub id: [i32; 8],
-    /// See `alpha`.
+    /// The lanes whose vertices share one alpha.
     pub one_alpha: u8,
 }
 
@@ -733,11 +732,10 @@ pub struct NarrowEight {
 /// within the tile, [`TriangleSetup::edges_at`] its first pixel's centre,
 /// [`crate::shade::TriangleShader::span_parts_of`]): returns the lanes set up (bit `l`),
 /// those whose triangle's box is at most [`NARROW_COLUMNS`] wide and reaches the tile. Only
-/// AVX-512 has this path (none at the
-/// others: the records are then drawn one by one). The records, one cache line each, are
-/// transposed in registers and set up side by side: one by one, the setup and the calls
-/// around it (rebuilding the record's setup and planes, the job, the dispatch) took more of
-/// a frame of small triangles than the kernel's loop.
+/// AVX-512 has this path (none at the others: the records are then drawn one by one). The
+/// records, one cache line each, are transposed in registers and set up side by side: one
+/// by one, the setup and the calls around it (rebuilding the record's setup and planes, the
+/// job, the dispatch) took more of a frame of small triangles than the kernel's loop.
 #[inline]
 pub fn narrow_eight(
     level: SimdLevel,
@@ -759,8 +757,8 @@ pub fn narrow_eight(
 /// covered pixels.
 ///
 /// # Panics
-/// If `level` is not an available AVX-512, a lane's box is not narrow, or the buffers do not
-/// hold it.
+/// If `level` is not an available AVX-512, `lanes` reaches past 8, a lane's box is not
+/// narrow, or the buffers do not hold it.
 pub fn shade_narrow_eight(
     level: SimdLevel,
     eight: &NarrowEight,
