@@ -226,7 +226,6 @@ impl Bands {
         P: Fn(std::ops::Range<usize>, &mut Sink<'_, S>) + Sync,
     {
         let len = self.triangles;
-        // The narrow kernel is for one sample per pixel.
         // Eight at a time (at 1x): window triangles at `eight`, otherwise the smallest
         // triangles' coverage.
         let kind = match eight {

@@ -952,8 +952,13 @@ where
     let coverage = prepared.coverage();
     let clip = &coverage.clip;
     let samples = target.samples();
-    // The narrow kernel is for one sample per pixel.
-    let eight_level = eight.filter(|_| samples.count() == 1);
+    // Eight at a time (at 1x): window triangles at `eight`, otherwise the smallest triangles'
+    // coverage.
+    let kind = match eight {
+        _ if samples.count() > 1 => Eight::None,
+        Some(level) => Eight::Narrow(level),
+        None => Eight::Small,
+    };
     debug_assert_eq!(coverage.multisampled, samples.count() > 1, "prepared for other samples");
     let bin_target = BinTarget::of(target, depth_test);
     let computed;
@@ -1006,13 +1011,6 @@ where
                     shade(band, tile)
                 }
             })
-        };
-        // Eight at a time (at 1x): window triangles at `eight_level`, otherwise the smallest
-        // triangles' coverage.
-        let kind = match eight_level {
-            Some(level) => Eight::Narrow(level),
-            None if samples.count() == 1 => Eight::Small,
-            None => Eight::None,
         };
         let mut setup = EightSetup::default();
         for (c, next) in list.chunks(8).enumerate() {
