@@ -226,13 +226,7 @@ impl Bands {
         P: Fn(std::ops::Range<usize>, &mut Sink<'_, S>) + Sync,
     {
         let len = self.triangles;
-        // Eight at a time (at 1x): window triangles at `eight`, otherwise the smallest
-        // triangles' coverage.
-        let kind = match eight {
-            _ if target.samples().count() > 1 => bin::Eight::None,
-            Some(level) => bin::Eight::Narrow(level),
-            None => bin::Eight::Small,
-        };
+        let kind = bin::Eight::of(eight, target.samples());
         let per_band: Vec<(DrawStats, u64)> = target
             .bands_from(&self.starts)
             .into_par_iter()

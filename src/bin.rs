@@ -738,10 +738,7 @@ where
     F: TriangleFragments<S::Payload>,
 {
     if band.samples().count() == 1
-        && let Some(p) = record.kept()
-        && p.setup.area2 <= shade::SHARED_QUEUE_AREA2
-        && kernel(&p.payload).is_none()
-        && shared(p)
+        && let Some(p) = queued(record, kernel, shared)
         && let Some(covered) = shade::shade_small_triangle(
             band,
             &p.setup,
@@ -759,6 +756,32 @@ where
     record.with(|p| draw(band, p))
 }
 
+/// `record`'s triangle where it shares the lane queue (at 1x): kept whole, small
+/// ([`shade::SHARED_QUEUE_AREA2`]), without a span kernel, and `shared` (asked last, as it
+/// may compute the triangle's coverage rectangle). The test of [`shade_record`] and of
+/// [`shade_eight`]'s small lanes.
+#[inline(always)]
+fn queued<'a, S, K>(
+    record: &'a S,
+    kernel: &K,
+    shared: impl FnOnce(&Prepared<S::Payload>) -> bool,
+) -> Option<&'a Prepared<S::Payload>>
+where
+    S: Record,
+    K: Fn(&S::Payload) -> Option<(SimdLevel, &SpanColor)>,
+{
+    match record.kept() {
+        Some(p)
+            if p.setup.area2 <= shade::SHARED_QUEUE_AREA2
+                && kernel(&p.payload).is_none()
+                && shared(p) =>
+        {
+            Some(p)
+        }
+        _ => None,
+    }
+}
+
 /// What the tile and band loops set up for eight records at once ([`shade_eight`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Eight {
@@ -768,6 +791,18 @@ pub(crate) enum Eight {
     Small,
     /// Nothing (multisampled targets): each record on its own.
     None,
+}
+
+impl Eight {
+    /// The kind for a target with `samples` per pixel: window triangles at `window` (their
+    /// narrow kernel's level, if any), otherwise the smallest triangles; nothing beyond 1x.
+    pub(crate) fn of(window: Option<SimdLevel>, samples: SampleCount) -> Self {
+        match window {
+            _ if samples.count() > 1 => Self::None,
+            Some(level) => Self::Narrow(level),
+            None => Self::Small,
+        }
+    }
 }
 
 /// The buffers [`shade_eight`] sets records up in, kept by a loop from one call to the next.
@@ -853,14 +888,13 @@ where
 {
     let mut lanes = [crate::simd::SmallLane::default(); 8];
     let mut smallest = 0u8;
-    for (l, record) in records.iter().enumerate() {
+    for (l, &record) in records.iter().enumerate() {
         let Some(p) = record.kept() else { continue };
         let b = &p.setup.bounds;
-        if p.setup.area2 <= shade::SHARED_QUEUE_AREA2
-            && b.x1 - b.x0 < 4
+        // The box first: the queue's test asks `shared` last.
+        if b.x1 - b.x0 < 4
             && b.y1 - b.y0 < 4
-            && kernel(&p.payload).is_none()
-            && shared(p)
+            && queued(record, kernel, &shared).is_some()
             && let Some(r) = b.intersect(clip)
         {
             let (xy, clockwise) = (p.setup.xy, p.setup.clockwise);
@@ -952,13 +986,7 @@ where
     let coverage = prepared.coverage();
     let clip = &coverage.clip;
     let samples = target.samples();
-    // Eight at a time (at 1x): window triangles at `eight`, otherwise the smallest triangles'
-    // coverage.
-    let kind = match eight {
-        _ if samples.count() > 1 => Eight::None,
-        Some(level) => Eight::Narrow(level),
-        None => Eight::Small,
-    };
+    let kind = Eight::of(eight, samples);
     debug_assert_eq!(coverage.multisampled, samples.count() > 1, "prepared for other samples");
     let bin_target = BinTarget::of(target, depth_test);
     let computed;
