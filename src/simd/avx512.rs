@@ -309,9 +309,19 @@ fn sample_lanes(n: usize, f: impl Fn(usize, usize) -> f64) -> __m512d {
 /// The CPU must support AVX-512 F, VL and DQ.
 #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
 pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
-    if let SpanColor::Perspective(p) = job.target.color {
+    // Packed lanes hold buffer indices in `i32` (any target's, and any band's buffers but
+    // one of more than 2^31 pixels, which takes the unpacked loop).
+    if let SpanColor::Perspective(p) = job.target.color
+        && job.end(job.columns) <= i32::MAX as usize
+    {
         // SAFETY: the CPU supports AVX-512 F, VL and DQ (this function's contract).
-        return unsafe { narrow_packed(job, p) };
+        return unsafe {
+            if job.columns <= 4 {
+                narrow_packed::<true>(job, p)
+            } else {
+                narrow_packed::<false>(job, p)
+            }
+        };
     }
     // SAFETY: the CPU supports AVX-512 F, VL and DQ (this function's contract).
     with_rgba!(*job.target.color, __m512d, _mm256_set1_epi32, smooth, rgba => unsafe {
@@ -352,8 +362,9 @@ unsafe fn narrow_rows(job: &mut NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) -
 /// # Safety
 /// The CPU must support AVX-512 F, VL and DQ.
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2")]
-unsafe fn narrow_packed(job: &mut NarrowJob<'_>, p: &PerspectiveColor) -> u64 {
+unsafe fn narrow_packed<const PAIR: bool>(job: &mut NarrowJob<'_>, p: &PerspectiveColor) -> u64 {
     job.assert_narrow();
+    assert!(PAIR == (job.columns <= 4), "two rows per group for boxes up to four wide");
     let end = job.end(job.columns);
     let b = NarrowBox {
         edges: job.edges.map(|e| e as f64),
@@ -367,9 +378,9 @@ unsafe fn narrow_packed(job: &mut NarrowJob<'_>, p: &PerspectiveColor) -> u64 {
     };
     let t = &mut job.target;
     let n = t.checked_len();
-    assert!(end <= n, "the box must lie in the buffers");
+    assert!(end <= n && end <= i32::MAX as usize, "the box must lie in the buffers");
     let (table, q) = (crate::color::srgb8_table(), p.inv_w());
-    let pair = b.columns <= 4;
+    let pair = PAIR;
     let (column, row_of_lane, rows_per_group) = if pair {
         (_mm512_setr_pd(0.0, 1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0), 1.0, 2)
     } else {
@@ -414,9 +425,10 @@ unsafe fn narrow_packed(job: &mut NarrowJob<'_>, p: &PerspectiveColor) -> u64 {
         );
         let (f1, f2) = (_mm512_sub_pd(e[1], bias[0]), _mm512_sub_pd(e[2], bias[1]));
         let at = b.first + r * b.stride;
-        // A last row of its own leaves the upper lanes masked off, at the same address.
+        // A last row of its own leaves the upper lanes masked off, at the same address (a
+        // row of more than four pixels is one group, from `at`).
         let (second, lanes) = if !pair {
-            (at + 4, columns)
+            (at, columns)
         } else if r + 1 < b.rows {
             (at + b.stride, columns)
         } else {
@@ -429,8 +441,8 @@ unsafe fn narrow_packed(job: &mut NarrowJob<'_>, p: &PerspectiveColor) -> u64 {
         let pass = unsafe {
             if let Some(o) = t.overdraw.as_deref_mut() {
                 let o = o.as_mut_ptr().cast::<i32>();
-                let counts = load::<true>(o, [at, second], cover);
-                store::<true>(
+                let counts = load::<PAIR>(o, [at, second], cover);
+                store::<PAIR>(
                     o,
                     [at, second],
                     cover,
@@ -440,15 +452,15 @@ unsafe fn narrow_packed(job: &mut NarrowJob<'_>, p: &PerspectiveColor) -> u64 {
             let z = _mm512_cvtpd_ps(plane(t.depth_plane, f1, f2));
             let z = _mm256_min_ps(_mm256_set1_ps(1.0), _mm256_max_ps(_mm256_setzero_ps(), z));
             let dp = t.depth.as_mut_ptr().cast::<i32>();
-            let stored = _mm256_castsi256_ps(load::<true>(dp, [at, second], cover));
+            let stored = _mm256_castsi256_ps(load::<PAIR>(dp, [at, second], cover));
             let pass = match t.depth_test {
                 DepthTest::Less => _mm256_mask_cmp_ps_mask::<_CMP_LT_OQ>(cover, z, stored),
                 DepthTest::LessEqual => _mm256_mask_cmp_ps_mask::<_CMP_LE_OQ>(cover, z, stored),
                 DepthTest::Always => cover,
             };
-            store::<true>(dp, [at, second], pass, _mm256_castps_si256(z));
+            store::<PAIR>(dp, [at, second], pass, _mm256_castps_si256(z));
             if let Some(ids) = t.ids.as_deref_mut() {
-                store::<true>(ids.as_mut_ptr(), [at, second], pass, _mm256_set1_epi32(t.id));
+                store::<PAIR>(ids.as_mut_ptr(), [at, second], pass, _mm256_set1_epi32(t.id));
             }
             pass
         };
