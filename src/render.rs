@@ -279,7 +279,7 @@ fn draw_tiled<C: WindowColor>(
     let coverage = bin::Coverage { clip: visible, multisampled };
     let kernel = window_kernel::<C>(level);
     // Narrow triangles set up eight at a time (`simd::narrow_eight`), at AVX-512.
-    let eight = (level == SimdLevel::Avx512).then_some(level);
+    let eight = matches!(level, SimdLevel::Avx512 | SimdLevel::Avx2).then_some(level);
     let threads = rayon::current_num_threads();
     // Every band sets window triangles up in full: beyond two threads that costs more than
     // bands save (a coherent grid of 1,000,000 window triangles: 101 -> 77 ms banded on one
@@ -675,9 +675,14 @@ mod tests {
     /// finite, NaN and infinite depths, random tiles around them.
     #[test]
     fn eight_records_set_up_as_each_alone() {
-        if !SimdLevel::Avx512.is_available() {
-            return;
+        for level in [SimdLevel::Avx2, SimdLevel::Avx512] {
+            if level.is_available() {
+                eight_records_set_up_at(level);
+            }
         }
+    }
+
+    fn eight_records_set_up_at(level: SimdLevel) {
         let mut rng = SmallRng::seed_from_u64(22);
         let (mut lanes_set_up, mut lanes_left, mut kinds) = (0, 0, [0; 3]);
         for round in 0..20_000 {
@@ -725,7 +730,7 @@ mod tests {
             };
             let mut eight = simd::NarrowEight::default();
             let refs = std::array::from_fn(|l| &records[l]);
-            let lanes = simd::narrow_eight(SimdLevel::Avx512, &refs, &tile, &mut eight);
+            let lanes = simd::narrow_eight(level, &refs, &tile, &mut eight);
             for (l, record) in records.iter().enumerate() {
                 let setup = record.setup();
                 let b = setup.bounds;
@@ -747,7 +752,7 @@ mod tests {
                 let (edges, step_x, step_y, bias) = setup.edges_at(x, y);
                 let bits = |v: [f64; 3]| v.map(f64::to_bits);
                 let lane = |rows: &[[f64; 8]; 3]| bits([rows[0][l], rows[1][l], rows[2][l]]);
-                let what = format!("round {round}, lane {l}: {record:?} {tile:?}");
+                let what = format!("{level:?}, round {round}, lane {l}: {record:?} {tile:?}");
                 assert_eq!(
                     [eight.x0[l], eight.y0[l], eight.columns[l], eight.rows[l], eight.id[l]],
                     [r.x0, r.y0, r.x1 - r.x0 + 1, r.y1 - r.y0 + 1, record.id],

@@ -5,12 +5,13 @@ use std::arch::x86_64::*;
 use glam::Vec4;
 
 use super::{
-    Corner, CornerGroup, CornerTests, KernelTarget, NarrowJob, NarrowSamplesJob, PerspectiveColor,
-    SampleSpanJob, SmallEight, SmallLane, SpanColor, SpanJob, WindowGroup,
+    Corner, CornerGroup, CornerTests, KernelTarget, NarrowEight, NarrowJob, NarrowSamplesJob,
+    PerspectiveColor, SampleSpanJob, SmallEight, SmallLane, SpanColor, SpanJob, WindowGroup,
 };
 use crate::clip::MIN_W;
 use crate::color::ENCODE_BUCKETS;
 use crate::fixed;
+use crate::render::WindowRecord;
 use crate::sample::{MAX_SAMPLES, SampleCount};
 use crate::setup::{CullMode, PixelRect, Vertex};
 use crate::shade::DepthTest;
@@ -1103,4 +1104,209 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
     for (rejected, [finite, in_range, degenerate, culled]) in out.rejected.iter_mut().zip(flags) {
         *rejected = super::rejection(finite, in_range, degenerate, culled);
     }
+}
+
+/// Words `0..8` of eight rows (`r[l]` the row of record `l`) as eight registers, register
+/// `i` word `i` of every row: an 8 x 8 transpose of 32-bit words.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn transpose8(r: &[__m256i; 8]) -> [__m256i; 8] {
+    // Pairs of rows interleaved: words 0-1 and 4-5 of rows l, l + 1 (`lo`), 2-3 and 6-7
+    // (`hi`).
+    let lo: [__m256i; 4] = std::array::from_fn(|k| _mm256_unpacklo_epi32(r[2 * k], r[2 * k + 1]));
+    let hi: [__m256i; 4] = std::array::from_fn(|k| _mm256_unpackhi_epi32(r[2 * k], r[2 * k + 1]));
+    // Quads: word j of rows 0-3 in `a[j]`, of rows 4-7 in `b[j]`, with word j + 4 in each
+    // register's upper half.
+    let a = [
+        _mm256_unpacklo_epi64(lo[0], lo[1]),
+        _mm256_unpackhi_epi64(lo[0], lo[1]),
+        _mm256_unpacklo_epi64(hi[0], hi[1]),
+        _mm256_unpackhi_epi64(hi[0], hi[1]),
+    ];
+    let b = [
+        _mm256_unpacklo_epi64(lo[2], lo[3]),
+        _mm256_unpackhi_epi64(lo[2], lo[3]),
+        _mm256_unpacklo_epi64(hi[2], hi[3]),
+        _mm256_unpackhi_epi64(hi[2], hi[3]),
+    ];
+    let mut out = [_mm256_setzero_si256(); 8];
+    for j in 0..4 {
+        out[j] = _mm256_permute2x128_si256::<0x20>(a[j], b[j]);
+        out[j + 4] = _mm256_permute2x128_si256::<0x31>(a[j], b[j]);
+    }
+    out
+}
+
+/// The lanes of a comparison's result (all ones or zero per 32-bit lane) as bits.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn bits_of(v: __m256i) -> u8 {
+    _mm256_movemask_ps(_mm256_castsi256_ps(v)) as u8
+}
+
+/// Lanes 0-3 and 4-7 of eight `f64`s, `f(0)` and `f(1)`.
+#[inline(always)]
+fn halves(f: impl Fn(usize) -> __m256d) -> [__m256d; 2] {
+    [f(0), f(1)]
+}
+
+/// Eight `i32` lanes as `f64`: lanes 0-3 and 4-7.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn f64_halves(v: __m256i) -> [__m256d; 2] {
+    [
+        _mm256_cvtepi32_pd(_mm256_castsi256_si128(v)),
+        _mm256_cvtepi32_pd(_mm256_extracti128_si256::<1>(v)),
+    ]
+}
+
+/// [`super::narrow_eight`] in AVX2, as the AVX-512 version computes it: the eight records
+/// loaded as two 256-bit registers each and transposed as two 8 x 8 matrices of words, the
+/// integers side by side in eight `i32` lanes, the `f64` values in two registers of four
+/// lanes (integers exact there, the planes `(a_i - a0) * inv_area2` as
+/// [`crate::shade::PlaneEquation::with_inv_area2`] computes them).
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn narrow_eight(
+    records: &[&WindowRecord; 8],
+    tile: &PixelRect,
+    out: &mut NarrowEight,
+) -> u8 {
+    let row = |l: usize, half: usize| {
+        // SAFETY: a record is 64 bytes aligned to 64 (`repr(C, align(64))`, no padding: its
+        // layout is asserted beside it), so each 32-byte half is an aligned, initialized load.
+        unsafe { _mm256_load_si256(std::ptr::from_ref(records[l]).cast::<__m256i>().add(half)) }
+    };
+    let low = transpose8(&std::array::from_fn(|l| row(l, 0)));
+    let high = transpose8(&std::array::from_fn(|l| row(l, 1)));
+    let word = |i: usize| if i < 8 { low[i] } else { high[i - 8] };
+    let [x0, y0, x1, y1, x2, y2] = [word(0), word(1), word(2), word(3), word(4), word(5)];
+    // `1 / area2`: words 12 (low) and 13 (high) of each record as one `f64`.
+    let (ia, ib) =
+        (_mm256_unpacklo_epi32(word(12), word(13)), _mm256_unpackhi_epi32(word(12), word(13)));
+    let inv_area2 = [
+        _mm256_castsi256_pd(_mm256_permute2x128_si256::<0x20>(ia, ib)),
+        _mm256_castsi256_pd(_mm256_permute2x128_si256::<0x31>(ia, ib)),
+    ];
+    let half = _mm256_set1_epi32(fixed::HALF);
+    let min = |a, b, c| _mm256_min_epi32(_mm256_min_epi32(a, b), c);
+    let max = |a, b, c| _mm256_max_epi32(_mm256_max_epi32(a, b), c);
+    let first = |v| {
+        _mm256_srai_epi32::<8>(_mm256_add_epi32(_mm256_sub_epi32(v, half), _mm256_set1_epi32(255)))
+    };
+    let last = |v| _mm256_srai_epi32::<8>(_mm256_sub_epi32(v, half));
+    let (bx0, by0) = (first(min(x0, x1, x2)), first(min(y0, y1, y2)));
+    let (bx1, by1) = (last(max(x0, x1, x2)), last(max(y0, y1, y2)));
+    let px0 = _mm256_max_epi32(bx0, _mm256_set1_epi32(tile.x0));
+    let py0 = _mm256_max_epi32(by0, _mm256_set1_epi32(tile.y0));
+    let px1 = _mm256_min_epi32(bx1, _mm256_set1_epi32(tile.x1));
+    let py1 = _mm256_min_epi32(by1, _mm256_set1_epi32(tile.y1));
+    let one = _mm256_set1_epi32(1);
+    let columns = _mm256_add_epi32(_mm256_sub_epi32(px1, px0), one);
+    let rows = _mm256_add_epi32(_mm256_sub_epi32(py1, py0), one);
+    let zero = _mm256_setzero_si256();
+    // Narrow before clipping, as `bin::coverage_algorithm` asks of the kernel's triangles.
+    let narrow = bits_of(_mm256_cmpgt_epi32(
+        _mm256_set1_epi32(crate::raster::edge::NARROW),
+        _mm256_sub_epi32(bx1, bx0),
+    ));
+    let reaches = bits_of(_mm256_and_si256(
+        _mm256_cmpgt_epi32(columns, zero),
+        _mm256_cmpgt_epi32(rows, zero),
+    ));
+    let flags = word(15);
+    let set = |v: __m256i, m: i32| {
+        _mm256_xor_si256(
+            _mm256_cmpeq_epi32(_mm256_and_si256(v, _mm256_set1_epi32(m)), zero),
+            _mm256_set1_epi32(-1),
+        )
+    };
+    out.smooth = bits_of(set(flags, 0xFF00));
+    let alpha = _mm256_srli_epi32::<24>(word(9));
+    out.one_alpha = bits_of(_mm256_and_si256(
+        _mm256_cmpeq_epi32(alpha, _mm256_srli_epi32::<24>(word(10))),
+        _mm256_cmpeq_epi32(alpha, _mm256_srli_epi32::<24>(word(11))),
+    ));
+    let lanes = narrow & reaches;
+    // The edges, each leaving vertex `k + 1` for vertex `k + 2`, inside positive: negated
+    // for counter-clockwise triangles.
+    let clockwise = set(flags, 0xFF);
+    let oriented = |d: __m256i| _mm256_blendv_epi8(_mm256_sub_epi32(zero, d), d, clockwise);
+    let xs = [x0, x1, x2];
+    let ys = [y0, y1, y2];
+    let sample = |p: __m256i| _mm256_add_epi32(_mm256_slli_epi32::<8>(p), half);
+    let (sx, sy) = (sample(px0), sample(py0));
+    let put = |out: &mut [f64; 8], v: [__m256d; 2]| {
+        // SAFETY: two groups of four `f64`s, 64 bytes; the stores need no alignment.
+        unsafe {
+            _mm256_storeu_pd(out.as_mut_ptr(), v[0]);
+            _mm256_storeu_pd(out.as_mut_ptr().add(4), v[1]);
+        }
+    };
+    let step = _mm256_set1_pd(f64::from(fixed::ONE));
+    for k in 0..3 {
+        let (a, b) = ((k + 1) % 3, (k + 2) % 3);
+        let ea = oriented(_mm256_sub_epi32(ys[a], ys[b]));
+        let eb = oriented(_mm256_sub_epi32(xs[b], xs[a]));
+        // `FillRule::bias`: 0 on owned edges (`a > 0`, or `a == 0` and `b > 0`), else -1.
+        let owned = _mm256_or_si256(
+            _mm256_cmpgt_epi32(ea, zero),
+            _mm256_and_si256(_mm256_cmpeq_epi32(ea, zero), _mm256_cmpgt_epi32(eb, zero)),
+        );
+        let bias = f64_halves(_mm256_xor_si256(owned, _mm256_set1_epi32(-1)));
+        let (ea, eb) = (f64_halves(ea), f64_halves(eb));
+        let dx = f64_halves(_mm256_sub_epi32(sx, xs[a]));
+        let dy = f64_halves(_mm256_sub_epi32(sy, ys[a]));
+        let value = halves(|h| {
+            let products = _mm256_add_pd(_mm256_mul_pd(ea[h], dx[h]), _mm256_mul_pd(eb[h], dy[h]));
+            _mm256_add_pd(products, bias[h])
+        });
+        put(&mut out.edges[k], value);
+        put(&mut out.step_x[k], halves(|h| _mm256_mul_pd(ea[h], step)));
+        put(&mut out.step_y[k], halves(|h| _mm256_mul_pd(eb[h], step)));
+        if k > 0 {
+            put(&mut out.bias[k - 1], bias);
+        }
+    }
+    let plane = |a: [[__m256d; 2]; 3], out: &mut [[f64; 8]; 3]| {
+        let g =
+            |v: [__m256d; 2]| halves(|h| _mm256_mul_pd(_mm256_sub_pd(v[h], a[0][h]), inv_area2[h]));
+        put(&mut out[0], a[0]);
+        put(&mut out[1], g(a[1]));
+        put(&mut out[2], g(a[2]));
+    };
+    let z = |w: __m256i| {
+        let w = _mm256_castsi256_ps(w);
+        [_mm256_cvtps_pd(_mm256_castps256_ps128(w)), _mm256_cvtps_pd(_mm256_extractf128_ps::<1>(w))]
+    };
+    plane([z(word(6)), z(word(7)), z(word(8))], &mut out.depth);
+    let mut flat = _mm256_setzero_si256();
+    for ch in 0..4 {
+        let byte = |w: __m256i| {
+            let shifted = _mm256_srlv_epi32(w, _mm256_set1_epi32(8 * ch as i32));
+            _mm256_and_si256(shifted, _mm256_set1_epi32(0xFF))
+        };
+        let (c0, c1, c2) = (byte(word(9)), byte(word(10)), byte(word(11)));
+        plane([f64_halves(c0), f64_halves(c1), f64_halves(c2)], &mut out.color[ch]);
+        // `flat_color`'s `(2 * sum + 3) / 6` as the AVX-512 version computes it.
+        let sum = _mm256_add_epi32(_mm256_add_epi32(c0, c1), c2);
+        let twice = _mm256_add_epi32(_mm256_add_epi32(sum, sum), _mm256_set1_epi32(3));
+        let mean = _mm256_srli_epi32::<18>(_mm256_mullo_epi32(twice, _mm256_set1_epi32(43691)));
+        flat = _mm256_or_si256(flat, _mm256_sllv_epi32(mean, _mm256_set1_epi32(8 * ch as i32)));
+    }
+    let store = |out: &mut [i32; 8], v: __m256i| {
+        // SAFETY: eight `i32`s, 32 bytes; the store needs no alignment.
+        unsafe { _mm256_storeu_si256(out.as_mut_ptr().cast(), v) }
+    };
+    store(&mut out.alpha, alpha);
+    // SAFETY: eight `u32`s, 32 bytes; the store needs no alignment.
+    unsafe { _mm256_storeu_si256(out.flat.as_mut_ptr().cast(), flat) };
+    store(&mut out.x0, px0);
+    store(&mut out.y0, py0);
+    store(&mut out.columns, columns);
+    store(&mut out.rows, rows);
+    store(&mut out.id, word(14));
+    lanes
 }

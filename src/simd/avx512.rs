@@ -788,16 +788,7 @@ pub(super) unsafe fn shade_narrow_eight(
             first: target.index(eight.x0[l], eight.y0[l]),
             stride: target.stride(),
         };
-        let planes = [lane3(&eight.color[0]), lane3(&eight.color[1]), lane3(&eight.color[2])];
-        let alpha = eight.alpha[l] as u8;
-        let color = if eight.smooth >> l & 1 == 0 {
-            SpanColor::Flat(eight.flat[l].to_le_bytes())
-        } else if eight.one_alpha >> l & 1 == 1 {
-            SpanColor::SmoothRgb(planes, alpha)
-        } else {
-            let [r, g, b] = planes;
-            SpanColor::Smooth([r, g, b, lane3(&eight.color[3])])
-        };
+        let color = eight.color(l);
         let mut t = KernelTarget {
             depth_plane: lane3(&eight.depth),
             color: &color,

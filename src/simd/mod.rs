@@ -727,12 +727,30 @@ pub struct NarrowEight {
     pub one_alpha: u8,
 }
 
+impl NarrowEight {
+    /// Lane `l`'s colour as the span kernels take it.
+    #[inline(always)]
+    pub fn color(&self, l: usize) -> SpanColor {
+        let lane3 = |v: &[[f64; 8]; 3]| [v[0][l], v[1][l], v[2][l]];
+        let planes = [lane3(&self.color[0]), lane3(&self.color[1]), lane3(&self.color[2])];
+        if self.smooth >> l & 1 == 0 {
+            SpanColor::Flat(self.flat[l].to_le_bytes())
+        } else if self.one_alpha >> l & 1 == 1 {
+            SpanColor::SmoothRgb(planes, self.alpha[l] as u8)
+        } else {
+            let [r, g, b] = planes;
+            SpanColor::Smooth([r, g, b, lane3(&self.color[3])])
+        }
+    }
+}
+
 /// Sets up eight window records (`records`) for the narrow kernel within `tile` at `level`
 /// into `out`, as the tile loop would one by one ([`TriangleSetup::from_kept`], the box
 /// within the tile, [`TriangleSetup::edges_at`] its first pixel's centre,
 /// [`crate::shade::TriangleShader::span_parts_of`]): returns the lanes set up (bit `l`),
 /// those whose triangle's box is at most [`NARROW_COLUMNS`] wide and reaches the tile. Only
-/// AVX-512 has this path (none at the others: the records are then drawn one by one). The
+/// AVX-512 and AVX2 have this path (none at the scalar level: the records are then drawn one
+/// by one). The
 /// records, one cache line each, are transposed in registers and set up side by side: one
 /// by one, the setup and the calls around it (rebuilding the record's setup and planes, the
 /// job, the dispatch) took more of a frame of small triangles than the kernel's loop.
@@ -748,17 +766,37 @@ pub fn narrow_eight(
         // SAFETY: AVX-512 support was just checked at run time.
         return unsafe { avx512::narrow_eight(records, tile, out) };
     }
+    narrow_eight_below(level, records, tile, out)
+}
+
+/// [`narrow_eight`] at the levels below AVX-512. Out of line: the tile and band loops inline
+/// the dispatch (inlined there too, this path made the soup at AVX-512 about 2% slower; out
+/// of line, still 1.5-2.5% in alternated runs, which neither marking it cold nor moving the
+/// choice of level into the loops changed).
+#[inline(never)]
+fn narrow_eight_below(
+    level: SimdLevel,
+    records: &[&crate::render::WindowRecord; 8],
+    tile: &PixelRect,
+    out: &mut NarrowEight,
+) -> u8 {
+    #[cfg(target_arch = "x86_64")]
+    if level == SimdLevel::Avx2 && level.is_available() {
+        // SAFETY: AVX2 and FMA support was just checked at run time.
+        return unsafe { avx2::narrow_eight(records, tile, out) };
+    }
     let _ = (level, records, tile, out);
     0
 }
 
-/// Shades lanes `lanes` of `eight` (set up by [`narrow_eight`] at AVX-512, in that order)
+/// Shades lanes `lanes` of `eight` (set up by [`narrow_eight`] at `level`, in that order)
 /// into `target` with `depth_test`, as [`shade_narrow`] shades each; returns the number of
-/// covered pixels.
+/// covered pixels. At AVX-512 the lanes go through its narrow kernel's loop as they are; at
+/// the other levels each becomes the [`NarrowJob`] it stands for.
 ///
 /// # Panics
-/// If `level` is not an available AVX-512, `lanes` reaches past 8, a lane's box is not
-/// narrow, or the buffers do not hold it.
+/// If `lanes` reaches past 8, a lane's box is not narrow, or the buffers do not hold it.
+#[inline]
 pub fn shade_narrow_eight(
     level: SimdLevel,
     eight: &NarrowEight,
@@ -766,14 +804,54 @@ pub fn shade_narrow_eight(
     target: &mut crate::target::TargetBand<'_>,
     depth_test: DepthTest,
 ) -> u64 {
-    assert!(level == SimdLevel::Avx512 && level.is_available(), "narrow_eight is AVX-512");
     #[cfg(target_arch = "x86_64")]
-    // SAFETY: AVX-512 support was just checked at run time.
-    unsafe {
-        avx512::shade_narrow_eight(eight, lanes, target, depth_test)
+    if level == SimdLevel::Avx512 && level.is_available() {
+        // SAFETY: AVX-512 support was just checked at run time.
+        return unsafe { avx512::shade_narrow_eight(eight, lanes, target, depth_test) };
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    unreachable!("no AVX-512 here: {eight:?} {lanes:?} {target:?} {depth_test:?}")
+    narrow_eight_jobs(level, eight, lanes, target, depth_test)
+}
+
+/// [`shade_narrow_eight`] below AVX-512, through [`shade_narrow`] at `level`. Out of line,
+/// as [`narrow_eight_below`].
+#[inline(never)]
+fn narrow_eight_jobs(
+    level: SimdLevel,
+    eight: &NarrowEight,
+    lanes: std::ops::Range<usize>,
+    target: &mut crate::target::TargetBand<'_>,
+    depth_test: DepthTest,
+) -> u64 {
+    let mut covered = 0;
+    for l in lanes {
+        let (columns, rows) = (eight.columns[l], eight.rows[l]);
+        assert!((1..=NARROW_COLUMNS as i32).contains(&columns) && rows > 0, "not a narrow box");
+        // Integers below 2^53 in `f64`: the conversions back are exact.
+        let lane3 = |v: &[[f64; 8]; 3]| [v[0][l], v[1][l], v[2][l]];
+        let color = eight.color(l);
+        let job = NarrowJob {
+            edges: lane3(&eight.edges).map(|e| e as i64),
+            step_x: lane3(&eight.step_x).map(|e| e as i64),
+            step_y: lane3(&eight.step_y).map(|e| e as i64),
+            bias: [eight.bias[0][l] as i64, eight.bias[1][l] as i64],
+            columns: columns as usize,
+            rows: rows as usize,
+            first: target.index(eight.x0[l], eight.y0[l]),
+            stride: target.stride(),
+            target: KernelTarget {
+                depth_plane: lane3(&eight.depth),
+                color: &color,
+                depth_test,
+                id: eight.id[l],
+                depth: &mut *target.depth,
+                color_out: &mut *target.color,
+                ids: target.ids.as_deref_mut(),
+                overdraw: target.overdraw.as_deref_mut(),
+            },
+        };
+        covered += shade_narrow(level, job);
+    }
+    covered
 }
 
 /// Eight small triangles' coverage at once ([`small_eight`]), lane `l` for the `l`-th: the
