@@ -278,7 +278,7 @@ fn draw_tiled<C: WindowColor>(
     let visible = clip.unwrap_or(PixelRect::EMPTY);
     let coverage = bin::Coverage { clip: visible, multisampled };
     let kernel = window_kernel::<C>(level);
-    // Narrow triangles set up eight at a time (`simd::narrow_eight`), at AVX-512.
+    // Narrow triangles set up eight at a time (`simd::narrow_eight`), at AVX-512 and AVX2.
     let eight = matches!(level, SimdLevel::Avx512 | SimdLevel::Avx2).then_some(level);
     let threads = rayon::current_num_threads();
     // Every band sets window triangles up in full: beyond two threads that costs more than
