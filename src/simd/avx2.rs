@@ -1282,31 +1282,57 @@ pub(super) unsafe fn narrow_eight(
         [_mm256_cvtps_pd(_mm256_castps256_ps128(w)), _mm256_cvtps_pd(_mm256_extractf128_ps::<1>(w))]
     };
     plane([z(word(6)), z(word(7)), z(word(8))], &mut out.depth);
+    let colors = [word(9), word(10), word(11)];
+    for ch in 0..4 {
+        let [c0, c1, c2] = [channel(colors[0], ch), channel(colors[1], ch), channel(colors[2], ch)];
+        plane([f64_halves(c0), f64_halves(c1), f64_halves(c2)], &mut out.color[ch]);
+    }
+    put_lanes(out, (alpha, flat_colors(colors)), [px0, py0, columns, rows, word(14)]);
+    lanes
+}
+
+/// Channel `ch` of eight RGBA8 words (low byte first).
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) fn channel(w: __m256i, ch: usize) -> __m256i {
+    let shifted = _mm256_srlv_epi32(w, _mm256_set1_epi32(8 * ch as i32));
+    _mm256_and_si256(shifted, _mm256_set1_epi32(0xFF))
+}
+
+/// Eight triangles' flat colours from their vertices' RGBA8 words `c`: `flat_color`'s
+/// `(2 * sum + 3) / 6` per channel, the division as a multiply and shift, exact for
+/// numerators up to 1533 (43691 / 2^18 exceeds 1/6 by less than 1.3e-6, which lifts no
+/// quotient to the next integer).
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) fn flat_colors(c: [__m256i; 3]) -> __m256i {
     let mut flat = _mm256_setzero_si256();
     for ch in 0..4 {
-        let byte = |w: __m256i| {
-            let shifted = _mm256_srlv_epi32(w, _mm256_set1_epi32(8 * ch as i32));
-            _mm256_and_si256(shifted, _mm256_set1_epi32(0xFF))
-        };
-        let (c0, c1, c2) = (byte(word(9)), byte(word(10)), byte(word(11)));
-        plane([f64_halves(c0), f64_halves(c1), f64_halves(c2)], &mut out.color[ch]);
-        // `flat_color`'s `(2 * sum + 3) / 6` as the AVX-512 version computes it.
+        let [c0, c1, c2] = [channel(c[0], ch), channel(c[1], ch), channel(c[2], ch)];
         let sum = _mm256_add_epi32(_mm256_add_epi32(c0, c1), c2);
         let twice = _mm256_add_epi32(_mm256_add_epi32(sum, sum), _mm256_set1_epi32(3));
         let mean = _mm256_srli_epi32::<18>(_mm256_mullo_epi32(twice, _mm256_set1_epi32(43691)));
         flat = _mm256_or_si256(flat, _mm256_sllv_epi32(mean, _mm256_set1_epi32(8 * ch as i32)));
     }
-    let store = |out: &mut [i32; 8], v: __m256i| {
+    flat
+}
+
+/// Stores a [`NarrowEight`]'s integer lanes: the shared alpha and flat colour, then the box
+/// (first column, first row, columns, rows) and the id.
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) fn put_lanes(
+    out: &mut NarrowEight,
+    (alpha, flat): (__m256i, __m256i),
+    ints: [__m256i; 5],
+) {
+    let [x0, y0, columns, rows, id] = ints;
+    let targets =
+        [&mut out.alpha, &mut out.x0, &mut out.y0, &mut out.columns, &mut out.rows, &mut out.id];
+    for (out, v) in targets.into_iter().zip([alpha, x0, y0, columns, rows, id]) {
         // SAFETY: eight `i32`s, 32 bytes; the store needs no alignment.
         unsafe { _mm256_storeu_si256(out.as_mut_ptr().cast(), v) }
-    };
-    store(&mut out.alpha, alpha);
+    }
     // SAFETY: eight `u32`s, 32 bytes; the store needs no alignment.
     unsafe { _mm256_storeu_si256(out.flat.as_mut_ptr().cast(), flat) };
-    store(&mut out.x0, px0);
-    store(&mut out.y0, py0);
-    store(&mut out.columns, columns);
-    store(&mut out.rows, rows);
-    store(&mut out.id, word(14));
-    lanes
 }

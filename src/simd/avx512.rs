@@ -337,16 +337,7 @@ pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
 #[target_feature(enable = "avx512f,avx512vl,avx512dq")]
 unsafe fn narrow_rows(job: &mut NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) -> __m256i) -> u64 {
     job.assert_narrow();
-    let box_ = NarrowBox {
-        edges: job.edges.map(|e| e as f64),
-        step_x: job.step_x.map(|s| s as f64),
-        step_y: job.step_y.map(|s| s as f64),
-        bias: job.bias.map(|b| b as f64),
-        columns: job.columns,
-        rows: job.rows,
-        first: job.first,
-        stride: job.stride,
-    };
+    let box_ = NarrowBox::of(job);
     // SAFETY: the CPU supports AVX-512 F, VL and DQ (this function's contract); the box is
     // narrow (asserted above).
     unsafe { narrow_box(&box_, &mut job.target, rgba) }
@@ -366,34 +357,13 @@ unsafe fn narrow_packed<const PAIR: bool>(job: &mut NarrowJob<'_>, p: &Perspecti
     job.assert_narrow();
     assert!(PAIR == (job.columns <= 4), "two rows per group for boxes up to four wide");
     let end = job.end(job.columns);
-    let b = NarrowBox {
-        edges: job.edges.map(|e| e as f64),
-        step_x: job.step_x.map(|s| s as f64),
-        step_y: job.step_y.map(|s| s as f64),
-        bias: job.bias.map(|b| b as f64),
-        columns: job.columns,
-        rows: job.rows,
-        first: job.first,
-        stride: job.stride,
-    };
+    let b = NarrowBox::of(job);
     let t = &mut job.target;
     let n = t.checked_len();
     assert!(end <= n && end <= i32::MAX as usize, "the box must lie in the buffers");
     let (table, q) = (crate::color::srgb8_table(), p.inv_w());
     let pair = PAIR;
-    let (column, row_of_lane, rows_per_group) = if pair {
-        (_mm512_setr_pd(0.0, 1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0), 1.0, 2)
-    } else {
-        (lanes(), 0.0, 1)
-    };
-    let row_of_lane =
-        _mm512_setr_pd(0.0, 0.0, 0.0, 0.0, row_of_lane, row_of_lane, row_of_lane, row_of_lane);
-    let offsets: [__m512d; 3] = std::array::from_fn(|k| {
-        _mm512_add_pd(
-            _mm512_mul_pd(column, _mm512_set1_pd(b.step_x[k])),
-            _mm512_mul_pd(row_of_lane, _mm512_set1_pd(b.step_y[k])),
-        )
-    });
+    let (offsets, columns, rows_per_group) = b.lanes();
     // Each lane's buffer offset from the group's first pixel (lanes 4-7 the next row's in
     // pairs): below the box's end, so within `i32`.
     let stride = b.stride as i32;
@@ -402,8 +372,6 @@ unsafe fn narrow_packed<const PAIR: bool>(job: &mut NarrowJob<'_>, p: &Perspecti
     } else {
         _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)
     };
-    let row_bits = (1u32 << b.columns) - 1;
-    let columns = if pair { row_bits | row_bits << 4 } else { row_bits } as __mmask8;
     let bias = b.bias.map(|v| _mm512_set1_pd(v));
     let mut row = b.edges;
     let step_y = b.step_y.map(|s| rows_per_group as f64 * s);
@@ -531,6 +499,48 @@ struct NarrowBox {
     stride: usize,
 }
 
+impl NarrowBox {
+    /// `job`'s box.
+    #[inline(always)]
+    fn of(job: &NarrowJob<'_>) -> Self {
+        Self {
+            edges: job.edges.map(|e| e as f64),
+            step_x: job.step_x.map(|s| s as f64),
+            step_y: job.step_y.map(|s| s as f64),
+            bias: job.bias.map(|b| b as f64),
+            columns: job.columns,
+            rows: job.rows,
+            first: job.first,
+            stride: job.stride,
+        }
+    }
+
+    /// How groups of eight lanes cover the box: edge `k`'s offset from a group's first pixel
+    /// at each lane, the lanes within the box's columns, and the rows a group takes (boxes up
+    /// to four pixels wide, most small triangles, two: lanes 0-3 the first, 4-7 the second).
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn lanes(&self) -> ([__m512d; 3], __mmask8, usize) {
+        let pair = self.columns <= 4;
+        let (column, row_of_lane, rows_per_group) = if pair {
+            (_mm512_setr_pd(0.0, 1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0), 1.0, 2)
+        } else {
+            (lanes(), 0.0, 1)
+        };
+        let r = row_of_lane;
+        let row_of_lane = _mm512_setr_pd(0.0, 0.0, 0.0, 0.0, r, r, r, r);
+        let offsets = std::array::from_fn(|k| {
+            _mm512_add_pd(
+                _mm512_mul_pd(column, _mm512_set1_pd(self.step_x[k])),
+                _mm512_mul_pd(row_of_lane, _mm512_set1_pd(self.step_y[k])),
+            )
+        });
+        let row_bits = (1u32 << self.columns) - 1;
+        let columns = if pair { row_bits | row_bits << 4 } else { row_bits } as __mmask8;
+        (offsets, columns, rows_per_group)
+    }
+}
+
 /// The narrow kernel's loop over box `b` into `t`: each row of the box one group of eight
 /// lanes (two rows for boxes up to four wide), coverage the sign bits of `e0 | e1 | e2`.
 ///
@@ -550,31 +560,14 @@ unsafe fn narrow_box(
     let end = (b.rows.saturating_sub(1).checked_mul(b.stride))
         .and_then(|o| o.checked_add(b.first)?.checked_add(b.columns));
     assert!(end.is_some_and(|end| end <= n), "the box must lie in the buffers");
-    // Boxes up to four pixels wide (most small triangles) take two rows per group: lanes 0-3
-    // the first, 4-7 the second.
     let pair = b.columns <= 4;
-    let (column, row_of_lane, rows_per_group) = if pair {
-        (_mm512_setr_pd(0.0, 1.0, 2.0, 3.0, 0.0, 1.0, 2.0, 3.0), 1.0, 2)
-    } else {
-        (lanes(), 0.0, 1)
-    };
-    let row_of_lane =
-        _mm512_setr_pd(0.0, 0.0, 0.0, 0.0, row_of_lane, row_of_lane, row_of_lane, row_of_lane);
-    // Edge k's offset from the group's first pixel, per lane.
-    let offsets: [__m512d; 3] = std::array::from_fn(|k| {
-        _mm512_add_pd(
-            _mm512_mul_pd(column, _mm512_set1_pd(b.step_x[k])),
-            _mm512_mul_pd(row_of_lane, _mm512_set1_pd(b.step_y[k])),
-        )
-    });
-    let row_bits = (1u32 << b.columns) - 1;
-    let columns = if pair { row_bits | row_bits << 4 } else { row_bits } as __mmask8;
+    let (offsets, columns, rows_per_group) = b.lanes();
     let bias = b.bias.map(|b| _mm512_set1_pd(b));
     let mut row = b.edges;
     // Exact: `rows_per_group * s` is an integer below 2^53.
     let step_y = b.step_y.map(|s| rows_per_group as f64 * s);
     let mut covered = 0u64;
-    for r in (0..b.rows).step_by(rows_per_group as usize) {
+    for r in (0..b.rows).step_by(rows_per_group) {
         let e: [__m512d; 3] =
             std::array::from_fn(|k| _mm512_add_pd(_mm512_set1_pd(row[k]), offsets[k]));
         let any = _mm512_or_si512(
@@ -729,34 +722,13 @@ pub(super) unsafe fn narrow_eight(
     };
     let z = |w: __m256i| _mm512_cvtps_pd(_mm256_castsi256_ps(w));
     plane([z(word[6]), z(word[7]), z(word[8])], &mut out.depth);
-    let mut flat = _mm256_setzero_si256();
+    let colors = [word[9], word[10], word[11]];
     for ch in 0..4 {
-        let byte = |w: __m256i| {
-            let shifted = _mm256_srlv_epi32(w, _mm256_set1_epi32(8 * ch as i32));
-            _mm256_and_si256(shifted, _mm256_set1_epi32(0xFF))
-        };
-        let (c0, c1, c2) = (byte(word[9]), byte(word[10]), byte(word[11]));
-        plane([f64s(c0), f64s(c1), f64s(c2)], &mut out.color[ch]);
-        // `flat_color`'s `(2 * sum + 3) / 6`: the division as a multiply and shift, exact
-        // for numerators up to 1533 (43691 / 2^18 exceeds 1/6 by less than 1.3e-6, which
-        // lifts no quotient to the next integer).
-        let sum = _mm256_add_epi32(_mm256_add_epi32(c0, c1), c2);
-        let twice = _mm256_add_epi32(_mm256_add_epi32(sum, sum), _mm256_set1_epi32(3));
-        let mean = _mm256_srli_epi32::<18>(_mm256_mullo_epi32(twice, _mm256_set1_epi32(43691)));
-        flat = _mm256_or_si256(flat, _mm256_sllv_epi32(mean, _mm256_set1_epi32(8 * ch as i32)));
+        let channel = |k: usize| f64s(super::avx2::channel(colors[k], ch));
+        plane([channel(0), channel(1), channel(2)], &mut out.color[ch]);
     }
-    let store = |out: &mut [i32; 8], v: __m256i| {
-        // SAFETY: eight `i32`s, 32 bytes; the store needs no alignment.
-        unsafe { _mm256_storeu_si256(out.as_mut_ptr().cast(), v) }
-    };
-    store(&mut out.alpha, alpha);
-    // SAFETY: eight `u32`s, 32 bytes; the store needs no alignment.
-    unsafe { _mm256_storeu_si256(out.flat.as_mut_ptr().cast(), flat) };
-    store(&mut out.x0, px0);
-    store(&mut out.y0, py0);
-    store(&mut out.columns, columns);
-    store(&mut out.rows, rows);
-    store(&mut out.id, word[14]);
+    let flat = super::avx2::flat_colors(colors);
+    super::avx2::put_lanes(out, (alpha, flat), [px0, py0, columns, rows, word[14]]);
     lanes
 }
 
