@@ -1191,27 +1191,10 @@ pub(super) unsafe fn narrow_eight(
         _mm256_castsi256_pd(_mm256_permute2x128_si256::<0x31>(ia, ib)),
     ];
     let half = _mm256_set1_epi32(fixed::HALF);
-    let min = |a, b, c| _mm256_min_epi32(_mm256_min_epi32(a, b), c);
-    let max = |a, b, c| _mm256_max_epi32(_mm256_max_epi32(a, b), c);
-    let first = |v| {
-        _mm256_srai_epi32::<8>(_mm256_add_epi32(_mm256_sub_epi32(v, half), _mm256_set1_epi32(255)))
-    };
-    let last = |v| _mm256_srai_epi32::<8>(_mm256_sub_epi32(v, half));
-    let (bx0, by0) = (first(min(x0, x1, x2)), first(min(y0, y1, y2)));
-    let (bx1, by1) = (last(max(x0, x1, x2)), last(max(y0, y1, y2)));
-    let px0 = _mm256_max_epi32(bx0, _mm256_set1_epi32(tile.x0));
-    let py0 = _mm256_max_epi32(by0, _mm256_set1_epi32(tile.y0));
-    let px1 = _mm256_min_epi32(bx1, _mm256_set1_epi32(tile.x1));
-    let py1 = _mm256_min_epi32(by1, _mm256_set1_epi32(tile.y1));
-    let one = _mm256_set1_epi32(1);
-    let columns = _mm256_add_epi32(_mm256_sub_epi32(px1, px0), one);
-    let rows = _mm256_add_epi32(_mm256_sub_epi32(py1, py0), one);
+    let EightBoxes { width, px0, py0, columns, rows } = eight_boxes([x0, y0, x1, y1, x2, y2], tile);
     let zero = _mm256_setzero_si256();
     // Narrow before clipping, as `bin::coverage_algorithm` asks of the kernel's triangles.
-    let narrow = bits_of(_mm256_cmpgt_epi32(
-        _mm256_set1_epi32(crate::raster::edge::NARROW),
-        _mm256_sub_epi32(bx1, bx0),
-    ));
+    let narrow = bits_of(_mm256_cmpgt_epi32(_mm256_set1_epi32(crate::raster::edge::NARROW), width));
     let reaches = bits_of(_mm256_and_si256(
         _mm256_cmpgt_epi32(columns, zero),
         _mm256_cmpgt_epi32(rows, zero),
@@ -1289,6 +1272,51 @@ pub(super) unsafe fn narrow_eight(
     }
     put_lanes(out, (alpha, flat_colors(colors)), [px0, py0, columns, rows, word(14)]);
     lanes
+}
+
+/// Eight triangles' pixel boxes ([`eight_boxes`]).
+pub(super) struct EightBoxes {
+    /// The box's last column less its first, before clipping.
+    pub width: __m256i,
+    /// The first column within the tile.
+    pub px0: __m256i,
+    /// The first row within the tile.
+    pub py0: __m256i,
+    /// Columns within the tile (none or fewer where the box misses it).
+    pub columns: __m256i,
+    /// Rows within the tile.
+    pub rows: __m256i,
+}
+
+/// The boxes of eight triangles, their snapped vertices `[x0, y0, x1, y1, x2, y2]` in
+/// `i32` lanes: the pixels whose centre `256 p + 128` lies in the snapped extent
+/// ([`crate::setup::sample_bounds`] at the centre: arithmetic shifts floor, `+ 255` makes
+/// the first one a ceiling), within `tile`.
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) fn eight_boxes(v: [__m256i; 6], tile: &PixelRect) -> EightBoxes {
+    let [x0, y0, x1, y1, x2, y2] = v;
+    let half = _mm256_set1_epi32(fixed::HALF);
+    let min = |a, b, c| _mm256_min_epi32(_mm256_min_epi32(a, b), c);
+    let max = |a, b, c| _mm256_max_epi32(_mm256_max_epi32(a, b), c);
+    let first = |v| {
+        _mm256_srai_epi32::<8>(_mm256_add_epi32(_mm256_sub_epi32(v, half), _mm256_set1_epi32(255)))
+    };
+    let last = |v| _mm256_srai_epi32::<8>(_mm256_sub_epi32(v, half));
+    let (bx0, by0) = (first(min(x0, x1, x2)), first(min(y0, y1, y2)));
+    let (bx1, by1) = (last(max(x0, x1, x2)), last(max(y0, y1, y2)));
+    let px0 = _mm256_max_epi32(bx0, _mm256_set1_epi32(tile.x0));
+    let py0 = _mm256_max_epi32(by0, _mm256_set1_epi32(tile.y0));
+    let px1 = _mm256_min_epi32(bx1, _mm256_set1_epi32(tile.x1));
+    let py1 = _mm256_min_epi32(by1, _mm256_set1_epi32(tile.y1));
+    let one = _mm256_set1_epi32(1);
+    EightBoxes {
+        width: _mm256_sub_epi32(bx1, bx0),
+        px0,
+        py0,
+        columns: _mm256_add_epi32(_mm256_sub_epi32(px1, px0), one),
+        rows: _mm256_add_epi32(_mm256_sub_epi32(py1, py0), one),
+    }
 }
 
 /// Channel `ch` of eight RGBA8 words (low byte first).

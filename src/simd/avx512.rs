@@ -648,29 +648,11 @@ pub(super) unsafe fn narrow_eight(
         _mm512_cvtepu32_epi64(word[12]),
         _mm512_slli_epi64::<32>(_mm512_cvtepu32_epi64(word[13])),
     ));
-    // The box: pixels whose centre `256 p + 128` lies in the snapped extent, within the
-    // tile (arithmetic shifts floor; `+ 255` makes the first one a ceiling).
     let half = _mm256_set1_epi32(fixed::HALF);
-    let min = |a, b, c| _mm256_min_epi32(_mm256_min_epi32(a, b), c);
-    let max = |a, b, c| _mm256_max_epi32(_mm256_max_epi32(a, b), c);
-    let first = |v| {
-        _mm256_srai_epi32::<8>(_mm256_add_epi32(_mm256_sub_epi32(v, half), _mm256_set1_epi32(255)))
-    };
-    let last = |v| _mm256_srai_epi32::<8>(_mm256_sub_epi32(v, half));
-    let (bx0, by0) = (first(min(x0, x1, x2)), first(min(y0, y1, y2)));
-    let (bx1, by1) = (last(max(x0, x1, x2)), last(max(y0, y1, y2)));
-    let px0 = _mm256_max_epi32(bx0, _mm256_set1_epi32(tile.x0));
-    let py0 = _mm256_max_epi32(by0, _mm256_set1_epi32(tile.y0));
-    let px1 = _mm256_min_epi32(bx1, _mm256_set1_epi32(tile.x1));
-    let py1 = _mm256_min_epi32(by1, _mm256_set1_epi32(tile.y1));
-    let one = _mm256_set1_epi32(1);
-    let columns = _mm256_add_epi32(_mm256_sub_epi32(px1, px0), one);
-    let rows = _mm256_add_epi32(_mm256_sub_epi32(py1, py0), one);
+    let super::avx2::EightBoxes { width, px0, py0, columns, rows } =
+        super::avx2::eight_boxes([x0, y0, x1, y1, x2, y2], tile);
     // Narrow before clipping, as `bin::coverage_algorithm` asks of the kernel's triangles.
-    let narrow = _mm256_cmpgt_epi32_mask(
-        _mm256_set1_epi32(crate::raster::edge::NARROW),
-        _mm256_sub_epi32(bx1, bx0),
-    );
+    let narrow = _mm256_cmpgt_epi32_mask(_mm256_set1_epi32(crate::raster::edge::NARROW), width);
     let reaches = _mm256_cmpgt_epi32_mask(columns, _mm256_setzero_si256())
         & _mm256_cmpgt_epi32_mask(rows, _mm256_setzero_si256());
     let flags = word[15];
