@@ -96,9 +96,10 @@ impl Light {
         if k.fract() == 0.0 && (0.0..=1024.0).contains(&k) { c.powi(k as i32) } else { c.powf(k) }
     }
 
-    /// [`Light::highlight`] of each lane. `powi` (a call per value) is written out as it
-    /// computes: the odd bits of the exponent from the lowest, each factor the previous one
-    /// squared, multiplied into a running product that starts at 1.
+    /// [`Light::highlight`] of each lane, bit for bit: `powi` (a call per value) written out
+    /// as it computes, the odd bits of the exponent from the lowest, each factor the previous
+    /// one squared, multiplied into a running product that starts at 1 (held to it by
+    /// `gouraud_lanes_light_as_one_vertex_at_a_time`).
     fn highlights<const N: usize>(&self, c: [f32; N]) -> [f32; N] {
         let k = self.shininess;
         if !(k.fract() == 0.0 && (0.0..=1024.0).contains(&k)) {
@@ -477,7 +478,7 @@ pub fn render_mesh(
     let light = options.light;
     let light_direction = light.unit_direction();
     let base_albedo = base_albedo(mesh);
-    // Gouraud's lit colours, every vertex's at once (see `GouraudLanes`).
+    // Gouraud's lit colours, every vertex's at once (see `gouraud_colors`).
     let lit = if lighting == Lighting::Gouraud {
         let albedo = |i: usize| surface.colors.as_ref().map_or(base_albedo, |c| c[i]);
         let eye = EyeSpace { origin, view, normal_matrix };
