@@ -665,8 +665,8 @@ mod tests {
         assert!(checked > 20_000, "{checked} records checked");
     }
 
-    /// Eight window records set up at once for the narrow kernel (AVX-512) are, lane by lane,
-    /// what the tile loop derives from each record alone, bit for bit: the box within the
+    /// Eight window records set up at once for the narrow kernel (AVX-512 and AVX2) are, lane
+    /// by lane, what the tile loop derives from each record alone, bit for bit: the box within the
     /// tile (`TriangleSetup::from_kept`), `edges_at` the centre of its first pixel, the depth
     /// plane and the colour (`span_parts_of`: flat, smooth with one alpha, smooth); and
     /// exactly the lanes that the kernel takes alone are set up (narrow before clipping,
