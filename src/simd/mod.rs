@@ -728,6 +728,28 @@ pub struct NarrowEight {
 }
 
 impl NarrowEight {
+    /// What the kernels write for lane `l`, with colour `color` and `depth_test`, into
+    /// `target`'s buffers.
+    #[inline(always)]
+    fn kernel_target<'a>(
+        &self,
+        l: usize,
+        color: &'a SpanColor,
+        depth_test: DepthTest,
+        target: &'a mut crate::target::TargetBand<'_>,
+    ) -> KernelTarget<'a> {
+        KernelTarget {
+            depth_plane: [self.depth[0][l], self.depth[1][l], self.depth[2][l]],
+            color,
+            depth_test,
+            id: self.id[l],
+            depth: &mut *target.depth,
+            color_out: &mut *target.color,
+            ids: target.ids.as_deref_mut(),
+            overdraw: target.overdraw.as_deref_mut(),
+        }
+    }
+
     /// Lane `l`'s colour as the span kernels take it.
     #[inline(always)]
     pub fn color(&self, l: usize) -> SpanColor {
@@ -770,9 +792,7 @@ pub fn narrow_eight(
 }
 
 /// [`narrow_eight`] at the levels below AVX-512. Out of line: the tile and band loops inline
-/// the dispatch (inlined there too, this path made the soup at AVX-512 about 2% slower; out
-/// of line, still 1.5-2.5% in alternated runs, which neither marking it cold nor moving the
-/// choice of level into the loops changed).
+/// the dispatch, and inlined there too this path made the soup at AVX-512 about 2% slower.
 #[inline(never)]
 fn narrow_eight_below(
     level: SimdLevel,
@@ -838,16 +858,7 @@ fn narrow_eight_jobs(
             rows: rows as usize,
             first: target.index(eight.x0[l], eight.y0[l]),
             stride: target.stride(),
-            target: KernelTarget {
-                depth_plane: lane3(&eight.depth),
-                color: &color,
-                depth_test,
-                id: eight.id[l],
-                depth: &mut *target.depth,
-                color_out: &mut *target.color,
-                ids: target.ids.as_deref_mut(),
-                overdraw: target.overdraw.as_deref_mut(),
-            },
+            target: eight.kernel_target(l, &color, depth_test, target),
         };
         covered += shade_narrow(level, job);
     }
