@@ -13,6 +13,7 @@ use crate::mesh::Mesh;
 use crate::pipeline::{FaceCull, Fragment, FragmentShader, InterpolatedColor, Pipeline};
 use crate::render::DrawStats;
 use crate::shade::DepthTest;
+use crate::simd::{self, SimdLevel};
 use crate::target::Target;
 use crate::texture::{Filter, Texture, Wrap};
 
@@ -94,6 +95,19 @@ impl Light {
     fn highlight(&self, c: f32) -> f32 {
         let k = self.shininess;
         if k.fract() == 0.0 && (0.0..=1024.0).contains(&k) { c.powi(k as i32) } else { c.powf(k) }
+    }
+
+    /// The light towards unit direction `l` as [`simd::light_eight`] takes it, when its
+    /// exponent is whole (what [`Light::highlight`] raises by `powi`).
+    fn whole(&self, l: Vec3) -> Option<simd::WholeLight> {
+        let k = self.shininess;
+        (k.fract() == 0.0 && (0.0..=1024.0).contains(&k)).then(|| simd::WholeLight {
+            l: l.to_array(),
+            ambient: self.ambient,
+            diffuse: self.diffuse,
+            specular: self.specular,
+            exponent: k as u32,
+        })
     }
 
     /// [`Light::highlight`] of each lane, bit for bit: `powi` (a call per value) written out
@@ -557,9 +571,22 @@ fn gouraud_colors(
     eye: &EyeSpace,
     light: &Light,
 ) -> Vec<Vec4> {
+    gouraud_colors_at(SimdLevel::detected(), positions, normals, albedo, eye, light)
+}
+
+/// [`gouraud_colors`] with the lanes lit at `level` ([`GouraudLanes::light`]).
+fn gouraud_colors_at(
+    level: SimdLevel,
+    positions: &[[f32; 3]],
+    normals: &[[f32; 3]],
+    albedo: impl Fn(usize) -> Vec4 + Sync,
+    eye: &EyeSpace,
+    light: &Light,
+) -> Vec<Vec4> {
     use rayon::prelude::*;
     const CHUNK: usize = 4096;
     let l = light.unit_direction();
+    let whole = light.whole(l);
     let mut out = vec![Vec4::ZERO; positions.len()];
     out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
         for (k, out) in out.chunks_mut(GOURAUD_LANES).enumerate() {
@@ -572,7 +599,7 @@ fn gouraud_colors(
                 let n = normals.get(i).map_or(Vec3::ZERO, |&n| eye.normal_matrix * Vec3::from(n));
                 lanes.set(j, n, -view_pos);
             }
-            let (d, s) = lanes.shade(light, l);
+            let (d, s) = lanes.light(level, light, (l, whole.as_ref()));
             for (j, out) in out.iter_mut().enumerate() {
                 let color = albedo(first + j);
                 *out = (color.truncate() * d[j] + Vec3::splat(s[j])).extend(color.w);
@@ -595,6 +622,25 @@ impl GouraudLanes {
         for k in 0..3 {
             (self.n[k][j], self.v[k][j]) = (n[k], v[k]);
         }
+    }
+
+    /// [`GouraudLanes::shade`], in AVX2 where `level` has it and the light's exponent is
+    /// whole (`whole`, [`Light::whole`]): [`simd::light_eight`], the same operations eight
+    /// lanes at once (the Stanford bunny's 35,947 vertices, fastest of 20 frames: 0.52 ->
+    /// 0.36 ms on one thread, 0.29 -> 0.20 ms on two).
+    #[inline]
+    fn light(
+        &self,
+        level: SimdLevel,
+        light: &Light,
+        (l, whole): (Vec3, Option<&simd::WholeLight>),
+    ) -> (Lanes, Lanes) {
+        if let Some(w) = whole
+            && let Some(lit) = simd::light_eight(level, &self.n, &self.v, w)
+        {
+            return lit;
+        }
+        self.shade(light, l)
     }
 
     /// `light.shade_towards(l, n.normalize_or_zero(), v.normalize_or(Vec3::Z))` lane by lane:
@@ -691,8 +737,8 @@ fn face_normals(mesh: &Mesh, view: &Mat4, origin: Vec3) -> Vec<Vec3> {
 mod tests {
     use super::*;
 
-    /// Gouraud's colours lit side by side are those of one vertex at a time, bit for bit:
-    /// random positions (some at the eye), normals (some zero, some missing), albedos, lights
+    /// Gouraud's colours lit side by side are those of one vertex at a time, bit for bit, at
+    /// every SIMD level: random positions (some at the eye), normals (some zero, some missing), albedos, lights
     /// with whole exponents (0, 1, the default 32, 1024) and others (`powf`).
     #[test]
     fn gouraud_lanes_light_as_one_vertex_at_a_time() {
@@ -721,6 +767,8 @@ mod tests {
             let light = Light {
                 direction: Vec3::new(value(&mut rng), value(&mut rng), value(&mut rng)),
                 shininess,
+                // A negative zero tells `max(-0.0, 0.0)`'s two answers apart (zero normals).
+                ambient: if round % 4 == 0 { -0.0 } else { Light::default().ambient },
                 ..Light::default()
             };
             let eye = EyeSpace {
@@ -728,22 +776,25 @@ mod tests {
                 view: Mat4::from_rotation_y(value(&mut rng)) * Mat4::from_translation(Vec3::Z),
                 normal_matrix: Mat3::from_rotation_x(value(&mut rng)),
             };
-            let lanes = gouraud_colors(&positions, &normals, |i| albedos[i], &eye, &light);
-            for (i, lit) in lanes.iter().enumerate() {
-                let p = (Vec3::from(positions[i]) - eye.origin).extend(1.0);
-                let view_pos = (eye.view * p).truncate();
-                let n = normals.get(i).map_or(Vec3::ZERO, |&n| {
-                    (eye.normal_matrix * Vec3::from(n)).normalize_or_zero()
-                });
-                let l = light.unit_direction();
-                let (d, s) = light.shade_towards(l, n, (-view_pos).normalize_or(Vec3::Z));
-                let color = albedos[i];
-                let one = (color.truncate() * d + Vec3::splat(s)).extend(color.w);
-                assert_eq!(
-                    lit.to_array().map(f32::to_bits),
-                    one.to_array().map(f32::to_bits),
-                    "{round} {i}"
-                );
+            for level in SimdLevel::available() {
+                let lanes =
+                    gouraud_colors_at(level, &positions, &normals, |i| albedos[i], &eye, &light);
+                for (i, lit) in lanes.iter().enumerate() {
+                    let p = (Vec3::from(positions[i]) - eye.origin).extend(1.0);
+                    let view_pos = (eye.view * p).truncate();
+                    let n = normals.get(i).map_or(Vec3::ZERO, |&n| {
+                        (eye.normal_matrix * Vec3::from(n)).normalize_or_zero()
+                    });
+                    let l = light.unit_direction();
+                    let (d, s) = light.shade_towards(l, n, (-view_pos).normalize_or(Vec3::Z));
+                    let color = albedos[i];
+                    let one = (color.truncate() * d + Vec3::splat(s)).extend(color.w);
+                    assert_eq!(
+                        lit.to_array().map(f32::to_bits),
+                        one.to_array().map(f32::to_bits),
+                        "{round} {i} {level:?}"
+                    );
+                }
             }
         }
     }

@@ -1364,3 +1364,75 @@ pub(super) fn put_lanes(
     // SAFETY: eight `u32`s, 32 bytes; the store needs no alignment.
     unsafe { _mm256_storeu_si256(out.flat.as_mut_ptr().cast(), flat) };
 }
+
+/// [`super::light_eight`] in AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn light_eight(
+    n: &[[f32; 8]; 3],
+    v: &[[f32; 8]; 3],
+    light: &super::WholeLight,
+) -> ([f32; 8], [f32; 8]) {
+    // SAFETY: each load reads the eight `f32` of one array.
+    let load = |a: &[f32; 8]| unsafe { _mm256_loadu_ps(a.as_ptr()) };
+    let zero = _mm256_setzero_ps();
+    let n = unit_or(n.each_ref().map(load), [0.0; 3]);
+    let v = unit_or(v.each_ref().map(load), [0.0, 0.0, 1.0]);
+    let l = light.l.map(|c| _mm256_set1_ps(c));
+    let h = unit_or(std::array::from_fn(|k| _mm256_add_ps(l[k], v[k])), [0.0, 0.0, 1.0]);
+    let n_l = dot3(&n, &l);
+    let diffuse = _mm256_add_ps(
+        _mm256_set1_ps(light.ambient),
+        // `max` returns its second operand for NaN, as `f32::max(NaN, 0)` gives 0.
+        _mm256_mul_ps(_mm256_set1_ps(light.diffuse), _mm256_max_ps(n_l, zero)),
+    );
+    let n_h = _mm256_max_ps(dot3(&n, &h), zero);
+    // `powi`'s steps: the odd bits of the exponent from the lowest, each factor the one
+    // before squared, into a product that starts at 1.
+    let (mut bits, mut factor, mut product) = (light.exponent, n_h, _mm256_set1_ps(1.0));
+    loop {
+        if bits & 1 == 1 {
+            product = _mm256_mul_ps(product, factor);
+        }
+        bits >>= 1;
+        if bits == 0 {
+            break;
+        }
+        factor = _mm256_mul_ps(factor, factor);
+    }
+    let lit = _mm256_cmp_ps::<_CMP_GT_OQ>(n_l, zero);
+    let specular = _mm256_and_ps(lit, _mm256_mul_ps(_mm256_set1_ps(light.specular), product));
+    let (mut d, mut s) = ([0.0f32; 8], [0.0f32; 8]);
+    // SAFETY: each store writes the eight `f32` of one array.
+    unsafe {
+        _mm256_storeu_ps(d.as_mut_ptr(), diffuse);
+        _mm256_storeu_ps(s.as_mut_ptr(), specular);
+    }
+    (d, s)
+}
+
+/// `(x x + y y) + z z` lane by lane: `glam`'s `Vec3::dot` order.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn dot3(a: &[__m256; 3], b: &[__m256; 3]) -> __m256 {
+    let xy = _mm256_add_ps(_mm256_mul_ps(a[0], b[0]), _mm256_mul_ps(a[1], b[1]));
+    _mm256_add_ps(xy, _mm256_mul_ps(a[2], b[2]))
+}
+
+/// `Vec3::normalize_or(fallback)` lane by lane: `x * (1 / length)` where `1 / length` is
+/// finite and positive, `fallback` elsewhere.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn unit_or(x: [__m256; 3], fallback: [f32; 3]) -> [__m256; 3] {
+    let rcp = _mm256_div_ps(_mm256_set1_ps(1.0), _mm256_sqrt_ps(dot3(&x, &x)));
+    // Ordered comparisons: false for NaN.
+    let ok = _mm256_and_ps(
+        _mm256_cmp_ps::<_CMP_GT_OQ>(rcp, _mm256_setzero_ps()),
+        _mm256_cmp_ps::<_CMP_LT_OQ>(rcp, _mm256_set1_ps(f32::INFINITY)),
+    );
+    std::array::from_fn(|k| {
+        _mm256_blendv_ps(_mm256_set1_ps(fallback[k]), _mm256_mul_ps(x[k], rcp), ok)
+    })
+}

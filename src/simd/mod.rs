@@ -230,6 +230,46 @@ pub fn srgb8_lanes(level: SimdLevel, colors: &[[f32; 4]; 8]) -> [u32; 8] {
     srgb8_lanes_scalar(colors)
 }
 
+/// Blinn-Phong light with a whole specular exponent, as [`light_eight`] takes it: the unit
+/// direction towards the light, the intensities and the exponent.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct WholeLight {
+    /// Unit direction towards the light (view space).
+    pub l: [f32; 3],
+    /// Ambient intensity.
+    pub ambient: f32,
+    /// Diffuse intensity.
+    pub diffuse: f32,
+    /// Specular intensity.
+    pub specular: f32,
+    /// Specular exponent (0 to 1024).
+    pub exponent: u32,
+}
+
+/// `(diffuse + ambient, specular)` of eight vertices under `light`, from their view-space
+/// normals `n` and directions to the eye `v` (one array per component, not normalised), as
+/// `crate::model`'s Gouraud lanes compute them a lane at a time: `None` below AVX2, where
+/// the caller does. The same operations in the same order (`glam`'s dot products and
+/// `normalize_or`, `powi`'s squarings), so the same bits: each lane waited on its chain of
+/// three square roots and divisions, which the compiler spread over SSE registers and
+/// scalar ones; in AVX2 all eight lanes go at once.
+#[inline]
+#[must_use]
+pub(crate) fn light_eight(
+    level: SimdLevel,
+    n: &[[f32; 8]; 3],
+    v: &[[f32; 8]; 3],
+    light: &WholeLight,
+) -> Option<([f32; 8], [f32; 8])> {
+    #[cfg(target_arch = "x86_64")]
+    if level.has_avx2() {
+        // SAFETY: AVX2 and FMA support was just checked at run time.
+        return Some(unsafe { avx2::light_eight(n, v, light) });
+    }
+    let _ = (level, n, v, light);
+    None
+}
+
 /// [`srgb8_lanes`] a lane at a time.
 #[must_use]
 pub fn srgb8_lanes_scalar(colors: &[[f32; 4]; 8]) -> [u32; 8] {
