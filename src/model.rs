@@ -93,20 +93,29 @@ impl Light {
     /// specified across platforms, but one build computes it one way, so both backends agree.
     #[inline]
     fn highlight(&self, c: f32) -> f32 {
+        match self.whole_exponent() {
+            Some(k) => c.powi(k as i32),
+            None => c.powf(self.shininess),
+        }
+    }
+
+    /// [`Light::shininess`] when it is whole and from 0 to 1024: the exponents raised by
+    /// repeated multiplication.
+    #[inline]
+    fn whole_exponent(&self) -> Option<u32> {
         let k = self.shininess;
-        if k.fract() == 0.0 && (0.0..=1024.0).contains(&k) { c.powi(k as i32) } else { c.powf(k) }
+        (k.fract() == 0.0 && (0.0..=1024.0).contains(&k)).then_some(k as u32)
     }
 
     /// The light towards unit direction `l` as [`simd::light_eight`] takes it, when its
     /// exponent is whole (what [`Light::highlight`] raises by `powi`).
     fn whole(&self, l: Vec3) -> Option<simd::WholeLight> {
-        let k = self.shininess;
-        (k.fract() == 0.0 && (0.0..=1024.0).contains(&k)).then(|| simd::WholeLight {
+        self.whole_exponent().map(|exponent| simd::WholeLight {
             l: l.to_array(),
             ambient: self.ambient,
             diffuse: self.diffuse,
             specular: self.specular,
-            exponent: k as u32,
+            exponent,
         })
     }
 
@@ -115,11 +124,10 @@ impl Light {
     /// one squared, multiplied into a running product that starts at 1 (held to it by
     /// `gouraud_lanes_light_as_one_vertex_at_a_time`).
     fn highlights<const N: usize>(&self, c: [f32; N]) -> [f32; N] {
-        let k = self.shininess;
-        if !(k.fract() == 0.0 && (0.0..=1024.0).contains(&k)) {
-            return c.map(|c| c.powf(k));
-        }
-        let (mut bits, mut factor, mut product) = (k as u32, c, [1.0f32; N]);
+        let Some(k) = self.whole_exponent() else {
+            return c.map(|c| c.powf(self.shininess));
+        };
+        let (mut bits, mut factor, mut product) = (k, c, [1.0f32; N]);
         loop {
             if bits & 1 == 1 {
                 product = std::array::from_fn(|j| product[j] * factor[j]);
@@ -738,8 +746,9 @@ mod tests {
     use super::*;
 
     /// Gouraud's colours lit side by side are those of one vertex at a time, bit for bit, at
-    /// every SIMD level: random positions (some at the eye), normals (some zero, some missing), albedos, lights
-    /// with whole exponents (0, 1, the default 32, 1024) and others (`powf`).
+    /// every SIMD level: random positions (some at the eye), normals (some zero, some
+    /// missing), albedos, lights with whole exponents (0, 1, the default 32, 1024) and others
+    /// (`powf`).
     #[test]
     fn gouraud_lanes_light_as_one_vertex_at_a_time() {
         use rand::{Rng, SeedableRng, rngs::SmallRng};
