@@ -115,43 +115,55 @@ pub fn plan(
     (height, samples): (u32, usize),
     clip: &PixelRect,
     threads: usize,
-    bounds: impl Fn(usize) -> Option<PixelRect>,
+    bounds: impl Fn(usize) -> Option<PixelRect> + Sync,
 ) -> Plan {
     let schedule = schedule.or_forced();
     if schedule == Schedule::Binned {
         return Plan::Binned;
     }
+    // Both samples in parallel: read from memory scattered over the draw call, sequentially
+    // they were a thirtieth of the Stanford bunny's frame at 1080p on two threads.
     let runs = RUNS.min(len / RUN);
-    let (mut known_runs, mut local_runs) = (0, 0);
-    for r in 0..runs {
-        // In `u64`: `r * len` may pass `usize::MAX` on 32-bit targets.
-        let first =
-            if runs > 1 { (r as u64 * (len - RUN) as u64 / (runs - 1) as u64) as usize } else { 0 };
-        let mut joint: Option<PixelRect> = None;
-        let mut known = true;
-        for k in first..first + RUN {
-            let Some(b) = bounds(k) else {
-                known = false;
-                break;
+    let (known_runs, local_runs) = (0..runs)
+        .into_par_iter()
+        .map(|r| {
+            // In `u64`: `r * len` may pass `usize::MAX` on 32-bit targets.
+            let first = if runs > 1 {
+                (r as u64 * (len - RUN) as u64 / (runs - 1) as u64) as usize
+            } else {
+                0
             };
-            if let Some(b) = b.intersect(clip) {
-                joint = Some(joint.map_or(b, |j| j.union(&b)));
+            let mut joint: Option<PixelRect> = None;
+            for k in first..first + RUN {
+                let b = bounds(k)?;
+                if let Some(b) = b.intersect(clip) {
+                    joint = Some(joint.map_or(b, |j| j.union(&b)));
+                }
             }
-        }
-        if known {
-            known_runs += 1;
-            local_runs += usize::from(joint.is_none_or(|j| j.area() <= LOCAL_RUN));
-        }
-    }
+            Some(joint.is_none_or(|j| j.area() <= LOCAL_RUN))
+        })
+        .fold(
+            || (0, 0),
+            |(known, local), run| match run {
+                Some(is_local) => (known + 1, local + usize::from(is_local)),
+                None => (known, local),
+            },
+        )
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
     // Where the work lies: triangles spread evenly over the draw call (runs are too few
     // places to split the rows by).
     let spread = SPREAD.min(len);
+    let boxes: Vec<Option<PixelRect>> = (0..spread)
+        .into_par_iter()
+        .map(|i| {
+            let k = (i as u64 * len as u64 / spread as u64) as usize;
+            bounds(k).and_then(|b| b.intersect(clip))
+        })
+        .collect();
     let mut area = 0;
     let mut footprint: Option<PixelRect> = None;
     let mut rows = Vec::with_capacity(spread);
-    for i in 0..spread {
-        let k = (i as u64 * len as u64 / spread as u64) as usize;
-        let Some(b) = bounds(k).and_then(|b| b.intersect(clip)) else { continue };
+    for b in boxes.into_iter().flatten() {
         area += b.area();
         rows.push(((b.y0 + b.y1) / 2, TRIANGLE_COST + b.area()));
         footprint = Some(footprint.map_or(b, |f| f.union(&b)));
@@ -170,13 +182,19 @@ pub fn plan(
     if !banded {
         return Plan::Binned;
     }
-    Plan::Banded(Bands { starts: band_starts(&mut rows, height, threads), triangles: len })
+    Plan::Banded(Bands { starts: band_starts(&rows, height, threads), triangles: len })
 }
 
 /// The first rows of at most `threads` bands that split the sampled triangles' work evenly
-/// (`rows`: each one's middle row and cost), on a target `height` rows high; bands of equal
-/// height when there is no sample.
-fn band_starts(rows: &mut [(i32, i64)], height: u32, threads: usize) -> Vec<u32> {
+/// (`rows`: each one's middle row, within the target, and cost, at least 1), on a target
+/// `height` rows high; bands of equal height when there is no sample.
+///
+/// Band `t` starts at the row of the first triangle, in order of rows and then of costs,
+/// with `t / threads` of the total cost before it. Found from each row's sum and largest
+/// cost rather than by sorting the triangles (a fortieth of the bunny's frame): within a
+/// row, the last triangle in that order is the costliest, so a band starts at a row exactly
+/// when the cost before that triangle reaches its share (`band_starts_as_sorted`).
+fn band_starts(rows: &[(i32, i64)], height: u32, threads: usize) -> Vec<u32> {
     let threads = threads.max(1);
     let mut starts = vec![0];
     if rows.is_empty() {
@@ -185,19 +203,27 @@ fn band_starts(rows: &mut [(i32, i64)], height: u32, threads: usize) -> Vec<u32>
         starts.dedup();
         return starts;
     }
-    rows.sort_unstable();
-    let total: i64 = rows.iter().map(|r| r.1).sum();
-    // Band `t` starts at the first triangle with `t / threads` of the total cost before it.
+    let last = height.saturating_sub(1);
+    // Each row's cost and largest cost (none: 0).
+    let mut per_row = vec![(0i64, 0i64); last as usize + 1];
+    for &(row, cost) in rows {
+        debug_assert!((0..=last as i32).contains(&row) && cost > 0, "a row of the target");
+        let r = &mut per_row[(row.max(0) as u32).min(last) as usize];
+        *r = (r.0 + cost, r.1.max(cost));
+    }
+    let total: i64 = per_row.iter().map(|r| r.0).sum();
     let (mut t, mut before) = (1, 0i64);
-    for &(row, cost) in rows.iter() {
-        while t < threads && before * threads as i64 >= t as i64 * total {
-            let row = (row.max(0) as u32).min(height.saturating_sub(1));
-            if row > *starts.last().unwrap_or(&0) {
-                starts.push(row);
+    for (row, &(sum, largest)) in per_row.iter().enumerate().filter(|r| r.1.1 > 0) {
+        // The row's triangles, cheapest first, were each checked with the cost before them:
+        // the last check was before the costliest.
+        let checked = before + sum - largest;
+        while t < threads && checked * threads as i64 >= t as i64 * total {
+            if row as u32 > *starts.last().unwrap_or(&0) {
+                starts.push(row as u32);
             }
             t += 1;
         }
-        before += cost;
+        before += sum;
     }
     starts
 }
@@ -292,6 +318,50 @@ impl Bands {
 mod tests {
     use super::*;
 
+    /// The starts of [`band_starts`], by sorting the triangles and walking them in order:
+    /// the definition the per-row sums are held to.
+    fn band_starts_sorted(rows: &mut [(i32, i64)], height: u32, threads: usize) -> Vec<u32> {
+        let mut starts = vec![0];
+        rows.sort_unstable();
+        let total: i64 = rows.iter().map(|r| r.1).sum();
+        let (mut t, mut before) = (1, 0i64);
+        for &(row, cost) in rows.iter() {
+            while t < threads && before * threads as i64 >= t as i64 * total {
+                let row = (row.max(0) as u32).min(height.saturating_sub(1));
+                if row > *starts.last().unwrap_or(&0) {
+                    starts.push(row);
+                }
+                t += 1;
+            }
+            before += cost;
+        }
+        starts
+    }
+
+    /// Band starts from each row's sum and largest cost are those of walking the sorted
+    /// triangles: random rows (few rows with many triangles each, or many with few), costs
+    /// (some one very costly triangle) and thread counts.
+    #[test]
+    fn band_starts_as_sorted() {
+        use rand::{Rng, SeedableRng, rngs::SmallRng};
+        let mut rng = SmallRng::seed_from_u64(5);
+        for round in 0..2000 {
+            let height = rng.random_range(1..200);
+            let len = rng.random_range(1..300);
+            let spread = if round % 2 == 0 { height } else { rng.random_range(1..=height.min(4)) };
+            let mut rows: Vec<(i32, i64)> = (0..len)
+                .map(|_| {
+                    let cost =
+                        if rng.random_ratio(1, 50) { 10_000 } else { rng.random_range(1..40) };
+                    (rng.random_range(0..spread) as i32, cost)
+                })
+                .collect();
+            let threads = rng.random_range(1..9);
+            let got = band_starts(&rows, height, threads);
+            assert_eq!(got, band_starts_sorted(&mut rows, height, threads), "{round}");
+        }
+    }
+
     const SCREEN: PixelRect = PixelRect { x0: 0, y0: 0, x1: 1919, y1: 1079 };
 
     /// A grid of `cols x rows` quads of two triangles each over the screen, row by row: the
@@ -327,7 +397,7 @@ mod tests {
     /// to sample are binned; `Binned` and `Banded` are obeyed whatever the triangles.
     #[test]
     fn plans_band_small_triangles_that_stay_together() {
-        let auto = |len, bounds: &dyn Fn(usize) -> Option<PixelRect>| {
+        let auto = |len, bounds: &(dyn Fn(usize) -> Option<PixelRect> + Sync)| {
             plan(Schedule::Auto, len, (1080, 1), &SCREEN, 2, bounds)
         };
         assert!(rows_of(&auto(1_000_000, &grid(1000, 500))).is_some(), "grid");
@@ -363,7 +433,7 @@ mod tests {
     /// thread, ascending from row 0, each with at least one row.
     #[test]
     fn bands_share_the_triangles_evenly() {
-        let bands = |threads, bounds: &dyn Fn(usize) -> Option<PixelRect>| {
+        let bands = |threads, bounds: &(dyn Fn(usize) -> Option<PixelRect> + Sync)| {
             let p = plan(Schedule::Banded, 1_000_000, (1080, 1), &SCREEN, threads, bounds);
             rows_of(&p).unwrap().to_vec()
         };
