@@ -316,7 +316,8 @@ impl Pipeline {
             let n = vertices.len();
             if shaded.len() >= n {
                 // Overwritten in place (buffers kept from a draw of a mesh at least as long):
-                // faster than collecting both (grid, one thread: 71-78 against 79-81 ms).
+                // faster than collecting both (grid, one thread: 71-78 against 79-81 ms), and
+                // eight vertices at a time.
                 shaded.truncate(n);
                 window.truncate(n);
                 window.resize(n, OUTSIDE);
@@ -325,7 +326,14 @@ impl Pipeline {
                     .zip(window.par_chunks_mut(VERTEX_CHUNK))
                     .zip(vertices.par_chunks(VERTEX_CHUNK))
                     .for_each(|((shaded, corners), vertices)| {
-                        for ((s, c), v) in shaded.iter_mut().zip(corners).zip(vertices) {
+                        let eights = shaded.chunks_exact_mut(8).zip(corners.chunks_exact_mut(8));
+                        let input = vertices.chunks_exact(8);
+                        let at = vertices.len() - input.remainder().len();
+                        for ((s, c), v) in eights.zip(input) {
+                            front.vertices(level, v, s, c, |v| vertex_shader.shade(v));
+                        }
+                        let ends = shaded[at..].iter_mut().zip(&mut corners[at..]);
+                        for ((s, c), v) in ends.zip(&vertices[at..]) {
                             *s = shade_vertex(v);
                             *c = s.corner();
                         }
@@ -809,6 +817,38 @@ impl<V> ShadedVertex<V> {
 }
 
 impl FrontEnd {
+    /// Eight vertices through `shade` (the vertex shader) and then, at `level`, their
+    /// outcodes, viewport and snap together ([`simd::window_vertices`]; one at a time,
+    /// [`FrontEnd::vertex`], below AVX2), into `out` with their corners in `corners`.
+    #[inline]
+    fn vertices<I, V: Varyings>(
+        &self,
+        level: SimdLevel,
+        input: &[I],
+        out: &mut [ShadedVertex<V>],
+        corners: &mut [Corner],
+        shade: impl Fn(&I) -> (Vec4, V),
+    ) {
+        let mut positions = [Vec4::ZERO; 8];
+        for ((p, s), v) in positions.iter_mut().zip(out.iter_mut()).zip(input) {
+            let (position, varyings) = shade(v);
+            *p = position;
+            s.clip = ClipVertex { position, varyings };
+        }
+        let Some(w) = simd::window_vertices(level, &positions, &self.volume, &self.viewport) else {
+            for (s, c) in out.iter_mut().zip(corners) {
+                *s = self.vertex(s.clip);
+                *c = s.corner();
+            }
+            return;
+        };
+        for (k, (s, c)) in out.iter_mut().zip(corners).enumerate() {
+            (s.outcode, s.xy, s.z, s.inv_w) = (w.outcode[k], w.xy[k], w.z[k], w.inv_w[k]);
+            s.snapped = w.snapped & (1 << k) != 0;
+            *c = s.corner();
+        }
+    }
+
     /// Outcode, viewport and snap of one shaded vertex.
     fn vertex<V: Varyings>(&self, clip: ClipVertex<V>) -> ShadedVertex<V> {
         let outcode = self.volume.outcode(clip.position);

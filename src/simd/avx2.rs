@@ -148,42 +148,120 @@ fn tests(
     CornerTests { inside: lanes, degenerate, culled, empty: empty & lanes & !degenerate & !culled }
 }
 
-/// [`super::window_corner`] of eight positions: the same `f32` operations lane by lane
-/// (distances to the clip planes, `1 / w`, the viewport, no fused multiply-adds), and the
-/// snap as a round-half-even of `x * 256` in `f32`, which is exact: `x * 256` is (a power
-/// of two scale) and, within the range, so is its rounding to an integer below 2^23.
+/// [`super::window_corner`] of eight positions, from their [`WindowLanes`].
 ///
 /// # Safety
 /// The CPU must support AVX2 and FMA.
 #[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn window_corners(p: &[Vec4; 8], guard: [f32; 2], half: [f32; 2]) -> [Corner; 8] {
+    let w = window_lanes(p, guard, half);
+    let outside = w.planes[1..].iter().fold(w.planes[0], |a, &b| _mm256_or_ps(a, b));
+    let valid = _mm256_castps_si256(_mm256_and_ps(_mm256_andnot_ps(outside, w.finite), w.snaps));
+    let min = _mm256_set1_epi32(i32::MIN);
+    let sx = _mm256_blendv_epi8(min, w.x, valid);
+    let sy = _mm256_blendv_epi8(min, w.y, valid);
+    let mut xs = [0i32; 8];
+    let mut ys = [0i32; 8];
+    // SAFETY: each array holds eight i32 (32 bytes); unaligned stores need no alignment.
+    unsafe {
+        _mm256_storeu_si256(xs.as_mut_ptr() as *mut __m256i, sx);
+        _mm256_storeu_si256(ys.as_mut_ptr() as *mut __m256i, sy);
+    }
+    std::array::from_fn(|k| [xs[k], ys[k]])
+}
+
+/// [`super::window_vertices`] in AVX2: the lanes of [`window_corners`], each plane's test
+/// a bit of the outcode.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn window_vertices(
+    p: &[Vec4; 8],
+    guard: [f32; 2],
+    half: [f32; 2],
+) -> super::WindowVertices {
+    let w = window_lanes(p, guard, half);
+    // Bit `i` where plane `i` has the vertex outside; every bit for a position not finite.
+    let mut code = _mm256_setzero_si256();
+    for (i, plane) in w.planes.iter().enumerate() {
+        let bit = _mm256_and_si256(_mm256_castps_si256(*plane), _mm256_set1_epi32(1 << i));
+        code = _mm256_or_si256(code, bit);
+    }
+    let every = _mm256_set1_epi32((1 << w.planes.len()) - 1);
+    let code = _mm256_blendv_epi8(every, code, _mm256_castps_si256(w.finite));
+    let inside = _mm256_cmpeq_epi32(code, _mm256_setzero_si256());
+    let valid = _mm256_and_si256(inside, _mm256_castps_si256(w.snaps));
+    let keep = |v: __m256i| _mm256_and_si256(v, valid);
+    let keep_ps = |v: __m256| _mm256_and_ps(v, _mm256_castsi256_ps(valid));
+    let mut out = super::WindowVertices::default();
+    let (mut codes, mut xs, mut ys) = ([0i32; 8], [0i32; 8], [0i32; 8]);
+    // SAFETY: each array holds eight 4-byte values (32 bytes); unaligned stores need no
+    // alignment.
+    unsafe {
+        _mm256_storeu_si256(codes.as_mut_ptr().cast(), code);
+        _mm256_storeu_si256(xs.as_mut_ptr().cast(), keep(w.x));
+        _mm256_storeu_si256(ys.as_mut_ptr().cast(), keep(w.y));
+        _mm256_storeu_ps(out.z.as_mut_ptr(), keep_ps(w.z));
+        _mm256_storeu_ps(out.inv_w.as_mut_ptr(), keep_ps(w.inv_w));
+    }
+    out.outcode = codes.map(|c| c as u8);
+    out.xy = std::array::from_fn(|k| [xs[k], ys[k]]);
+    out.snapped = _mm256_movemask_ps(_mm256_castsi256_ps(valid)) as u8;
+    out
+}
+
+/// Eight clip-space positions through the front end's per-vertex arithmetic, lane by lane
+/// as the scalar code computes each: [`ClipVolume::outcode`]'s plane tests,
+/// [`crate::pipeline::Viewport::map`] and [`fixed::snap`] of `x` and `y`.
+struct WindowLanes {
+    /// Lanes outside each plane, in `ClipVolume::distance`'s order.
+    planes: [__m256; 7],
+    /// Lanes whose four coordinates are finite.
+    finite: __m256,
+    /// Lanes whose window `x` and `y` snap and whose depth and `1 / w` are finite.
+    snaps: __m256,
+    /// Snapped window `x` and `y` (where `snaps`).
+    x: __m256i,
+    y: __m256i,
+    /// Window depth and `1 / w`.
+    z: __m256,
+    inv_w: __m256,
+}
+
+/// [`WindowLanes`] of eight positions (`guard`: the clip volume's guard band, `half`: the
+/// viewport's half size): the same `f32` operations lane by lane (distances to the clip
+/// planes, `1 / w`, the viewport, no fused multiply-adds), and the snap as a
+/// round-half-even of `x * 256` in `f32`, which is exact: `x * 256` is (a power of two
+/// scale) and, within the range, so is its rounding to an integer below 2^23.
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn window_lanes(p: &[Vec4; 8], guard: [f32; 2], half: [f32; 2]) -> WindowLanes {
     let lane = |c: usize| {
         _mm256_setr_ps(p[0][c], p[1][c], p[2][c], p[3][c], p[4][c], p[5][c], p[6][c], p[7][c])
     };
     let (x, y, z, w) = (lane(0), lane(1), lane(2), lane(3));
     let zero = _mm256_setzero_ps();
     let lt = |a, b| _mm256_cmp_ps::<_CMP_LT_OQ>(a, b);
-    let or = |a, b| _mm256_or_ps(a, b);
     let and = |a, b| _mm256_and_ps(a, b);
     // Finite: |v| < inf (false for NaN).
     let inf = _mm256_set1_ps(f32::INFINITY);
     let abs = |v| _mm256_andnot_ps(_mm256_set1_ps(-0.0), v);
     let finite = |v| lt(abs(v), inf);
     let all_finite = and(and(finite(x), finite(y)), and(finite(z), finite(w)));
-    // Outside any plane: the distances of `ClipVolume::distance`, each `< 0`.
+    // Outside a plane: the distances of `ClipVolume::distance`, each `< 0`.
     let (gx, gy) = (_mm256_mul_ps(_mm256_set1_ps(guard[0]), w), {
         _mm256_mul_ps(_mm256_set1_ps(guard[1]), w)
     });
-    let outside = or(
-        or(
-            or(lt(z, zero), lt(_mm256_sub_ps(w, z), zero)),
-            lt(_mm256_sub_ps(w, _mm256_set1_ps(MIN_W)), zero),
-        ),
-        or(
-            or(lt(_mm256_add_ps(x, gx), zero), lt(_mm256_sub_ps(gx, x), zero)),
-            or(lt(_mm256_add_ps(y, gy), zero), lt(_mm256_sub_ps(gy, y), zero)),
-        ),
-    );
+    let planes = [
+        lt(z, zero),
+        lt(_mm256_sub_ps(w, z), zero),
+        lt(_mm256_sub_ps(w, _mm256_set1_ps(MIN_W)), zero),
+        lt(_mm256_add_ps(x, gx), zero),
+        lt(_mm256_sub_ps(gx, x), zero),
+        lt(_mm256_add_ps(y, gy), zero),
+        lt(_mm256_sub_ps(gy, y), zero),
+    ];
     // `Viewport::map`.
     let one = _mm256_set1_ps(1.0);
     let inv_w = _mm256_div_ps(one, w);
@@ -203,22 +281,8 @@ pub(super) unsafe fn window_corners(p: &[Vec4; 8], guard: [f32; 2], half: [f32; 
     };
     let (x_ok, sx) = snap(wx);
     let (y_ok, sy) = snap(wy);
-    let valid = and(
-        _mm256_andnot_ps(outside, all_finite),
-        and(and(x_ok, y_ok), and(finite(wz), finite(inv_w))),
-    );
-    let valid = _mm256_castps_si256(valid);
-    let min = _mm256_set1_epi32(i32::MIN);
-    let sx = _mm256_blendv_epi8(min, sx, valid);
-    let sy = _mm256_blendv_epi8(min, sy, valid);
-    let mut xs = [0i32; 8];
-    let mut ys = [0i32; 8];
-    // SAFETY: each array holds eight i32 (32 bytes); unaligned stores need no alignment.
-    unsafe {
-        _mm256_storeu_si256(xs.as_mut_ptr() as *mut __m256i, sx);
-        _mm256_storeu_si256(ys.as_mut_ptr() as *mut __m256i, sy);
-    }
-    std::array::from_fn(|k| [xs[k], ys[k]])
+    let snaps = and(and(x_ok, y_ok), and(finite(wz), finite(inv_w)));
+    WindowLanes { planes, finite: all_finite, snaps, x: sx, y: sy, z: wz, inv_w }
 }
 
 /// [`SpanColor::at`] for one pixel, compiled for FMA: `f64::mul_add` is one instruction
