@@ -281,29 +281,26 @@ unsafe fn group<const SKIP_HIDDEN: bool, const PAIR: bool, const DEPTH: u8>(
     }
 }
 
-/// [`group`]'s depth test: `DEPTH` names one ([`depth_const`]) for loops instantiated per
-/// test, or is [`ANY_DEPTH`] for `test`, read where the group runs.
+/// [`group`]'s depth test: `DEPTH` names one ([`DEPTH_LESS`] and the others) for loops
+/// instantiated per test, or is [`ANY_DEPTH`] for `test`, read where the group runs.
 #[inline(always)]
 fn depth_test<const DEPTH: u8>(test: DepthTest) -> DepthTest {
     match DEPTH {
-        1 => DepthTest::Less,
-        2 => DepthTest::LessEqual,
-        3 => DepthTest::Always,
+        DEPTH_LESS => DepthTest::Less,
+        DEPTH_LESS_EQUAL => DepthTest::LessEqual,
+        DEPTH_ALWAYS => DepthTest::Always,
         _ => test,
     }
 }
 
 /// [`group`]'s `DEPTH` for a test read where the group runs.
 const ANY_DEPTH: u8 = 0;
-
-/// [`group`]'s `DEPTH` naming `test`.
-const fn depth_const(test: DepthTest) -> u8 {
-    match test {
-        DepthTest::Less => 1,
-        DepthTest::LessEqual => 2,
-        DepthTest::Always => 3,
-    }
-}
+/// [`group`]'s `DEPTH` for [`DepthTest::Less`].
+const DEPTH_LESS: u8 = 1;
+/// [`group`]'s `DEPTH` for [`DepthTest::LessEqual`].
+const DEPTH_LESS_EQUAL: u8 = 2;
+/// [`group`]'s `DEPTH` for [`DepthTest::Always`].
+const DEPTH_ALWAYS: u8 = 3;
 
 /// The lanes `0..8` as `f64`.
 #[inline]
@@ -614,16 +611,13 @@ unsafe fn narrow_box(
     // the soup, which does not run it, 7% slower again, and the bunny no faster.)
     // SAFETY: the box is narrow and lies in the buffers (asserted above).
     unsafe {
-        const LESS: u8 = depth_const(DepthTest::Less);
-        const LESS_EQUAL: u8 = depth_const(DepthTest::LessEqual);
-        const ALWAYS: u8 = depth_const(DepthTest::Always);
         match (b.columns <= 4, t.depth_test) {
-            (true, DepthTest::Less) => narrow_groups::<true, LESS>(b, t, rgba),
-            (true, DepthTest::LessEqual) => narrow_groups::<true, LESS_EQUAL>(b, t, rgba),
-            (true, DepthTest::Always) => narrow_groups::<true, ALWAYS>(b, t, rgba),
-            (false, DepthTest::Less) => narrow_groups::<false, LESS>(b, t, rgba),
-            (false, DepthTest::LessEqual) => narrow_groups::<false, LESS_EQUAL>(b, t, rgba),
-            (false, DepthTest::Always) => narrow_groups::<false, ALWAYS>(b, t, rgba),
+            (true, DepthTest::Less) => narrow_groups::<true, DEPTH_LESS>(b, t, rgba),
+            (true, DepthTest::LessEqual) => narrow_groups::<true, DEPTH_LESS_EQUAL>(b, t, rgba),
+            (true, DepthTest::Always) => narrow_groups::<true, DEPTH_ALWAYS>(b, t, rgba),
+            (false, DepthTest::Less) => narrow_groups::<false, DEPTH_LESS>(b, t, rgba),
+            (false, DepthTest::LessEqual) => narrow_groups::<false, DEPTH_LESS_EQUAL>(b, t, rgba),
+            (false, DepthTest::Always) => narrow_groups::<false, DEPTH_ALWAYS>(b, t, rgba),
         }
     }
 }
