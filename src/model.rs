@@ -107,7 +107,7 @@ impl Light {
         (k.fract() == 0.0 && (0.0..=1024.0).contains(&k)).then_some(k as u32)
     }
 
-    /// The light towards unit direction `l` as [`simd::light_eight`] takes it, when its
+    /// The light towards unit direction `l` as [`simd::gouraud_eight`] takes it, when its
     /// exponent is whole (what [`Light::highlight`] raises by `powi`).
     fn whole(&self, l: Vec3) -> Option<simd::WholeLight> {
         self.whole_exponent().map(|exponent| simd::WholeLight {
@@ -582,7 +582,11 @@ fn gouraud_colors(
     gouraud_colors_at(SimdLevel::detected(), positions, normals, albedo, eye, light)
 }
 
-/// [`gouraud_colors`] with the lanes lit at `level` ([`GouraudLanes::light`]).
+/// [`gouraud_colors`] at `level`: from AVX2 on, eight vertices at a time through
+/// [`simd::gouraud_eight`] where the light's exponent is whole ([`Light::whole`]), the same
+/// bits as [`GouraudLanes`] (the Stanford bunny's 35,947 vertices, fastest of 20 frames:
+/// 0.52 -> 0.36 ms on one thread and 0.29 -> 0.20 ms on two with the light alone in AVX2,
+/// then 0.31 and 0.18 ms with the matrix products in AVX2 too).
 fn gouraud_colors_at(
     level: SimdLevel,
     positions: &[[f32; 3]],
@@ -595,19 +599,38 @@ fn gouraud_colors_at(
     const CHUNK: usize = 4096;
     let l = light.unit_direction();
     let whole = light.whole(l);
+    let lanes_eye = simd::EyeLanes {
+        origin: eye.origin.to_array(),
+        view: eye.view.to_cols_array_2d(),
+        normal: eye.normal_matrix.to_cols_array_2d(),
+    };
     let mut out = vec![Vec4::ZERO; positions.len()];
     out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
         for (k, out) in out.chunks_mut(GOURAUD_LANES).enumerate() {
             let first = c * CHUNK + k * GOURAUD_LANES;
-            let mut lanes = GouraudLanes::default();
-            for (j, _) in out.iter().enumerate() {
-                let i = first + j;
-                let p = (Vec3::from(positions[i]) - eye.origin).extend(1.0);
-                let view_pos = (eye.view * p).truncate();
-                let n = normals.get(i).map_or(Vec3::ZERO, |&n| eye.normal_matrix * Vec3::from(n));
-                lanes.set(j, n, -view_pos);
-            }
-            let (d, s) = lanes.light(level, light, (l, whole.as_ref()));
+            let range = first..first + GOURAUD_LANES;
+            // Eight side by side in SIMD where they can be (every vertex's normal or none).
+            let eight = whole.as_ref().zip(positions.get(range.clone())).and_then(|(w, p)| {
+                let p = p.try_into().ok()?;
+                let n = match normals.get(range.clone()) {
+                    Some(n) => Some(n.try_into().ok()?),
+                    None if normals.is_empty() => None,
+                    None => return None,
+                };
+                simd::gouraud_eight(level, p, n, &lanes_eye, w)
+            });
+            let (d, s) = eight.unwrap_or_else(|| {
+                let mut lanes = GouraudLanes::default();
+                for (j, _) in out.iter().enumerate() {
+                    let i = first + j;
+                    let p = (Vec3::from(positions[i]) - eye.origin).extend(1.0);
+                    let view_pos = (eye.view * p).truncate();
+                    let n =
+                        normals.get(i).map_or(Vec3::ZERO, |&n| eye.normal_matrix * Vec3::from(n));
+                    lanes.set(j, n, -view_pos);
+                }
+                lanes.shade(light, l)
+            });
             for (j, out) in out.iter_mut().enumerate() {
                 let color = albedo(first + j);
                 *out = (color.truncate() * d[j] + Vec3::splat(s[j])).extend(color.w);
@@ -630,25 +653,6 @@ impl GouraudLanes {
         for k in 0..3 {
             (self.n[k][j], self.v[k][j]) = (n[k], v[k]);
         }
-    }
-
-    /// [`GouraudLanes::shade`], in AVX2 where `level` has it and the light's exponent is
-    /// whole (`whole`, [`Light::whole`]): [`simd::light_eight`], the same operations eight
-    /// lanes at once (the Stanford bunny's 35,947 vertices, fastest of 20 frames: 0.52 ->
-    /// 0.36 ms on one thread, 0.29 -> 0.20 ms on two).
-    #[inline]
-    fn light(
-        &self,
-        level: SimdLevel,
-        light: &Light,
-        (l, whole): (Vec3, Option<&simd::WholeLight>),
-    ) -> (Lanes, Lanes) {
-        if let Some(w) = whole
-            && let Some(lit) = simd::light_eight(level, &self.n, &self.v, w)
-        {
-            return lit;
-        }
-        self.shade(light, l)
     }
 
     /// `light.shade_towards(l, n.normalize_or_zero(), v.normalize_or(Vec3::Z))` lane by lane:

@@ -1429,21 +1429,69 @@ pub(super) fn put_lanes(
     unsafe { _mm256_storeu_si256(out.flat.as_mut_ptr().cast(), flat) };
 }
 
-/// [`super::light_eight`] in AVX2.
+/// [`super::gouraud_eight`] in AVX2: the positions and normals read a component at a time
+/// into lanes, then `glam`'s matrix products written out in its order.
 ///
 /// # Safety
 /// The CPU must support AVX2.
 #[target_feature(enable = "avx2")]
-pub(super) unsafe fn light_eight(
-    n: &[[f32; 8]; 3],
-    v: &[[f32; 8]; 3],
+pub(super) unsafe fn gouraud_eight(
+    positions: &[[f32; 3]; 8],
+    normals: Option<&[[f32; 3]; 8]>,
+    eye: &super::EyeLanes,
     light: &super::WholeLight,
 ) -> ([f32; 8], [f32; 8]) {
-    // SAFETY: each load reads the eight `f32` of one array.
-    let load = |a: &[f32; 8]| unsafe { _mm256_loadu_ps(a.as_ptr()) };
+    let lane = |a: &[[f32; 3]; 8], c: usize| {
+        _mm256_setr_ps(a[0][c], a[1][c], a[2][c], a[3][c], a[4][c], a[5][c], a[6][c], a[7][c])
+    };
+    let splat = |v: f32| _mm256_set1_ps(v);
+    // `Mat4 * (p - origin).extend(1.0)`: `((x_axis p.x + y_axis p.y) + z_axis p.z) + w_axis`,
+    // the last term `w_axis * 1.0`, exact.
+    let rel: [__m256; 3] =
+        std::array::from_fn(|c| _mm256_sub_ps(lane(positions, c), splat(eye.origin[c])));
+    let view = &eye.view;
+    let to_eye: [__m256; 3] = std::array::from_fn(|k| {
+        let xy = _mm256_add_ps(
+            _mm256_mul_ps(splat(view[0][k]), rel[0]),
+            _mm256_mul_ps(splat(view[1][k]), rel[1]),
+        );
+        let xyz = _mm256_add_ps(xy, _mm256_mul_ps(splat(view[2][k]), rel[2]));
+        // The view position negated: towards the eye.
+        _mm256_xor_ps(_mm256_add_ps(xyz, splat(view[3][k])), splat(-0.0))
+    });
+    // `Mat3 * n`: `(x_axis n.x + y_axis n.y) + z_axis n.z`; zero without normals.
+    let m = &eye.normal;
+    let n: [__m256; 3] = match normals {
+        Some(normals) => {
+            let n: [__m256; 3] = std::array::from_fn(|c| lane(normals, c));
+            std::array::from_fn(|k| {
+                let xy = _mm256_add_ps(
+                    _mm256_mul_ps(splat(m[0][k]), n[0]),
+                    _mm256_mul_ps(splat(m[1][k]), n[1]),
+                );
+                _mm256_add_ps(xy, _mm256_mul_ps(splat(m[2][k]), n[2]))
+            })
+        }
+        None => [_mm256_setzero_ps(); 3],
+    };
+    let (diffuse, specular) = light_lanes(n, to_eye, light);
+    let (mut d, mut s) = ([0.0f32; 8], [0.0f32; 8]);
+    // SAFETY: each store writes the eight `f32` of one array.
+    unsafe {
+        _mm256_storeu_ps(d.as_mut_ptr(), diffuse);
+        _mm256_storeu_ps(s.as_mut_ptr(), specular);
+    }
+    (d, s)
+}
+
+/// `Light::shade_towards` of eight lanes, from their normals `n` and directions to the eye
+/// `v` (not normalised): `(diffuse + ambient, specular)`.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn light_lanes(n: [__m256; 3], v: [__m256; 3], light: &super::WholeLight) -> (__m256, __m256) {
     let zero = _mm256_setzero_ps();
-    let n = unit_or(n.each_ref().map(load), [0.0; 3]);
-    let v = unit_or(v.each_ref().map(load), [0.0, 0.0, 1.0]);
+    let n = unit_or(n, [0.0; 3]);
+    let v = unit_or(v, [0.0, 0.0, 1.0]);
     let l = light.l.map(|c| _mm256_set1_ps(c));
     let h = unit_or(std::array::from_fn(|k| _mm256_add_ps(l[k], v[k])), [0.0, 0.0, 1.0]);
     let n_l = dot3(&n, &l);
@@ -1467,14 +1515,7 @@ pub(super) unsafe fn light_eight(
         factor = _mm256_mul_ps(factor, factor);
     }
     let lit = _mm256_cmp_ps::<_CMP_GT_OQ>(n_l, zero);
-    let specular = _mm256_and_ps(lit, _mm256_mul_ps(_mm256_set1_ps(light.specular), product));
-    let (mut d, mut s) = ([0.0f32; 8], [0.0f32; 8]);
-    // SAFETY: each store writes the eight `f32` of one array.
-    unsafe {
-        _mm256_storeu_ps(d.as_mut_ptr(), diffuse);
-        _mm256_storeu_ps(s.as_mut_ptr(), specular);
-    }
-    (d, s)
+    (diffuse, _mm256_and_ps(lit, _mm256_mul_ps(_mm256_set1_ps(light.specular), product)))
 }
 
 /// `(x x + y y) + z z` lane by lane: `glam`'s `Vec3::dot` order.

@@ -230,7 +230,7 @@ pub fn srgb8_lanes(level: SimdLevel, colors: &[[f32; 4]; 8]) -> [u32; 8] {
     srgb8_lanes_scalar(colors)
 }
 
-/// Blinn-Phong light with a whole specular exponent, as [`light_eight`] takes it: the unit
+/// Blinn-Phong light with a whole specular exponent, as [`gouraud_eight`] takes it: the unit
 /// direction towards the light, the intensities and the exponent.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct WholeLight {
@@ -246,27 +246,41 @@ pub(crate) struct WholeLight {
     pub exponent: u32,
 }
 
-/// `(diffuse + ambient, specular)` of eight vertices under `light`, from their view-space
-/// normals `n` and directions to the eye `v` (one array per component, not normalised), as
-/// `crate::model`'s Gouraud lanes compute them a lane at a time: `None` below AVX2, where
-/// the caller does. The same operations in the same order (`glam`'s dot products and
-/// `normalize_or`, `powi`'s squarings), so the same bits: each lane waited on its chain of
-/// three square roots and divisions, which the compiler spread over SSE registers and
-/// scalar ones; in AVX2 all eight lanes go at once.
+/// Where [`gouraud_eight`] lights vertices from: the eye's origin (positions are taken
+/// relative to it), the view matrix and the normal matrix, each a column per array.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct EyeLanes {
+    /// Subtracted from every position.
+    pub origin: [f32; 3],
+    /// View matrix columns (`glam::Mat4`'s `x_axis` to `w_axis`).
+    pub view: [[f32; 4]; 4],
+    /// Normal matrix columns (`glam::Mat3`'s).
+    pub normal: [[f32; 3]; 3],
+}
+
+/// `(diffuse + ambient, specular)` of eight vertices under `light`, as `crate::model`'s
+/// Gouraud lanes compute them a lane at a time: each position relative to the eye's origin
+/// through the view matrix, each normal (zero without `normals`) through the normal matrix,
+/// then Blinn-Phong towards the eye. `None` below AVX2, where the caller does. The same
+/// operations in the same order (`glam`'s matrix products, dot products and
+/// `normalize_or`, `powi`'s squarings), so the same bits: each lane had waited on its chain
+/// of three square roots and divisions, which the compiler spread over SSE registers and
+/// scalar ones; in AVX2 all eight lanes go at once, and so do the matrix products.
 #[inline]
 #[must_use]
-pub(crate) fn light_eight(
+pub(crate) fn gouraud_eight(
     level: SimdLevel,
-    n: &[[f32; 8]; 3],
-    v: &[[f32; 8]; 3],
+    positions: &[[f32; 3]; 8],
+    normals: Option<&[[f32; 3]; 8]>,
+    eye: &EyeLanes,
     light: &WholeLight,
 ) -> Option<([f32; 8], [f32; 8])> {
     #[cfg(target_arch = "x86_64")]
     if level.has_avx2() {
         // SAFETY: AVX2 and FMA support was just checked at run time.
-        return Some(unsafe { avx2::light_eight(n, v, light) });
+        return Some(unsafe { avx2::gouraud_eight(positions, normals, eye, light) });
     }
-    let _ = (level, n, v, light);
+    let _ = (level, positions, normals, eye, light);
     None
 }
 
