@@ -109,6 +109,9 @@ pub struct Bands {
 /// The thread count only sets the number of bands: every band repeats the front end's first
 /// tests, which in the 3D pipeline (the corner tests, a few nanoseconds a triangle) is small
 /// beside what bands save on two threads, the only count measured here.
+///
+/// The samples are taken in parallel on the current rayon pool, so `bounds` is called from
+/// its threads (hence `Sync`).
 pub fn plan(
     schedule: Schedule,
     len: usize,
