@@ -504,7 +504,8 @@ pub fn render_mesh(
     let lit = if lighting == Lighting::Gouraud {
         let albedo = |i: usize| surface.colors.as_ref().map_or(base_albedo, |c| c[i]);
         let eye = EyeSpace { origin, view, normal_matrix };
-        gouraud_colors(&mesh.positions, &surface.normals, albedo, &eye, &light)
+        let level = SimdLevel::detected();
+        gouraud_colors(level, &mesh.positions, &surface.normals, albedo, &eye, &light)
     } else {
         Vec::new()
     };
@@ -570,24 +571,13 @@ const GOURAUD_LANES: usize = 8;
 /// Gouraud's lit colour of every vertex: `albedo(i).rgb * diffuse + specular` (alpha kept),
 /// with [`Light::shade_towards`] at the vertex's view-space normal (`normals[i]`, zero when
 /// there are none) and direction to the eye. The same operations as one vertex at a time,
-/// lane by lane (tested bit for bit), in arrays of [`GOURAUD_LANES`] that the compiler
-/// vectorises.
+/// lane by lane (tested bit for bit at every level), in arrays of [`GOURAUD_LANES`] that the
+/// compiler vectorises; from AVX2 on (`level`), eight vertices at a time through
+/// [`simd::gouraud_eight`] where the light's exponent is whole ([`Light::whole`]): the
+/// Stanford bunny's 35,947 vertices, fastest of 20 frames, 0.52 -> 0.36 ms on one thread
+/// and 0.29 -> 0.20 ms on two with the light alone in AVX2, then 0.31 and 0.18 ms with the
+/// matrix products in AVX2 too.
 fn gouraud_colors(
-    positions: &[[f32; 3]],
-    normals: &[[f32; 3]],
-    albedo: impl Fn(usize) -> Vec4 + Sync,
-    eye: &EyeSpace,
-    light: &Light,
-) -> Vec<Vec4> {
-    gouraud_colors_at(SimdLevel::detected(), positions, normals, albedo, eye, light)
-}
-
-/// [`gouraud_colors`] at `level`: from AVX2 on, eight vertices at a time through
-/// [`simd::gouraud_eight`] where the light's exponent is whole ([`Light::whole`]), the same
-/// bits as [`GouraudLanes`] (the Stanford bunny's 35,947 vertices, fastest of 20 frames:
-/// 0.52 -> 0.36 ms on one thread and 0.29 -> 0.20 ms on two with the light alone in AVX2,
-/// then 0.31 and 0.18 ms with the matrix products in AVX2 too).
-fn gouraud_colors_at(
     level: SimdLevel,
     positions: &[[f32; 3]],
     normals: &[[f32; 3]],
@@ -791,7 +781,7 @@ mod tests {
             };
             for level in SimdLevel::available() {
                 let lanes =
-                    gouraud_colors_at(level, &positions, &normals, |i| albedos[i], &eye, &light);
+                    gouraud_colors(level, &positions, &normals, |i| albedos[i], &eye, &light);
                 for (i, lit) in lanes.iter().enumerate() {
                     let p = (Vec3::from(positions[i]) - eye.origin).extend(1.0);
                     let view_pos = (eye.view * p).truncate();
