@@ -383,12 +383,11 @@ unsafe fn narrow_packed<const PAIR: bool>(job: &mut NarrowJob<'_>, p: &Perspecti
     let n = t.checked_len();
     assert!(end <= n && end <= i32::MAX as usize, "the box must lie in the buffers");
     let (table, q) = (crate::color::srgb8_table(), p.inv_w());
-    let pair = PAIR;
     let (offsets, columns, rows_per_group) = b.lanes();
     // Each lane's buffer offset from the group's first pixel (lanes 4-7 the next row's in
     // pairs): below the box's end, so within `i32`.
     let stride = b.stride as i32;
-    let index = if pair {
+    let index = if PAIR {
         _mm256_setr_epi32(0, 1, 2, 3, stride, stride + 1, stride + 2, stride + 3)
     } else {
         _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)
@@ -416,16 +415,7 @@ unsafe fn narrow_packed<const PAIR: bool>(job: &mut NarrowJob<'_>, p: &Perspecti
         );
         let outside = _mm512_movepi64_mask(any);
         let (f1, f2) = (_mm512_sub_pd(e[1], bias[0]), _mm512_sub_pd(e[2], bias[1]));
-        let at = b.first + r * b.stride;
-        // A last row of its own leaves the upper lanes masked off, at the same address (a
-        // row of more than four pixels is one group, from `at`).
-        let (second, lanes) = if !pair {
-            (at, columns)
-        } else if r + 1 < b.rows {
-            (at + b.stride, columns)
-        } else {
-            (at, columns & 0xF)
-        };
+        let (at, second, lanes) = b.group_at::<PAIR>(r, columns);
         let cover = !outside & lanes;
         covered += u64::from(cover.count_ones());
         // SAFETY: both rows' first pixels are in the buffers and so are their `columns`
@@ -563,6 +553,22 @@ impl NarrowBox {
         let columns = if pair { row_bits | row_bits << 4 } else { row_bits } as __mmask8;
         (offsets, columns, rows_per_group)
     }
+
+    /// Where the group starting at row `r` reads and writes: its first row's first pixel,
+    /// its second row's (`PAIR`: boxes up to four wide, two rows a group) or the same, and
+    /// its lanes within the box's `columns` (a last row of its own leaves the upper lanes
+    /// masked off, at the same address).
+    #[inline(always)]
+    fn group_at<const PAIR: bool>(&self, r: usize, columns: __mmask8) -> (usize, usize, __mmask8) {
+        let at = self.first + r * self.stride;
+        if !PAIR {
+            (at, at, columns)
+        } else if r + 1 < self.rows {
+            (at, at + self.stride, columns)
+        } else {
+            (at, at, columns & 0xF)
+        }
+    }
 }
 
 /// A group's edge values, edge `k` `row[k]` (the group's first pixel) plus `offsets[k]`
@@ -644,15 +650,7 @@ unsafe fn narrow_groups<const PAIR: bool, const DEPTH: u8>(
     let mut covered = 0u64;
     for r in (0..b.rows).step_by(rows_per_group) {
         let (outside, f1, f2) = group_edges(row, &offsets, &bias);
-        let at = b.first + r * b.stride;
-        // A last row of its own leaves the upper lanes masked off, at the same address.
-        let (second, lanes) = if !PAIR {
-            (at, columns)
-        } else if r + 1 < b.rows {
-            (at + b.stride, columns)
-        } else {
-            (at, columns & 0xF)
-        };
+        let (at, second, lanes) = b.group_at::<PAIR>(r, columns);
         let cover = !outside & lanes;
         covered += u64::from(cover.count_ones());
         // SAFETY: both rows' first pixels are in the buffers and so are their `columns`
