@@ -210,19 +210,17 @@ const PIECE_BITS: u32 = 12;
 /// clip and sample count the batch was prepared for): binning reads those 16 bytes per
 /// triangle instead of each record, which by then has left the cache.
 ///
-/// A batch also holds its bins ([`PreparedBatch::bin`]), which [`draw_binned`] uses when
-/// they were made for the target it draws into (and otherwise makes again, in the same
-/// memory).
+/// A batch may also hold its bins ([`PreparedBatch::bin`]), which [`draw_binned`] uses when
+/// they were made for the target it draws into.
 #[derive(Debug)]
 pub struct PreparedBatch<S> {
     chunks: Vec<Vec<S>>,
     covers: Vec<Vec<PixelRect>>,
     used: usize,
     coverage: Coverage,
-    /// The batch's bins, valid when `binned` says so.
-    bins: Bins,
-    /// Its wide triangles' samples and what the bins were made for, once it is binned.
-    binned: Option<(u64, BinTarget)>,
+    /// The batch's bins and its wide triangles' samples, when binned as it was prepared, with
+    /// what they were binned for.
+    binned: Option<(Bins, u64, BinTarget)>,
 }
 
 impl<S> Default for PreparedBatch<S> {
@@ -232,7 +230,6 @@ impl<S> Default for PreparedBatch<S> {
             covers: Vec::new(),
             used: 0,
             coverage: Coverage::default(),
-            bins: Bins::default(),
             binned: None,
         }
     }
@@ -363,7 +360,7 @@ pub fn pipelined<I: Sync, S: Send + Sync>(
     batch_len: usize,
     pair: &mut PreparedPair<S>,
     mut prepare: impl FnMut(usize, usize, &[I], &mut PreparedBatch<S>) + Send,
-    mut draw: impl FnMut(usize, &mut PreparedBatch<S>) + Send,
+    mut draw: impl FnMut(usize, &PreparedBatch<S>) + Send,
 ) {
     let batch_len = even_batch_len(items.len(), batch_len);
     let batches = items.len().div_ceil(batch_len);
@@ -384,9 +381,8 @@ pub fn pipelined<I: Sync, S: Send + Sync>(
                 }
             },
         );
-        // The drawn batch's bins are stale now (their memory stays for its next batch: at
-        // most two batches' bins exist at once, the one drawn and the one binned as it is
-        // prepared).
+        // The drawn batch's bins go now, not when its half is refilled: at most two batches'
+        // bins exist at once (the one drawn, the one binned as it is prepared).
         full.binned = None;
         std::mem::swap(&mut filling, &mut full);
     }
@@ -522,18 +518,10 @@ impl TileGrid {
 }
 
 /// Per-tile lists of triangle indices, in submission order.
-///
-/// Binning again into the same `Bins` reuses their lists' memory (cleared, their capacity
-/// kept), the groups' lists before merging included: a batch's bins that were freed and
-/// allocated anew each frame had the allocator hand their pages back to the system and
-/// fault them in again, zeroed (a million small triangles: about a hundred page faults and
-/// 3-13 ms of system time a frame).
 #[derive(Debug, Default)]
 pub struct Bins {
     tiles_x: usize,
     lists: Vec<Vec<u32>>,
-    /// Each group's lists, merged into `lists`: kept for their memory only.
-    partial: Vec<Vec<Vec<u32>>>,
 }
 
 impl Bins {
@@ -556,32 +544,29 @@ impl Bins {
     ) -> Self {
         let chunk = len.div_ceil(rayon::current_num_threads() * 4).max(1024);
         let bound = &bound;
-        let mut bins = Self::default();
-        bins.build_groups(
+        Self::build_groups(
             len.div_ceil(chunk),
             |g| (g * chunk..((g + 1) * chunk).min(len)).map(move |k| (k as u32, bound(k))),
             |_| None,
             width,
             height,
-        );
-        bins
+        )
     }
 
-    /// Bins the triangles of a prepared batch by their coverage rectangles (replacing what
-    /// the bins held), calling `visit(index, rectangle)` with each (in parallel, in no
-    /// particular order). A triangle over more than [`TRIVIAL_REJECT_TILES`] tiles is left
-    /// out of the tiles where it covers no sample (its samples within `reach` of the pixel
-    /// centres).
-    fn bin_batch<S: Record>(
-        &mut self,
+    /// Bins the triangles of a prepared batch by their coverage rectangles, calling
+    /// `visit(index, rectangle)` with each (in parallel, in no particular order). A triangle
+    /// over more than [`TRIVIAL_REJECT_TILES`] tiles is left out of the tiles where it covers
+    /// no sample (its samples within `reach` of the pixel centres).
+    fn of_batch<S: Record>(
         batch: &PreparedBatch<S>,
-        (width, height): (u32, u32),
+        width: u32,
+        height: u32,
         reach: i64,
         visit: impl Fn(u32, &PixelRect) + Sync,
-    ) {
+    ) -> Self {
         let chunks = batch.chunk_count();
         let per_group = chunks.div_ceil(rayon::current_num_threads() * 4).max(4);
-        self.build_groups(
+        Self::build_groups(
             chunks.div_ceil(per_group),
             |g| {
                 let range = g * per_group..((g + 1) * per_group).min(chunks);
@@ -596,55 +581,53 @@ impl Bins {
         )
     }
 
-    /// The shared binning loop, replacing what the bins held: group `g` (in submission order)
-    /// lists `(index, bounds)`; groups are binned in parallel and merged in group order, so
-    /// lists stay in submission order. An item over more than [`TRIVIAL_REJECT_TILES`] tiles
-    /// is left out of the tiles whose pixels within its bounds `reject(index)` (if it gives a
-    /// test) says it misses.
+    /// The shared binning loop: group `g` (in submission order) lists `(index, bounds)`;
+    /// groups are binned in parallel and merged in group order, so lists stay in submission
+    /// order. An item over more than [`TRIVIAL_REJECT_TILES`] tiles is left out of the tiles
+    /// whose pixels within its bounds `reject(index)` (if it gives a test) says it misses.
     pub(crate) fn build_groups<I>(
-        &mut self,
         groups: usize,
         group: impl Fn(usize) -> I + Sync,
         reject: impl Fn(u32) -> Option<raster::TrivialReject> + Sync,
         width: u32,
         height: u32,
-    ) where
+    ) -> Self
+    where
         I: Iterator<Item = (u32, Option<PixelRect>)>,
     {
         let grid = TileGrid::of_size(width, height);
         let tiles = grid.tiles as usize;
-        // Groups beyond this call's are kept (with their memory) for a later one.
-        if self.partial.len() < groups {
-            self.partial.resize_with(groups, Vec::new);
-        }
-        let partial = &mut self.partial[..groups];
-        partial.par_iter_mut().enumerate().for_each(|(g, lists)| {
-            lists.resize_with(tiles, Vec::new);
-            lists.iter_mut().for_each(Vec::clear);
-            for (index, r) in group(g) {
-                let Some(r) = r.and_then(|r| r.intersect(&grid.screen)) else { continue };
-                let spans_many = grid.tiles_over(&r) > TRIVIAL_REJECT_TILES;
-                match spans_many.then(|| reject(index)).flatten() {
-                    None => grid.each_tile(&r, |t| lists[t as usize].push(index)),
-                    Some(reject) => grid.each_tile(&r, |t| {
-                        let pixels = grid.tile_rect(t).intersect(&r);
-                        if pixels.is_some_and(|p| !reject.misses(&p)) {
-                            lists[t as usize].push(index);
-                        }
-                    }),
+        let partial: Vec<Vec<Vec<u32>>> = (0..groups)
+            .into_par_iter()
+            .map(|g| {
+                let mut lists = vec![Vec::new(); tiles];
+                for (index, r) in group(g) {
+                    let Some(r) = r.and_then(|r| r.intersect(&grid.screen)) else { continue };
+                    let spans_many = grid.tiles_over(&r) > TRIVIAL_REJECT_TILES;
+                    match spans_many.then(|| reject(index)).flatten() {
+                        None => grid.each_tile(&r, |t| lists[t as usize].push(index)),
+                        Some(reject) => grid.each_tile(&r, |t| {
+                            let pixels = grid.tile_rect(t).intersect(&r);
+                            if pixels.is_some_and(|p| !reject.misses(&p)) {
+                                lists[t as usize].push(index);
+                            }
+                        }),
+                    }
                 }
-            }
-        });
-        let partial = &*partial;
-        self.lists.resize_with(tiles, Vec::new);
-        self.lists.par_iter_mut().enumerate().for_each(|(t, merged)| {
-            merged.clear();
-            merged.reserve(partial.iter().map(|p| p[t].len()).sum());
-            for p in partial {
-                merged.extend_from_slice(&p[t]);
-            }
-        });
-        self.tiles_x = grid.tiles_x as usize;
+                lists
+            })
+            .collect();
+        let lists = (0..tiles)
+            .into_par_iter()
+            .map(|t| {
+                let mut merged = Vec::with_capacity(partial.iter().map(|p| p[t].len()).sum());
+                for p in &partial {
+                    merged.extend_from_slice(&p[t]);
+                }
+                merged
+            })
+            .collect();
+        Self { tiles_x: grid.tiles_x as usize, lists }
     }
 
     /// Bins items that already know their tile: `(index, tile)` in submission order, tiles
@@ -654,7 +637,7 @@ impl Bins {
         for (index, tile) in items {
             lists[tile as usize].push(index);
         }
-        Self { tiles_x: grid.tiles_x as usize, lists, partial: Vec::new() }
+        Self { tiles_x: grid.tiles_x as usize, lists }
     }
 
     /// Runs `draw(band, tile, list)` for every tile with a non-empty bin, `tile` clipped to
@@ -988,7 +971,7 @@ pub(crate) fn coverage_algorithm(setup: &TriangleSetup) -> Algorithm {
 /// (skipped blocks are not shaded, so shading cannot count them).
 pub fn draw_binned<S, K, F>(
     target: &mut Target,
-    prepared: &mut PreparedBatch<S>,
+    prepared: &PreparedBatch<S>,
     depth_test: DepthTest,
     kernel: K,
     fragments: F,
@@ -1006,15 +989,14 @@ where
     let kind = Eight::of(eight, samples);
     debug_assert_eq!(coverage.multisampled, samples.count() > 1, "prepared for other samples");
     let bin_target = BinTarget::of(target, depth_test);
-    let wide_coverage = match prepared.binned {
-        Some((wide, binned_for)) if binned_for == bin_target => wide,
+    let computed;
+    let (bins, wide_coverage) = match &prepared.binned {
+        Some((bins, wide, binned_for)) if *binned_for == bin_target => (bins, *wide),
         _ => {
-            prepared.bin(bin_target);
-            prepared.binned.map_or(0, |(wide, _)| wide)
+            computed = bin_batch(prepared, bin_target);
+            (&computed.0, computed.1)
         }
     };
-    let prepared = &*prepared;
-    let bins = &prepared.bins;
     let shaded = bins.draw(target, clip, |band, tile, list| {
         let mut covered = 0;
         let mut tile_depth = TileDepth::new(depth_test, samples);
@@ -1110,6 +1092,22 @@ impl BinTarget {
     }
 }
 
+/// Bins a prepared batch for `to`, counting the samples of the wide triangles (whose
+/// fragments hierarchical depth may leave unshaded) as it goes.
+fn bin_batch<S: Record>(prepared: &PreparedBatch<S>, to: BinTarget) -> (Bins, u64) {
+    let BinTarget { width, height, samples, .. } = to;
+    // Counted while binning (a pass of its own was a twentieth of a frame of small
+    // triangles, waiting on memory).
+    let wide_coverage = AtomicU64::new(0);
+    let bins = Bins::of_batch(prepared, width, height, samples.reach(), |i, r| {
+        if to.wide(r) {
+            let setup = prepared.get(i).setup();
+            wide_coverage.fetch_add(coverage_count(&setup, r, samples), Ordering::Relaxed);
+        }
+    });
+    (bins, wide_coverage.into_inner())
+}
+
 impl<S: Record> PreparedBatch<S> {
     /// Bins the batch for `to` as part of preparing it, so that [`draw_binned`] finds its bins
     /// made (it bins a batch that was not binned, or was binned for another target, itself).
@@ -1117,22 +1115,10 @@ impl<S: Record> PreparedBatch<S> {
     /// coherent mesh's batch covers a strip of bands that few threads draw, while the side
     /// preparing has time to spare (grid on two threads: 78 -> 72 ms). The first batch is
     /// better left to [`draw_binned`]: nothing is drawn beside its preparation.
-    ///
-    /// The samples of the wide triangles (whose fragments hierarchical depth may leave
-    /// unshaded) are counted as they are binned (a pass of its own was a twentieth of a
-    /// frame of small triangles, waiting on memory).
     pub fn bin(&mut self, to: BinTarget) {
-        let BinTarget { width, height, samples, .. } = to;
-        let wide_coverage = AtomicU64::new(0);
-        let mut bins = std::mem::take(&mut self.bins);
-        bins.bin_batch(self, (width, height), samples.reach(), |i, r| {
-            if to.wide(r) {
-                let setup = self.get(i).setup();
-                wide_coverage.fetch_add(coverage_count(&setup, r, samples), Ordering::Relaxed);
-            }
-        });
-        self.bins = bins;
-        self.binned = Some((wide_coverage.into_inner(), to));
+        self.binned = None;
+        let (bins, wide) = bin_batch(self, to);
+        self.binned = Some((bins, wide, to));
     }
 }
 
@@ -1265,9 +1251,6 @@ fn coverage_count(setup: &TriangleSetup, rect: &PixelRect, samples: SampleCount)
 mod tests {
     use std::sync::Mutex;
 
-    use rand::rngs::SmallRng;
-    use rand::{Rng, SeedableRng};
-
     use super::*;
 
     /// Batches of records up to 64 bytes (window records, zero-sized ones) take [`BATCH`]
@@ -1288,43 +1271,6 @@ mod tests {
     }
 
     /// `pipelined` hands each draw the batch prepared for it, draws every batch once and in
-    /// Bins built again in the memory of earlier bins list exactly what new bins list: every
-    /// earlier entry is gone, whatever the earlier group count, tile count or lengths (more
-    /// groups, fewer, a larger target, a smaller one).
-    #[test]
-    fn bins_built_again_forget_what_they_held() {
-        let mut rng = SmallRng::seed_from_u64(9);
-        let mut reused = Bins::default();
-        for (n, groups, (w, h)) in [
-            (3000usize, 8usize, (600u32, 300u32)),
-            (500, 3, (300, 200)),
-            (4000, 11, (1000, 700)),
-            (0, 1, (64, 64)),
-        ] {
-            let bounds: Vec<Option<PixelRect>> = (0..n)
-                .map(|_| {
-                    let (x0, y0) =
-                        (rng.random_range(-50..w as i32), rng.random_range(-50..h as i32));
-                    let (dx, dy) = (rng.random_range(0..300), rng.random_range(0..300));
-                    rng.random_bool(0.9).then_some(PixelRect { x0, y0, x1: x0 + dx, y1: y0 + dy })
-                })
-                .collect();
-            let per = n.div_ceil(groups).max(1);
-            let group = |g: usize| {
-                let bounds = &bounds;
-                (g * per..((g + 1) * per).min(n)).map(move |k| (k as u32, bounds[k]))
-            };
-            let mut fresh = Bins::default();
-            fresh.build_groups(groups, group, |_| None, w, h);
-            reused.build_groups(groups, group, |_| None, w, h);
-            assert_eq!(fresh.tiles_x, reused.tiles_x);
-            assert_eq!(fresh.lists, reused.lists, "{n} items in {groups} groups");
-            assert_eq!(fresh.lists, Bins::build(&bounds, w, h).lists, "{n} items");
-            let entries: usize = fresh.lists.iter().map(Vec::len).sum();
-            assert!(n == 0 || entries >= n * 8 / 10, "most items binned: {entries} of {n}");
-        }
-    }
-
     /// order, whatever the count (none, one, several) and the thread count.
     #[test]
     fn pipelined_draws_every_batch_in_order() {
@@ -1421,8 +1367,7 @@ mod binned_tests {
             let coverage = Coverage { clip: target.rect(), multisampled: samples.count() > 1 };
             let mut batch = prepared_batch(&triangles, coverage);
             batch.bin(BinTarget::of(&target, DepthTest::Less));
-            assert!(batch.binned.is_some(), "binned");
-            let bins = &batch.bins;
+            let bins = &batch.binned.as_ref().unwrap().0;
             let grid = TileGrid::of_size(w, h);
             // Tiles a sliver is binned to without covering a sample there: only where the
             // trivial reject is conservative (its triangle's corners near the tile's).
@@ -1479,13 +1424,13 @@ mod binned_tests {
             if let Some(other) = bin_for {
                 batch.bin(BinTarget::of(other, DepthTest::Less));
                 // Bins stored, for `other`: reused exactly when it is this target.
-                let stored = batch.binned.map(|b| b.1);
+                let stored = batch.binned.as_ref().map(|b| b.2);
                 assert_eq!(stored, Some(BinTarget::of(other, DepthTest::Less)));
             }
             let level = SimdLevel::detect();
             let fragments = draw_binned(
                 &mut target,
-                &mut batch,
+                &batch,
                 DepthTest::Less,
                 |c| c.span_color().map(|s| (level, s)),
                 |c: &TriangleColor, _, _, e1, e2, _| {

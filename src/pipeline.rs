@@ -496,7 +496,7 @@ impl Pipeline {
                         out.bin(bin_target);
                     }
                 };
-                let draw = |_, prepared: &mut bin::PreparedBatch<_>| {
+                let draw = |_, prepared: &bin::PreparedBatch<_>| {
                     fragments += bin::draw_binned(
                         target,
                         prepared,

@@ -321,7 +321,7 @@ fn draw_tiled<C: WindowColor>(
             prepared.bin(bin_target);
         }
     };
-    let draw = |_, prepared: &mut bin::PreparedBatch<C::Record>| {
+    let draw = |_, prepared: &bin::PreparedBatch<C::Record>| {
         if clip.is_some() {
             let test = options.depth_test;
             fragments +=
