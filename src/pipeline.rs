@@ -308,7 +308,7 @@ impl Pipeline {
         // Buffers a previous draw call on this target left: refilled, not reallocated (fresh
         // vectors had their pages faulted in and zeroed by the kernel every frame).
         let mut scratch: Scratch<VS::Varyings> = target.take_scratch();
-        let Scratch { shaded, window, prepared } = &mut scratch;
+        let Scratch { shaded, window, rows, prepared } = &mut scratch;
         // The tiled backend's corner tests read a window of corners, written in the same pass
         // as the vertices: a pass of its own read every shaded vertex back (a fortieth of a
         // frame of a grid mesh of small triangles).
@@ -417,6 +417,11 @@ impl Pipeline {
                 };
                 target.set_schedule(Some(plan.schedule()));
                 if let band::Plan::Banded(bands) = plan {
+                    // Where each chunk's triangles can reach, from their vertices' rows.
+                    vertex_rows(window, rows);
+                    let rows = &*rows;
+                    let chunk_rows =
+                        |range: std::ops::Range<usize>| chunk_rows(level, &triangles[range], rows);
                     let (counts, covered) = bands.draw(
                         target,
                         front.coverage,
@@ -429,6 +434,7 @@ impl Pipeline {
                             let source = (window.as_slice(), 0, |i: u32| &shaded[i as usize]);
                             front.prepare_range(triangles, range, 0, source, level, sink);
                         },
+                        chunk_rows,
                     );
                     stats = stats.merged(&counts);
                     stats.fragments += covered;
@@ -534,13 +540,21 @@ struct Scratch<V> {
     shaded: Vec<ShadedVertex<V>>,
     /// The corners the corner tests read (all a small mesh's, or a batch's index range).
     window: Vec<Corner>,
+    /// For the banded schedule, the rows of each block of a small mesh's vertices
+    /// ([`vertex_rows`]).
+    rows: Vec<Option<[i32; 2]>>,
     /// The tiled backend's set-up triangles: one batch being drawn, the next being prepared.
     prepared: bin::PreparedPair<Prepared<TriangleData<V>>>,
 }
 
 impl<V> Default for Scratch<V> {
     fn default() -> Self {
-        Self { shaded: Vec::new(), window: Vec::new(), prepared: Default::default() }
+        Self {
+            shaded: Vec::new(),
+            window: Vec::new(),
+            rows: Vec::new(),
+            prepared: Default::default(),
+        }
     }
 }
 
@@ -1055,6 +1069,56 @@ impl FrontEnd {
     }
 }
 
+/// Vertices per block of [`vertex_rows`].
+const ROW_BLOCK: usize = 256;
+
+/// The most blocks of vertices a chunk's indices may span for [`chunk_rows`] to bound its
+/// rows: a mesh in spatial order (the benchmark grid's rows of 1,001 vertices) spans a few;
+/// a scattered one is not worth the blocks' reading.
+const CHUNK_ROW_BLOCKS: usize = 8;
+
+/// The snapped `y` range (fixed point) of each block of [`ROW_BLOCK`] corners of `window`,
+/// or `None` where one is [`OUTSIDE`] (its triangles may be clipped, and a clipped piece can
+/// reach rows its corners do not), into `out`, in parallel.
+fn vertex_rows(window: &[Corner], out: &mut Vec<Option<[i32; 2]>>) {
+    window
+        .par_chunks(ROW_BLOCK)
+        .map(|block| {
+            block.iter().try_fold([i32::MAX, i32::MIN], |[lo, hi], c| {
+                (*c != OUTSIDE).then(|| [lo.min(c[1]), hi.max(c[1])])
+            })
+        })
+        .collect_into_vec(out);
+}
+
+/// The pixel rows the pieces of `triangles` can reach, from `rows` (their vertices' blocks,
+/// [`vertex_rows`]): `None` when a vertex may lie outside the clip volume or the indices span
+/// more than [`CHUNK_ROW_BLOCKS`] blocks. A piece of a triangle whose vertices are all inside
+/// lies within their snapped box, and a sample of pixel row `p` lies within half a pixel of
+/// `256 p + 128`: rows `(y0 >> 8) - 1` to `(y1 >> 8) + 1` hold every sample between `y0` and
+/// `y1`.
+fn chunk_rows(
+    level: SimdLevel,
+    triangles: &[[u32; 3]],
+    rows: &[Option<[i32; 2]>],
+) -> Option<[i32; 2]> {
+    // Two indices far apart already show the span too wide (most chunks of a scattered
+    // mesh), without reading the rest.
+    let (first, last) = (triangles.first()?[0], triangles.last()?[0]);
+    if first.abs_diff(last) as usize >= CHUNK_ROW_BLOCKS * ROW_BLOCK {
+        return None;
+    }
+    let (lo, hi) = simd::index_range(level, triangles.as_flattened());
+    let (first, last) = (lo as usize / ROW_BLOCK, hi as usize / ROW_BLOCK);
+    if lo > hi || last - first >= CHUNK_ROW_BLOCKS {
+        return None;
+    }
+    let [y0, y1] = rows.get(first..=last)?.iter().try_fold([i32::MAX, i32::MIN], |acc, r| {
+        r.map(|[lo, hi]| [acc[0].min(lo), acc[1].max(hi)])
+    })?;
+    Some([(y0 >> 8) - 1, (y1 >> 8) + 1])
+}
+
 /// The smallest and largest index of a batch of triangles, in parallel (a serial pass over
 /// the indices was a tenth of a dense mesh's frame on two threads).
 fn index_range(level: SimdLevel, batch: &[[u32; 3]]) -> (u32, u32) {
@@ -1186,6 +1250,63 @@ mod tests {
     use super::*;
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
+
+    /// `chunk_rows` bounds the rows of every pixel any sample of a chunk's triangles may
+    /// cover (`bin::coverage_bounds`, multisampled: the widest reach), is `None` when a
+    /// vertex of the blocks it reads lies outside the clip volume or the indices spread over
+    /// too many blocks, and otherwise bounds chunks of nearby vertices (random corners, some
+    /// outside; chunks of triangles on nearby indices, some spread out).
+    #[test]
+    fn chunk_rows_hold_every_sample_their_triangles_reach() {
+        let mut rng = SmallRng::seed_from_u64(12);
+        let everywhere = PixelRect { x0: -10_000, y0: -10_000, x1: 10_000, y1: 10_000 };
+        let (mut bounded, mut unknown) = (0, 0);
+        for round in 0..200 {
+            let n = rng.random_range(3..12 * ROW_BLOCK);
+            let outside = if round % 4 == 0 { 0.01 } else { 0.0 };
+            // Rows within a few pixels of one another, at any sub-pixel position.
+            let base = rng.random_range(-2000..2000) * 256;
+            let window: Vec<Corner> = (0..n)
+                .map(|_| {
+                    let c = [rng.random_range(-5000..5000), base + rng.random_range(0..2048)];
+                    if rng.random_bool(outside) { OUTSIDE } else { c }
+                })
+                .collect();
+            let mut rows = Vec::new();
+            vertex_rows(&window, &mut rows);
+            let spread = if round % 3 == 0 { n } else { 40.min(n) };
+            let start = rng.random_range(0..n - spread.min(n - 1));
+            let chunk: Vec<[u32; 3]> = (0..rng.random_range(1..300))
+                .map(|_| std::array::from_fn(|_| (start + rng.random_range(0..spread)) as u32))
+                .collect();
+            let indices = chunk.as_flattened();
+            let (lo, hi) = (*indices.iter().min().unwrap(), *indices.iter().max().unwrap());
+            let blocks = lo as usize / ROW_BLOCK..=hi as usize / ROW_BLOCK;
+            let any_outside = window
+                [blocks.start() * ROW_BLOCK..((blocks.end() + 1) * ROW_BLOCK).min(n)]
+                .contains(&OUTSIDE);
+            for level in [SimdLevel::Scalar, SimdLevel::Avx2, SimdLevel::Avx512] {
+                let r = chunk_rows(level, &chunk, &rows);
+                if any_outside || blocks.end() - blocks.start() >= CHUNK_ROW_BLOCKS {
+                    assert_eq!(r, None, "round {round}");
+                    unknown += 1;
+                    continue;
+                }
+                let [r0, r1] = r.expect("nearby vertices inside: bounded");
+                bounded += 1;
+                for t in &chunk {
+                    let xy = t.map(|i| window[i as usize].map(i64::from));
+                    let Ok(setup) = TriangleSetup::from_snapped(xy, CullMode::None) else {
+                        continue;
+                    };
+                    if let Some(b) = bin::coverage_bounds(&setup, true, &everywhere) {
+                        assert!(r0 <= b.y0 && b.y1 <= r1, "round {round}: {b:?} in {r0}..={r1}");
+                    }
+                }
+            }
+        }
+        assert!(bounded > 100 && unknown > 20, "{bounded} bounded, {unknown} unknown");
+    }
 
     /// The boxes `band::plan` samples from the corners: a grid mesh of two-pixel triangles
     /// (as the vertex stage snaps them) is banded; a culled or degenerate triangle has no

@@ -303,6 +303,7 @@ fn draw_tiled<C: WindowColor>(
             |range, sink: &mut bin::Sink<'_, C::Record>| {
                 set_up_window::<C>(triangles, 0, range, options, level, sink);
             },
+            |_| None,
         );
         stats = stats.merged(&counts);
         stats.fragments += fragments;

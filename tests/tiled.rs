@@ -1007,6 +1007,56 @@ fn bands_on_few_rows_match_the_reference() {
     }
 }
 
+/// Meshes in spatial order drawn in bands, which skip the chunks of triangles that cannot
+/// reach their rows (and each chunk counted by one band): the reference's buffers and counts
+/// at 1x and 4x, on 2, 3 and 7 threads, for a grid in row order and in reverse row order,
+/// with uneven depths, every other row of quads turned back-facing (culled), and part of a
+/// row behind the eye (clipped: chunks with a vertex outside are never skipped).
+#[test]
+fn bands_skipping_chunks_out_of_reach_match_the_reference() {
+    let (positions, triangles) = grid_mesh(90, 60, |x, y| {
+        let (cx, cy) = (2.2 * x - 1.1, 2.1 * y - 1.05);
+        if y < 0.1 && x < 0.3 {
+            // Behind the eye along part of the top edge: the triangles there are clipped, and
+            // their pieces' projections reach rows far from the vertices inside.
+            return Vec4::new(cx * 0.4, cy * 0.4, -0.1, -0.4);
+        }
+        Vec4::new(cx, cy, 0.2 + 0.6 * (x * 7.0 + y * 3.0).sin().abs(), 1.0)
+    });
+    // Every other row of quads (90 quads, 180 triangles a row) wound the other way.
+    let turned: Vec<[u32; 3]> = triangles
+        .iter()
+        .enumerate()
+        .map(|(k, &[a, b, c])| if (k / 180) % 2 == 1 { [a, c, b] } else { [a, b, c] })
+        .collect();
+    let reversed: Vec<[u32; 3]> = turned.iter().rev().copied().collect();
+    let vs = |p: &Vec4| (*p, p.z);
+    let fs = |f: &Fragment<f32>| Some(Vec4::new(f.varyings, 0.5, 0.25, 1.0));
+    for (tris, order) in [(&turned, "rows"), (&reversed, "reversed rows")] {
+        for samples in [SampleCount::X1, SampleCount::X4] {
+            let fresh = || Target::multisampled(150, 101, samples).unwrap().with_ids();
+            let fresh = || fresh().with_overdraw();
+            let pipeline = Pipeline::default().with_cull(FaceCull::Back);
+            let mut reference = fresh();
+            let ref_stats = pipeline
+                .with_backend(Backend::Reference)
+                .draw(&mut reference, &vs, &fs, &positions, tris)
+                .unwrap();
+            assert!(ref_stats.culled > 0 && ref_stats.rasterized > 0, "{ref_stats:?}");
+            for threads in [2, 3, 7] {
+                let mut banded = fresh();
+                let pipeline = pipeline.with_schedule(Schedule::Banded);
+                let stats = pool(threads)
+                    .install(|| pipeline.draw(&mut banded, &vs, &fs, &positions, tris))
+                    .unwrap();
+                let what = format!("{order}, {samples:?}, {threads} threads");
+                assert_eq!(stats, ref_stats, "{what}");
+                assert_same(&reference, &banded, &what);
+            }
+        }
+    }
+}
+
 /// `Target::last_schedule` says what the tiled backend did: `Auto` bands a grid mesh of small
 /// triangles in spatial order and bins the same triangles shuffled (as `band::plan` decides),
 /// forced schedules are reported as given, and the reference backend and a failed draw call
