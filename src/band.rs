@@ -26,7 +26,7 @@
 //! front ends test zero area and culling before the rectangle, and a triangle outside the
 //! rectangle counts as set up and empty, as one inside counts as set up and drawn
 //! ([`DrawStats::rasterized`]). So any band counts a chunk as any other would, and each chunk
-//! is counted by one band, its owner ([`chunk_take`]: the first band it can reach, or the
+//! is counted by one band, its owner (`chunk_take`: the first band it can reach, or the
 //! first band when that is not known), which never skips it; the draw call's counts are the
 //! sum of the bands' (fragments included: each band counts its own).
 
@@ -143,8 +143,9 @@ pub struct Bands {
 /// covering part of the target still gives each thread a like share.
 ///
 /// The thread count only sets the number of bands: every band repeats the front end's first
-/// tests, which in the 3D pipeline (the corner tests, a few nanoseconds a triangle) is small
-/// beside what bands save on two threads, the only count measured here.
+/// tests on the chunks it cannot rule out (the corner tests, a few nanoseconds a triangle;
+/// [`Bands::draw`] skips a mesh's chunks whose rows miss the band), which is small beside
+/// what bands save on two threads, the only count measured here.
 ///
 /// The samples are taken in parallel on the current rayon pool, so `bounds` is called from
 /// its threads (hence `Sync`).
