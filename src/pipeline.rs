@@ -261,18 +261,28 @@ impl Pipeline {
         FS: FragmentShader<VS::Varyings>,
     {
         target.set_schedule(None);
-        // Each batch's index range, in parallel: the largest index validates them all (a serial
-        // search was a twentieth of a dense mesh's frame), the ranges size the batches' vertex
-        // windows below; the first bad triangle is searched for only when there is one.
+        // Index ranges, in parallel: the largest index validates them all (a serial search was
+        // a twentieth of a dense mesh's frame); the first bad triangle is searched for only
+        // when there is one. A large mesh's are per batch (they size the batches' vertex
+        // windows below), a small one's per chunk of `bin::CHUNK` triangles (bands read them
+        // to skip chunks, `chunk_rows`): one pass over the indices either way.
         // Small meshes: every vertex shaded once, up front. Large ones: per batch of
         // triangles (below), so memory stays bounded whatever the mesh size.
         let whole = vertices.len() <= VERTEX_CACHE;
         let level = self.simd.unwrap_or_else(SimdLevel::detect);
         // The batches `bin::pipelined` will cut (given this length, it cuts the same).
         let batch_len = bin::even_batch_len(triangles.len(), batch::<VS::Varyings>());
-        let index_ranges: Vec<(u32, u32)> =
-            triangles.chunks(batch_len).map(|b| index_range(level, b)).collect();
-        let largest = index_ranges.iter().map(|r| r.1).max().unwrap_or(0);
+        let mut index_ranges: Vec<(u32, u32)> = Vec::new();
+        let mut chunk_ranges: Vec<(u32, u32)> = Vec::new();
+        if whole {
+            let chunks = triangles.par_chunks(bin::CHUNK);
+            chunks
+                .map(|c| simd::index_range(level, c.as_flattened()))
+                .collect_into_vec(&mut chunk_ranges);
+        } else {
+            index_ranges = triangles.chunks(batch_len).map(|b| index_range(level, b)).collect();
+        }
+        let largest = index_ranges.iter().chain(&chunk_ranges).map(|r| r.1).max().unwrap_or(0);
         if largest as usize >= vertices.len()
             && let Some((t, &bad)) = triangles
                 .iter()
@@ -420,8 +430,9 @@ impl Pipeline {
                     // Where each chunk's triangles can reach, from their vertices' rows.
                     vertex_rows(window, rows);
                     let rows = &*rows;
-                    let chunk_rows =
-                        |range: std::ops::Range<usize>| chunk_rows(level, &triangles[range], rows);
+                    let chunk_rows = |range: std::ops::Range<usize>| {
+                        chunk_rows(*chunk_ranges.get(range.start / bin::CHUNK)?, rows)
+                    };
                     let (counts, covered) = bands.draw(
                         target,
                         front.coverage,
@@ -447,10 +458,11 @@ impl Pipeline {
                     // Vertices of a large mesh: the batch's index range shaded into a scratch
                     // window when it is compact (meshes are mostly stored with locality),
                     // otherwise each corner shaded where it is used.
-                    let (lo, hi) = index_ranges[b];
+                    // (A small mesh's vertices were all shaded up front.)
+                    let (lo, hi) = index_ranges.get(b).copied().unwrap_or((0, u32::MAX));
                     // A window of at most VERTEX_CACHE vertices: a batch (at most 512k
                     // triangles) of a mesh stored with locality spans fewer.
-                    let windowed = !whole && (hi - lo) as usize <= VERTEX_CACHE;
+                    let windowed = !whole && hi.wrapping_sub(lo) as usize <= VERTEX_CACHE;
                     // Only positions: most triangles of a large mesh stop at the corner
                     // tests, and the few that go on shade their three vertices again.
                     if windowed {
@@ -1091,24 +1103,13 @@ fn vertex_rows(window: &[Corner], out: &mut Vec<Option<[i32; 2]>>) {
         .collect_into_vec(out);
 }
 
-/// The pixel rows the pieces of `triangles` can reach, from `rows` (their vertices' blocks,
-/// [`vertex_rows`]): `None` when a vertex may lie outside the clip volume or the indices span
-/// more than [`CHUNK_ROW_BLOCKS`] blocks. A piece of a triangle whose vertices are all inside
+/// The pixel rows the pieces of triangles whose indices lie in `lo..=hi` can reach, from
+/// `rows` (their vertices' blocks, [`vertex_rows`]): `None` when a vertex may lie outside the
+/// clip volume or the indices span more than [`CHUNK_ROW_BLOCKS`] blocks. A piece of a triangle whose vertices are all inside
 /// lies within their snapped box, and a sample of pixel row `p` lies within half a pixel of
 /// `256 p + 128`: rows `(y0 >> 8) - 1` to `(y1 >> 8) + 1` hold every sample between `y0` and
 /// `y1`.
-fn chunk_rows(
-    level: SimdLevel,
-    triangles: &[[u32; 3]],
-    rows: &[Option<[i32; 2]>],
-) -> Option<[i32; 2]> {
-    // Two indices far apart already show the span too wide (most chunks of a scattered
-    // mesh), without reading the rest.
-    let (first, last) = (triangles.first()?[0], triangles.last()?[0]);
-    if first.abs_diff(last) as usize >= CHUNK_ROW_BLOCKS * ROW_BLOCK {
-        return None;
-    }
-    let (lo, hi) = simd::index_range(level, triangles.as_flattened());
+fn chunk_rows((lo, hi): (u32, u32), rows: &[Option<[i32; 2]>]) -> Option<[i32; 2]> {
     let (first, last) = (lo as usize / ROW_BLOCK, hi as usize / ROW_BLOCK);
     if lo > hi || last - first >= CHUNK_ROW_BLOCKS {
         return None;
@@ -1261,7 +1262,7 @@ mod tests {
         let mut rng = SmallRng::seed_from_u64(12);
         let everywhere = PixelRect { x0: -10_000, y0: -10_000, x1: 10_000, y1: 10_000 };
         let (mut bounded, mut unknown) = (0, 0);
-        for round in 0..200 {
+        for round in 0..400 {
             let n = rng.random_range(3..12 * ROW_BLOCK);
             let outside = if round % 4 == 0 { 0.01 } else { 0.0 };
             // Rows within a few pixels of one another, at any sub-pixel position.
@@ -1285,23 +1286,19 @@ mod tests {
             let any_outside = window
                 [blocks.start() * ROW_BLOCK..((blocks.end() + 1) * ROW_BLOCK).min(n)]
                 .contains(&OUTSIDE);
-            for level in [SimdLevel::Scalar, SimdLevel::Avx2, SimdLevel::Avx512] {
-                let r = chunk_rows(level, &chunk, &rows);
-                if any_outside || blocks.end() - blocks.start() >= CHUNK_ROW_BLOCKS {
-                    assert_eq!(r, None, "round {round}");
-                    unknown += 1;
-                    continue;
-                }
-                let [r0, r1] = r.expect("nearby vertices inside: bounded");
-                bounded += 1;
-                for t in &chunk {
-                    let xy = t.map(|i| window[i as usize].map(i64::from));
-                    let Ok(setup) = TriangleSetup::from_snapped(xy, CullMode::None) else {
-                        continue;
-                    };
-                    if let Some(b) = bin::coverage_bounds(&setup, true, &everywhere) {
-                        assert!(r0 <= b.y0 && b.y1 <= r1, "round {round}: {b:?} in {r0}..={r1}");
-                    }
+            let r = chunk_rows((lo, hi), &rows);
+            if any_outside || blocks.end() - blocks.start() >= CHUNK_ROW_BLOCKS {
+                assert_eq!(r, None, "round {round}");
+                unknown += 1;
+                continue;
+            }
+            let [r0, r1] = r.expect("nearby vertices inside: bounded");
+            bounded += 1;
+            for t in &chunk {
+                let xy = t.map(|i| window[i as usize].map(i64::from));
+                let Ok(setup) = TriangleSetup::from_snapped(xy, CullMode::None) else { continue };
+                if let Some(b) = bin::coverage_bounds(&setup, true, &everywhere) {
+                    assert!(r0 <= b.y0 && b.y1 <= r1, "round {round}: {b:?} in {r0}..={r1}");
                 }
             }
         }
