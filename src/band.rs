@@ -448,7 +448,7 @@ mod tests {
         use rand::{Rng, SeedableRng, rngs::SmallRng};
         let mut rng = SmallRng::seed_from_u64(5);
         for round in 0..2000 {
-            let height = rng.random_range(2..200);
+            let height = rng.random_range(1..200);
             let len = rng.random_range(1..300);
             let spread = if round % 2 == 0 { height } else { rng.random_range(1..=height.min(4)) };
             let mut rows: Vec<(i32, i64)> = (0..len)

@@ -427,8 +427,13 @@ impl Pipeline {
                 };
                 target.set_schedule(Some(plan.schedule()));
                 if let band::Plan::Banded(bands) = plan {
-                    // Where each chunk's triangles can reach, from their vertices' rows.
-                    vertex_rows(window, rows);
+                    // Where each chunk's triangles can reach, from their vertices' rows (one
+                    // band skips nothing: no rows, every chunk unbounded).
+                    if threads > 1 {
+                        vertex_rows(window, rows);
+                    } else {
+                        rows.clear();
+                    }
                     let rows = &*rows;
                     let chunk_rows = |range: std::ops::Range<usize>| {
                         chunk_rows(*chunk_ranges.get(range.start / bin::CHUNK)?, rows)
@@ -1105,10 +1110,10 @@ fn vertex_rows(window: &[Corner], out: &mut Vec<Option<[i32; 2]>>) {
 
 /// The pixel rows the pieces of triangles whose indices lie in `lo..=hi` can reach, from
 /// `rows` (their vertices' blocks, [`vertex_rows`]): `None` when a vertex may lie outside the
-/// clip volume or the indices span more than [`CHUNK_ROW_BLOCKS`] blocks. A piece of a triangle whose vertices are all inside
-/// lies within their snapped box, and a sample of pixel row `p` lies within half a pixel of
-/// `256 p + 128`: rows `(y0 >> 8) - 1` to `(y1 >> 8) + 1` hold every sample between `y0` and
-/// `y1`.
+/// clip volume or the indices span more than [`CHUNK_ROW_BLOCKS`] blocks. A piece of a
+/// triangle whose vertices are all inside lies within their snapped box, and a sample of
+/// pixel row `p` lies within half a pixel of `256 p + 128`: rows `(y0 >> 8) - 1` to
+/// `(y1 >> 8) + 1` hold every sample between `y0` and `y1`.
 fn chunk_rows((lo, hi): (u32, u32), rows: &[Option<[i32; 2]>]) -> Option<[i32; 2]> {
     let (first, last) = (lo as usize / ROW_BLOCK, hi as usize / ROW_BLOCK);
     if lo > hi || last - first >= CHUNK_ROW_BLOCKS {
