@@ -436,7 +436,11 @@ impl Pipeline {
                     }
                     let rows = &*rows;
                     let chunk_rows = |range: std::ops::Range<usize>| {
-                        chunk_rows(*chunk_ranges.get(range.start / bin::CHUNK)?, rows)
+                        // The chunks the index ranges were found for (`Bands::draw` cuts
+                        // the same); any other range is left unbounded.
+                        let c = range.start / bin::CHUNK;
+                        let same = range.start % bin::CHUNK == 0 && range.len() <= bin::CHUNK;
+                        chunk_rows(*chunk_ranges.get(c).filter(|_| same)?, rows)
                     };
                     let (counts, covered) = bands.draw(
                         target,
