@@ -439,7 +439,8 @@ impl Pipeline {
                         // The chunks the index ranges were found for (`Bands::draw` cuts
                         // the same); any other range is left unbounded.
                         let c = range.start / bin::CHUNK;
-                        let same = range.start % bin::CHUNK == 0 && range.len() <= bin::CHUNK;
+                        let same =
+                            range.start.is_multiple_of(bin::CHUNK) && range.len() <= bin::CHUNK;
                         chunk_rows(*chunk_ranges.get(c).filter(|_| same)?, rows)
                     };
                     let (counts, covered) = bands.draw(
