@@ -435,13 +435,10 @@ impl Pipeline {
                         rows.clear();
                     }
                     let rows = &*rows;
+                    // `Bands::draw` cuts the chunks the index ranges were found for.
                     let chunk_rows = |range: std::ops::Range<usize>| {
-                        // The chunks the index ranges were found for (`Bands::draw` cuts
-                        // the same); any other range is left unbounded.
-                        let c = range.start / bin::CHUNK;
-                        let same =
-                            range.start.is_multiple_of(bin::CHUNK) && range.len() <= bin::CHUNK;
-                        chunk_rows(*chunk_ranges.get(c).filter(|_| same)?, rows)
+                        debug_assert!(range.start.is_multiple_of(bin::CHUNK), "a chunk's start");
+                        chunk_rows(*chunk_ranges.get(range.start / bin::CHUNK)?, rows)
                     };
                     let (counts, covered) = bands.draw(
                         target,
