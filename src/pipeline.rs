@@ -464,15 +464,17 @@ impl Pipeline {
                 let prepare = |b: usize, first, batch: &[_], out: &mut bin::PreparedBatch<_>| {
                     // Vertices of a large mesh: the batch's index range shaded into a scratch
                     // window when it is compact (meshes are mostly stored with locality),
-                    // otherwise each corner shaded where it is used.
-                    // (A small mesh's vertices were all shaded up front.)
-                    let (lo, hi) = index_ranges.get(b).copied().unwrap_or((0, u32::MAX));
-                    // A window of at most VERTEX_CACHE vertices: a batch (at most 512k
-                    // triangles) of a mesh stored with locality spans fewer.
-                    let windowed = !whole && hi.wrapping_sub(lo) as usize <= VERTEX_CACHE;
+                    // otherwise each corner shaded where it is used. A window of at most
+                    // VERTEX_CACHE vertices: a batch (at most 512k triangles) of a mesh stored
+                    // with locality spans fewer. (A small mesh's vertices were all shaded up
+                    // front, and it has no batch ranges.)
+                    let windowed = index_ranges
+                        .get(b)
+                        .copied()
+                        .filter(|&(lo, hi)| !whole && (hi - lo) as usize <= VERTEX_CACHE);
                     // Only positions: most triangles of a large mesh stop at the corner
                     // tests, and the few that go on shade their three vertices again.
-                    if windowed {
+                    if let Some((lo, hi)) = windowed {
                         let span = &vertices[lo as usize..=hi as usize];
                         // Every element is written below.
                         window.resize(span.len(), OUTSIDE);
@@ -501,7 +503,7 @@ impl Pipeline {
                                 let vertex = |i: u32| &shaded[i as usize];
                                 let source = (window.as_slice(), 0, vertex);
                                 front.prepare_range(batch, range, first, source, level, sink);
-                            } else if windowed {
+                            } else if let Some((lo, _)) = windowed {
                                 let vertex = |i: u32| shade_vertex(&vertices[i as usize]);
                                 let source = (window.as_slice(), lo, vertex);
                                 front.prepare_range(batch, range, first, source, level, sink);

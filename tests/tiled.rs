@@ -362,8 +362,21 @@ fn assert_pipeline_matches_reference_on<FS: trirast::pipeline::FragmentShader<f3
     triangles: &[[u32; 3]],
     fs: &FS,
 ) {
-    let vs = |p: &Vec4| (*p, p.z);
     let pipeline = Pipeline::default().with_cull(FaceCull::None);
+    assert_pipeline_matches_reference_with(pipeline, fresh, threads, vertices, triangles, fs);
+}
+
+/// [`assert_pipeline_matches_reference_on`] with `pipeline`'s settings (its backend and
+/// schedule replaced); returns the reference's counts.
+fn assert_pipeline_matches_reference_with<FS: trirast::pipeline::FragmentShader<f32>>(
+    pipeline: Pipeline,
+    fresh: impl Fn() -> Target,
+    threads: &[usize],
+    vertices: &[Vec4],
+    triangles: &[[u32; 3]],
+    fs: &FS,
+) -> trirast::render::DrawStats {
+    let vs = |p: &Vec4| (*p, p.z);
     let mut reference = fresh();
     let ref_stats = pipeline
         .with_backend(Backend::Reference)
@@ -381,6 +394,7 @@ fn assert_pipeline_matches_reference_on<FS: trirast::pipeline::FragmentShader<f3
             assert_same(&reference, &tiled, &what);
         }
     }
+    ref_stats
 }
 
 /// Window-space triangles on a `w x h` target as a mesh in clip space (z in [0, 1) at
@@ -1009,7 +1023,7 @@ fn bands_on_few_rows_match_the_reference() {
 
 /// Meshes in spatial order drawn in bands, which skip the chunks of triangles that cannot
 /// reach their rows (and each chunk counted by one band): the reference's buffers and counts
-/// at 1x and 4x, on 2, 3 and 7 threads, for a grid in row order and in reverse row order,
+/// at 1x and 4x, on 2, 3 and 7 threads (binned too), for a grid in row order and in reverse row order,
 /// with uneven depths, every other row of quads turned back-facing (culled), and part of a
 /// row behind the eye (clipped: chunks with a vertex outside are never skipped).
 #[test]
@@ -1030,29 +1044,17 @@ fn bands_skipping_chunks_out_of_reach_match_the_reference() {
         .map(|(k, &[a, b, c])| if (k / 180) % 2 == 1 { [a, c, b] } else { [a, b, c] })
         .collect();
     let reversed: Vec<[u32; 3]> = turned.iter().rev().copied().collect();
-    let vs = |p: &Vec4| (*p, p.z);
     let fs = |f: &Fragment<f32>| Some(Vec4::new(f.varyings, 0.5, 0.25, 1.0));
     for (tris, order) in [(&turned, "rows"), (&reversed, "reversed rows")] {
         for samples in [SampleCount::X1, SampleCount::X4] {
             let fresh = || Target::multisampled(150, 101, samples).unwrap().with_ids();
             let fresh = || fresh().with_overdraw();
             let pipeline = Pipeline::default().with_cull(FaceCull::Back);
-            let mut reference = fresh();
-            let ref_stats = pipeline
-                .with_backend(Backend::Reference)
-                .draw(&mut reference, &vs, &fs, &positions, tris)
-                .unwrap();
-            assert!(ref_stats.culled > 0 && ref_stats.rasterized > 0, "{ref_stats:?}");
-            for threads in [2, 3, 7] {
-                let mut banded = fresh();
-                let pipeline = pipeline.with_schedule(Schedule::Banded);
-                let stats = pool(threads)
-                    .install(|| pipeline.draw(&mut banded, &vs, &fs, &positions, tris))
-                    .unwrap();
-                let what = format!("{order}, {samples:?}, {threads} threads");
-                assert_eq!(stats, ref_stats, "{what}");
-                assert_same(&reference, &banded, &what);
-            }
+            let threads = [2, 3, 7];
+            let stats = assert_pipeline_matches_reference_with(
+                pipeline, fresh, &threads, &positions, tris, &fs,
+            );
+            assert!(stats.culled > 0 && stats.rasterized > 0, "{order}, {samples:?}: {stats:?}");
         }
     }
 }
