@@ -263,7 +263,7 @@ fn draw(
         }
         Prepared::Grid { positions, colors, vertices, triangles } => {
             let vs = |&i: &u32| (positions[i as usize], colors[i as usize]);
-            let fs = |f: &Fragment<Vec3>| Some(f.varyings.extend(1.0));
+            let fs = crate::pipeline::VertexColor;
             Pipeline::default().with_cull(GRID_CULL).draw(target, &vs, &fs, vertices, triangles)
         }
     }

@@ -810,6 +810,7 @@ impl Eight {
 pub(crate) struct EightSetup {
     narrow: crate::simd::NarrowEight,
     small: crate::simd::SmallEight,
+    shading: crate::simd::SmallShading,
 }
 
 /// How many of eight records [`shade_eight`] takes together as small triangles, at least: a
@@ -856,6 +857,13 @@ where
         if let Eight::Narrow(level) = kind {
             covered +=
                 crate::simd::shade_narrow_eight(level, &setup.narrow, l..l + run, band, depth_test);
+        } else if let Some(level) = small_shading(records, l..l + run, &boxes, fragments, setup) {
+            // Every triangle of the run has a kernel's colour: the run shaded at once, after
+            // the queue's earlier fragments.
+            queue.flush(band, fragments);
+            let (small, shading) = (&setup.small, &setup.shading);
+            covered +=
+                crate::simd::shade_small_eight(level, small, shading, l..l + run, band, depth_test);
         } else {
             // A loop: the closure of a `map` here was left out of line, a call per triangle
             // (no difference measured on the grid, within the noise).
@@ -870,6 +878,30 @@ where
         l += run;
     }
     covered
+}
+
+/// Sets up `run`'s small triangles (of `records`, with boxes `boxes`) in `setup.shading`
+/// for [`crate::simd::shade_small_eight`], and returns the level of its kernel: when the
+/// fragment stage gives every one of them a kernel's colour ([`SpanColor::Perspective`], the
+/// 3D pipeline's interpolated vertex colours), else `None`, leaving the lanes to the queue.
+#[inline(always)]
+fn small_shading<S: Record, F: TriangleFragments<S::Payload>>(
+    records: &[&S],
+    run: std::ops::Range<usize>,
+    boxes: &[PixelRect; 8],
+    fragments: &F,
+    setup: &mut EightSetup,
+) -> Option<SimdLevel> {
+    let mut level = None;
+    for m in run {
+        let p = records[m].kept()?;
+        let Some((l, SpanColor::Perspective(c))) = fragments.span_color(&p.payload) else {
+            return None;
+        };
+        setup.shading.set(m, &boxes[m], &p.depth, &c, p.id);
+        level = Some(l);
+    }
+    level
 }
 
 /// The lanes of eight records that [`shade_eight`] takes together as small triangles

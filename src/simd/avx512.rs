@@ -14,7 +14,7 @@ use std::arch::x86_64::*;
 
 use super::{
     KernelTarget, NarrowEight, NarrowJob, NarrowSamplesJob, PerspectiveColor, SampleSpanJob,
-    SpanColor, SpanJob, WindowGroup,
+    SmallEight, SmallShading, SpanColor, SpanJob, WindowGroup,
 };
 use crate::color::ENCODE_BUCKETS;
 use crate::fixed;
@@ -1093,4 +1093,213 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
         let bit = |m: __mmask8| m >> k & 1 != 0;
         *rejected = super::rejection(bit(finite), bit(in_range), bit(degenerate), bit(culled));
     }
+}
+
+/// [`super::shade_small_eight`] in AVX-512. The covered pixels of the lanes are listed in
+/// drawing order (lane by lane, each box row by row, left to right), as `l << 4 | bit` with
+/// `bit` the pixel's [`super::SmallEight::inside`] bit, one compressing store per lane; then
+/// each group of eight listed pixels takes its triangles' values from registers of all
+/// eight lanes (`vpermd`, `vpermpd`), and its buffers through gathers and scatters.
+///
+/// # Safety
+/// The CPU must support AVX-512 F, VL, DQ and CD.
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512cd,avx2")]
+pub(super) unsafe fn shade_small_eight(
+    eight: &SmallEight,
+    s: &SmallShading,
+    lanes: std::ops::Range<usize>,
+    target: &mut TargetBand<'_>,
+    depth_test: DepthTest,
+) -> u64 {
+    let n = target.depth.len();
+    assert!(target.color.len() == n && n <= i32::MAX as usize, "buffers of one length");
+    assert!(target.ids.as_ref().is_none_or(|b| b.len() == n), "buffers of one length");
+    assert!(target.overdraw.as_ref().is_none_or(|b| b.len() == n), "buffers of one length");
+    let stride = target.stride();
+    // Sixteen entries a lane at most, each lane's stored as sixteen, and room for a full
+    // group's load from the last entry.
+    let mut entries = [0i32; 8 * 16 + 8];
+    let mut first = [0i32; 8];
+    let mut listed = 0;
+    let bits = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    for l in lanes {
+        assert!(l < 8, "eight lanes");
+        let cells = eight.inside[l] & s.cells[l];
+        if cells == 0 {
+            continue;
+        }
+        // The box's first and last covered pixels lie in the buffers: so do all between.
+        let last = 31 - cells.leading_zeros() as usize;
+        let at = target.index(s.x0[l], s.y0[l]);
+        assert!(at + (last >> 2) * stride + (last & 3) < n, "the box must lie in the buffers");
+        first[l] = at as i32;
+        let tagged = _mm512_or_si512(bits, _mm512_set1_epi32((l as i32) << 4));
+        // Compressed in a register and stored whole: a compressing store to memory is
+        // microcoded on AMD's Zen 4, and took over half of this function's time.
+        let packed = _mm512_maskz_compress_epi32(cells as __mmask16, tagged);
+        // SAFETY: sixteen entries from `listed`, which is at most 16 l: within `entries`.
+        unsafe { _mm512_storeu_si512(entries.as_mut_ptr().add(listed).cast(), packed) };
+        listed += cells.count_ones() as usize;
+    }
+    let load = |v: &[i32; 8]| {
+        // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
+        unsafe { _mm256_loadu_si256(v.as_ptr().cast()) }
+    };
+    let load_pd = |v: &[f64; 8]| {
+        // SAFETY: eight `f64`s, 64 bytes; the load needs no alignment.
+        unsafe { _mm512_loadu_pd(v.as_ptr()) }
+    };
+    let first = load(&first);
+    let edges = [load(&eight.edges[1]), load(&eight.edges[2])];
+    let step_x = [load(&eight.step_x[1]), load(&eight.step_x[2])];
+    let step_y = [load(&eight.step_y[1]), load(&eight.step_y[2])];
+    let bias = [load(&eight.bias[0]), load(&eight.bias[1])];
+    let depth = s.depth.each_ref().map(load_pd);
+    let table = crate::color::srgb8_table();
+    let stride_v = _mm256_set1_epi32(stride as i32);
+    let depth_out = target.depth.as_mut_ptr();
+    let color_out = target.color.as_mut_ptr().cast::<i32>();
+    let mut g = 0;
+    while g < listed {
+        let active = (0xFFu32 >> 8usize.saturating_sub(listed - g)) as __mmask8;
+        // SAFETY: `g < listed <= 8 * 16`: eight entries from `g` are within `entries`.
+        let e = unsafe { _mm256_loadu_si256(entries.as_ptr().add(g).cast()) };
+        let tri = _mm256_srli_epi32::<4>(e);
+        let column = _mm256_and_si256(e, _mm256_set1_epi32(3));
+        let row = _mm256_and_si256(_mm256_srli_epi32::<2>(e), _mm256_set1_epi32(3));
+        let at = _mm256_add_epi32(
+            _mm256_add_epi32(_mm256_permutexvar_epi32(tri, first), column),
+            _mm256_mullo_epi32(row, stride_v),
+        );
+        // The group ends before its first pixel that an earlier one shares.
+        let shared = _mm256_maskz_conflict_epi32(active, at);
+        let clash = _mm256_test_epi32_mask(shared, shared);
+        let active =
+            if clash == 0 { active } else { active & ((1u8 << clash.trailing_zeros()) - 1) };
+        g += active.count_ones() as usize;
+        // `E_k + r step_y + c step_x - bias` in `i32` (below 2^23 within the box, as
+        // `SmallEight` says), exact in `f64`.
+        let numerator = |k: usize| {
+            let v = _mm256_add_epi32(
+                _mm256_permutexvar_epi32(tri, edges[k]),
+                _mm256_mullo_epi32(row, _mm256_permutexvar_epi32(tri, step_y[k])),
+            );
+            let v = _mm256_add_epi32(
+                v,
+                _mm256_mullo_epi32(column, _mm256_permutexvar_epi32(tri, step_x[k])),
+            );
+            _mm512_cvtepi32_pd(_mm256_sub_epi32(v, _mm256_permutexvar_epi32(tri, bias[k])))
+        };
+        let (f1, f2) = (numerator(0), numerator(1));
+        let tri64 = _mm512_cvtepu32_epi64(tri);
+        let coefficient = |k: usize| _mm512_permutexvar_pd(tri64, depth[k]);
+        let z = _mm512_add_pd(
+            _mm512_add_pd(coefficient(0), _mm512_mul_pd(f1, coefficient(1))),
+            _mm512_mul_pd(f2, coefficient(2)),
+        );
+        let z = _mm512_cvtpd_ps(z);
+        let z = _mm256_min_ps(_mm256_set1_ps(1.0), _mm256_max_ps(_mm256_setzero_ps(), z));
+        // SAFETY (every gather and scatter below): each lane of `active` holds the index of a
+        // pixel of its box, which lies in the buffers (asserted above), all of length `n`;
+        // no two lanes of `active` share an index; `f32`, `i32` and `[u8; 4]` are four bytes.
+        let pass = unsafe {
+            if let Some(o) = target.overdraw.as_deref_mut() {
+                let o = o.as_mut_ptr().cast::<i32>();
+                let counts =
+                    _mm256_mmask_i32gather_epi32::<4>(_mm256_setzero_si256(), active, at, o);
+                let counts = _mm256_add_epi32(counts, _mm256_set1_epi32(1));
+                _mm256_mask_i32scatter_epi32::<4>(o, active, at, counts);
+            }
+            let stored = _mm256_mmask_i32gather_ps::<4>(_mm256_setzero_ps(), active, at, depth_out);
+            let pass = match depth_test {
+                DepthTest::Less => _mm256_mask_cmp_ps_mask::<_CMP_LT_OQ>(active, z, stored),
+                DepthTest::LessEqual => _mm256_mask_cmp_ps_mask::<_CMP_LE_OQ>(active, z, stored),
+                DepthTest::Always => active,
+            };
+            _mm256_mask_i32scatter_ps::<4>(depth_out, pass, at, z);
+            if let Some(ids) = target.ids.as_deref_mut() {
+                let id = _mm256_permutexvar_epi32(tri, load(&s.id));
+                _mm256_mask_i32scatter_epi32::<4>(ids.as_mut_ptr(), pass, at, id);
+            }
+            pass
+        };
+        if pass == 0 {
+            continue;
+        }
+        let rgba = small_colors(s, table, tri, (f1, f2), pass);
+        // SAFETY: as above.
+        unsafe { _mm256_mask_i32scatter_epi32::<4>(color_out, pass, at, rgba) };
+    }
+    listed as u64
+}
+
+/// The colours of a group of [`shade_small_eight`] at barycentric numerators `f1`, `f2`, lane
+/// `i` of triangle `tri[i]`, as [`perspective`] computes one triangle's (the lanes of `pass`
+/// matter; the others compute from leftovers).
+#[inline]
+#[target_feature(enable = "avx512f,avx512vl,avx2")]
+fn small_colors(
+    s: &SmallShading,
+    table: &[u32; ENCODE_BUCKETS],
+    tri: __m256i,
+    (f1, f2): (__m512d, __m512d),
+    pass: __mmask8,
+) -> __m256i {
+    let tri64 = _mm512_cvtepu32_epi64(tri);
+    let lanes_pd = |v: &[f64; 8]| {
+        // SAFETY: eight `f64`s, 64 bytes; the load needs no alignment.
+        _mm512_permutexvar_pd(tri64, unsafe { _mm512_loadu_pd(v.as_ptr()) })
+    };
+    let lanes_ps = |v: &[f32; 8]| {
+        // SAFETY: eight `f32`s, 32 bytes; the load needs no alignment.
+        _mm256_permutexvar_ps(tri, unsafe { _mm256_loadu_ps(v.as_ptr()) })
+    };
+    let lanes_i32 = |v: &[i32; 8]| {
+        // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
+        _mm256_permutexvar_epi32(tri, unsafe { _mm256_loadu_si256(v.as_ptr().cast()) })
+    };
+    // `crate::pipeline::perspective_weights`, lane by lane affine or divided.
+    let inv_area2 = lanes_pd(&s.inv_area2);
+    let (l1, l2) = (_mm512_mul_pd(f1, inv_area2), _mm512_mul_pd(f2, inv_area2));
+    let l0 = _mm512_sub_pd(_mm512_sub_pd(_mm512_set1_pd(1.0), l1), l2);
+    let mut w = [_mm512_cvtpd_ps(l0), _mm512_cvtpd_ps(l1), _mm512_cvtpd_ps(l2)];
+    let affine = _mm256_test_epi32_mask(lanes_i32(&s.affine), lanes_i32(&s.affine));
+    if pass & !affine != 0 {
+        let w0 = _mm512_mul_pd(l0, lanes_pd(&s.inv_w[0]));
+        let w1 = _mm512_mul_pd(l1, lanes_pd(&s.inv_w[1]));
+        let w2 = _mm512_mul_pd(l2, lanes_pd(&s.inv_w[2]));
+        let sum = _mm512_add_pd(_mm512_add_pd(w0, w1), w2);
+        // `sum > 0`, false for NaN: thirds elsewhere.
+        let positive = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(sum, _mm512_setzero_pd());
+        let third = _mm256_set1_ps(1.0 / 3.0);
+        let divided = |v: __m512d| {
+            _mm256_mask_blend_ps(positive, third, _mm512_cvtpd_ps(_mm512_div_pd(v, sum)))
+        };
+        w = [
+            _mm256_mask_blend_ps(affine, divided(w0), w[0]),
+            _mm256_mask_blend_ps(affine, divided(w1), w[1]),
+            _mm256_mask_blend_ps(affine, divided(w2), w[2]),
+        ];
+    }
+    // Channel `ch`: `(c0 w0 + c1 w1 + c2 w2) scale`, left to right.
+    let channel = |ch: usize| {
+        let c = |k: usize| lanes_ps(&s.colors[k][ch]);
+        let t = _mm256_add_ps(_mm256_mul_ps(c(0), w[0]), _mm256_mul_ps(c(1), w[1]));
+        let t = _mm256_add_ps(t, _mm256_mul_ps(c(2), w[2]));
+        _mm256_mul_ps(t, lanes_ps(&s.scale[ch]))
+    };
+    let r = super::avx2::srgb8(channel(0), table);
+    let g = super::avx2::srgb8(channel(1), table);
+    let b = super::avx2::srgb8(channel(2), table);
+    let fixed = lanes_i32(&s.alpha);
+    let weighted = _mm256_mask_cmplt_epi32_mask(pass, fixed, _mm256_setzero_si256());
+    let alpha = if weighted == 0 {
+        fixed
+    } else {
+        _mm256_mask_blend_epi32(weighted, fixed, super::avx2::unorm8(channel(3)))
+    };
+    _mm256_or_si256(
+        _mm256_or_si256(r, _mm256_slli_epi32::<8>(g)),
+        _mm256_or_si256(_mm256_slli_epi32::<16>(b), _mm256_slli_epi32::<24>(alpha)),
+    )
 }

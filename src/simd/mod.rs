@@ -39,7 +39,7 @@ pub enum SimdLevel {
     /// virtual machine, that reports one without the other runs the scalar code): four
     /// pixels per step.
     Avx2,
-    /// AVX-512 (F, VL, DQ): eight pixels per step with mask registers for the shading
+    /// AVX-512 (F, VL, DQ, CD): eight pixels per step with mask registers for the shading
     /// kernels; the front end's corner kernels and the index ranges run their AVX2
     /// versions.
     Avx512,
@@ -105,6 +105,7 @@ impl SimdLevel {
                     && std::arch::is_x86_feature_detected!("avx512f")
                     && std::arch::is_x86_feature_detected!("avx512vl")
                     && std::arch::is_x86_feature_detected!("avx512dq")
+                    && std::arch::is_x86_feature_detected!("avx512cd")
             }
             #[cfg(not(target_arch = "x86_64"))]
             Self::Avx2 | Self::Avx512 => false,
@@ -989,6 +990,156 @@ pub fn small_eight_scalar(lanes: &[SmallLane; 8], out: &mut SmallEight) {
         out.bias[0][l] = bias[0] as i32;
         out.bias[1][l] = bias[1] as i32;
     }
+}
+
+/// What [`shade_small_eight`] needs of eight small triangles beside their coverage
+/// ([`SmallEight`]), lane `l` for the `l`-th, side by side as the kernel reads them: the
+/// pixels of each box, its depth plane, its colour ([`PerspectiveColor`], the only kind the
+/// 3D pipeline's small triangles have a kernel for) and its id. Set lane by lane with
+/// [`SmallShading::set`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SmallShading {
+    /// The box's first pixel (column, row).
+    x0: [i32; 8],
+    y0: [i32; 8],
+    /// The box's pixels, numbered as [`SmallEight::inside`] numbers them (bit `4 r + c`).
+    cells: [u32; 8],
+    /// Depth plane `[a0, g1, g2]`, coefficient by coefficient.
+    depth: [[f64; 8]; 3],
+    inv_area2: [f64; 8],
+    /// The vertices' `1 / w`, vertex by vertex.
+    inv_w: [[f64; 8]; 3],
+    /// -1 where the `1 / w` are affine ([`crate::pipeline::is_affine`]), else 0.
+    affine: [i32; 8],
+    /// Channel `ch` of vertex `k`'s colour at `colors[k][ch]`.
+    colors: [[[f32; 8]; 4]; 3],
+    scale: [[f32; 8]; 4],
+    /// The 8-bit alpha every fragment gets ([`PerspectiveColor::alpha`]), or -1 for the
+    /// weighted one.
+    alpha: [i32; 8],
+    id: [i32; 8],
+}
+
+impl SmallShading {
+    /// Lane `l`: the triangle with id `id`, depth plane `depth` and colour `color`, whose
+    /// box (within the clip rectangle, at most 4 x 4 pixels) is `rect`.
+    #[inline(always)]
+    pub fn set(
+        &mut self,
+        l: usize,
+        rect: &PixelRect,
+        depth: &PlaneEquation,
+        color: &PerspectiveColor,
+        id: i32,
+    ) {
+        debug_assert!(rect.x1 - rect.x0 < 4 && rect.y1 - rect.y0 < 4, "a box of 4 x 4 at most");
+        let (columns, rows) = ((rect.x1 - rect.x0 + 1) as u32, (rect.y1 - rect.y0 + 1) as u32);
+        let row = (1u32 << columns.min(4)) - 1;
+        self.cells[l] = (0..rows.min(4)).fold(0, |cells, r| cells | row << (4 * r));
+        (self.x0[l], self.y0[l]) = (rect.x0, rect.y0);
+        let [a0, g1, g2] = depth.coefficients();
+        (self.depth[0][l], self.depth[1][l], self.depth[2][l]) = (a0, g1, g2);
+        let (q, affine) = color.inv_w();
+        self.inv_area2[l] = color.inv_area2;
+        (self.inv_w[0][l], self.inv_w[1][l], self.inv_w[2][l]) = (q[0], q[1], q[2]);
+        self.affine[l] = -i32::from(affine);
+        for k in 0..3 {
+            for ch in 0..4 {
+                self.colors[k][ch][l] = color.colors[k][ch];
+            }
+        }
+        for ch in 0..4 {
+            self.scale[ch][l] = color.scale[ch];
+        }
+        self.alpha[l] = color.alpha.map_or(-1, |a| i32::from(crate::color::unorm8(a)));
+        self.id[l] = id;
+    }
+
+    /// Lane `l`'s colour as [`SmallShading::set`] was given it (a fixed alpha as `byte /
+    /// 255`, whose 8-bit value is that byte).
+    fn color(&self, l: usize) -> PerspectiveColor {
+        PerspectiveColor {
+            colors: std::array::from_fn(|k| std::array::from_fn(|ch| self.colors[k][ch][l])),
+            scale: std::array::from_fn(|ch| self.scale[ch][l]),
+            alpha: (self.alpha[l] >= 0).then(|| self.alpha[l] as f32 / 255.0),
+            inv_w: std::array::from_fn(|k| self.inv_w[k][l] as f32),
+            inv_area2: self.inv_area2[l],
+        }
+    }
+}
+
+/// Shades lanes `lanes` of eight small triangles, in that order (their coverage from
+/// [`small_eight`], the rest set in `shading`), into `target` with `depth_test`: each
+/// covered pixel of each box as [`KernelTarget`]'s reference loop does (overdraw, depth test,
+/// depth, [`PerspectiveColor::at`], id); returns the number of covered pixels. What the 3D
+/// pipeline's two-pixel triangles (the grid's) take in place of the fragment stage's lanes.
+///
+/// At AVX-512 the covered pixels of all the lanes are packed eight to a group, whatever
+/// triangle each belongs to, and a group is shaded at once, its buffers gathered and
+/// scattered. The pixels of one triangle are distinct; where two triangles of a group share
+/// a pixel the group ends before the later one's (`vpconflictd`), so each depth test sees
+/// every earlier write, as in the reference order.
+///
+/// # Panics
+/// If a box does not lie in the buffers.
+#[inline]
+pub fn shade_small_eight(
+    level: SimdLevel,
+    eight: &SmallEight,
+    shading: &SmallShading,
+    lanes: std::ops::Range<usize>,
+    target: &mut crate::target::TargetBand<'_>,
+    depth_test: DepthTest,
+) -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    if level == SimdLevel::Avx512 && level.is_available() {
+        // SAFETY: AVX-512 support (F, VL, DQ, CD) was just checked at run time.
+        return unsafe { avx512::shade_small_eight(eight, shading, lanes, target, depth_test) };
+    }
+    shade_small_eight_scalar(eight, shading, lanes, target, depth_test)
+}
+
+/// [`shade_small_eight`] one pixel at a time, through [`KernelTarget::pixel`]: the
+/// definition the AVX-512 kernel is tested against.
+pub fn shade_small_eight_scalar(
+    eight: &SmallEight,
+    shading: &SmallShading,
+    lanes: std::ops::Range<usize>,
+    target: &mut crate::target::TargetBand<'_>,
+    depth_test: DepthTest,
+) -> u64 {
+    let mut covered = 0;
+    for l in lanes {
+        let (x0, y0) = (shading.x0[l], shading.y0[l]);
+        let first = target.index(x0, y0);
+        let stride = target.stride();
+        let color = SpanColor::Perspective(shading.color(l));
+        let s = shading;
+        let mut t = KernelTarget {
+            depth_plane: [s.depth[0][l], s.depth[1][l], s.depth[2][l]],
+            color: &color,
+            depth_test,
+            id: s.id[l],
+            depth: &mut *target.depth,
+            color_out: &mut *target.color,
+            ids: target.ids.as_deref_mut(),
+            overdraw: target.overdraw.as_deref_mut(),
+        };
+        let mut inside = eight.inside[l] & s.cells[l];
+        covered += u64::from(inside.count_ones());
+        while inside != 0 {
+            let bit = inside.trailing_zeros() as i32;
+            inside &= inside - 1;
+            let (c, r) = (bit & 3, bit >> 2);
+            let f = |k: usize, b: usize| {
+                let v = eight.edges[k][l] + r * eight.step_y[k][l] + c * eight.step_x[k][l];
+                f64::from(v - eight.bias[b][l])
+            };
+            let i = first + r as usize * stride + c as usize;
+            t.pixel(i, f(1, 0), f(2, 1));
+        }
+    }
+    covered
 }
 
 /// Shades a small triangle at `level`; returns the number of covered pixels. At AVX2, a box
@@ -2618,6 +2769,102 @@ mod tests {
             checked += want.inside.iter().filter(|&&m| m != 0).count();
         }
         assert!(checked > 30_000, "{checked} lanes with pixels inside");
+    }
+
+    /// Eight small triangles shaded together at AVX-512 are shaded as one pixel at a time
+    /// (`shade_small_eight_scalar`: `KernelTarget::pixel` of each covered pixel, in order):
+    /// runs of random lanes whose boxes crowd a few pixels (so the triangles of a group share
+    /// pixels, which ends groups early), random colours ([`random_perspective`]: affine and
+    /// divided weights, thirds, constant and weighted alpha, NaN and infinities), depth planes
+    /// reaching outside [0, 1], every depth test, stored depths in [0, 1], with and without
+    /// id and overdraw buffers, in a band that starts below row 0, boxes clipped to it.
+    #[test]
+    fn small_eights_shade_as_scalar() {
+        let mut rng = SmallRng::seed_from_u64(66);
+        let (mut covered, mut shared) = (0, 0);
+        for round in 0..20_000 {
+            let (width, height) = (12, 10);
+            let band_rows = [0, 4];
+            let clip = PixelRect { x0: 0, y0: 4, x1: width - 1, y1: height - 1 };
+            let spot = [rng.random_range(0..width - 2), rng.random_range(2..height - 2)];
+            let mut lanes = [SmallLane::default(); 8];
+            let mut boxes = [PixelRect::EMPTY; 8];
+            for l in 0..8 {
+                (lanes[l], boxes[l]) = loop {
+                    let mut v = || {
+                        let d = |rng: &mut SmallRng, at: i32| {
+                            at * 256 + rng.random_range(-2 * 256..3 * 256)
+                        };
+                        [d(&mut rng, spot[0]), d(&mut rng, spot[1])]
+                    };
+                    let xy = [v(), v(), v()];
+                    let clockwise = rng.random();
+                    let setup = TriangleSetup::from_kept(xy, clockwise);
+                    let b = setup.bounds;
+                    if b.x0 > b.x1 || b.y0 > b.y1 || b.x1 - b.x0 >= 4 || b.y1 - b.y0 >= 4 {
+                        continue;
+                    }
+                    let Some(r) = b.intersect(&clip) else { continue };
+                    break (SmallLane { xy, clockwise, first: [r.x0, r.y0] }, r);
+                };
+            }
+            let mut eight = SmallEight::default();
+            small_eight_scalar(&lanes, &mut eight);
+            let mut shading = SmallShading::default();
+            for (l, rect) in boxes.iter().enumerate() {
+                let depth = PlaneEquation::from_coefficients([
+                    rng.random_range(-0.2..1.2),
+                    rng.random_range(-1e-5..1e-5),
+                    rng.random_range(-1e-5..1e-5),
+                ]);
+                let color = random_perspective(&mut rng, round + l);
+                shading.set(l, rect, &depth, &color, 100 + l as i32);
+            }
+            let start = rng.random_range(0..8);
+            let run = start..rng.random_range(start + 1..=8);
+            let depth_test = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always][round % 3];
+            let mut want = crate::target::Target::new(width as u32, height as u32).unwrap();
+            if round % 2 == 0 {
+                want = want.with_ids().with_overdraw();
+            }
+            for d in want.depth.iter_mut() {
+                *d = rng.random_range(0.0..1.0);
+            }
+            let before = want.clone();
+            let n = {
+                let mut bands = want.bands_from(&band_rows);
+                shade_small_eight_scalar(&eight, &shading, run.clone(), &mut bands[1], depth_test)
+            };
+            for level in SimdLevel::available() {
+                let mut got = before.clone();
+                let mut bands = got.bands_from(&band_rows);
+                let m = shade_small_eight(
+                    level,
+                    &eight,
+                    &shading,
+                    run.clone(),
+                    &mut bands[1],
+                    depth_test,
+                );
+                let what = format!("{level:?}, round {round}");
+                assert_eq!(m, n, "{what}");
+                let bits = |t: &crate::target::Target| {
+                    t.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>()
+                };
+                assert!(bits(&want) == bits(&got) && want.color == got.color, "{what}");
+                assert!(want.ids == got.ids && want.overdraw == got.overdraw, "{what}");
+            }
+            covered += n;
+            // Pixels covered by more than one lane of the run.
+            let mut seen = std::collections::HashSet::new();
+            for l in run {
+                let cells = eight.inside[l] & shading.cells[l];
+                for b in (0..16).filter(|b| cells >> b & 1 != 0) {
+                    shared += usize::from(!seen.insert((boxes[l].x0 + b % 4, boxes[l].y0 + b / 4)));
+                }
+            }
+        }
+        assert!(covered > 30_000 && shared > 3_000, "{covered} covered, {shared} shared");
     }
 
     /// Eight lanes' colours encode at every level as lane by lane: each channel in its byte,
