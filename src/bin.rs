@@ -857,13 +857,15 @@ where
         if let Eight::Narrow(level) = kind {
             covered +=
                 crate::simd::shade_narrow_eight(level, &setup.narrow, l..l + run, band, depth_test);
-        } else if let Some(level) = small_shading(records, l..l + run, &boxes, fragments, setup) {
-            // Every triangle of the run has a kernel's colour: the run shaded at once, after
-            // the queue's earlier fragments.
-            queue.flush(band, fragments);
-            let (small, shading) = (&setup.small, &setup.shading);
-            covered +=
-                crate::simd::shade_small_eight(level, small, shading, l..l + run, band, depth_test);
+        } else if let Some(n) = shade_small_run(
+            band,
+            records,
+            (l..l + run, &boxes, depth_test),
+            fragments,
+            queue,
+            setup,
+        ) {
+            covered += n;
         } else {
             // A loop: the closure of a `map` here was left out of line, a call per triangle
             // (no difference measured on the grid, within the noise).
@@ -880,20 +882,24 @@ where
     covered
 }
 
-/// Sets up `run`'s small triangles (of `records`, with boxes `boxes`) in `setup.shading`
-/// for [`crate::simd::shade_small_eight`], and returns the level of its kernel: when the
-/// fragment stage gives every one of them a kernel's colour ([`SpanColor::Perspective`], the
-/// 3D pipeline's interpolated vertex colours), else `None`, leaving the lanes to the queue.
-#[inline(always)]
-fn small_shading<S: Record, F: TriangleFragments<S::Payload>>(
-    records: &[&S],
-    run: std::ops::Range<usize>,
-    boxes: &[PixelRect; 8],
+/// Shades `run`'s small triangles (of `records`, with boxes `boxes`; their coverage in
+/// `setup.small`) at once with [`crate::simd::shade_small_eight`], after the queue's earlier
+/// fragments, when the fragment stage gives every one of them a kernel's colour
+/// ([`SpanColor::Perspective`], the 3D pipeline's interpolated vertex colours): their
+/// covered pixels. Else `None`, nothing drawn, the lanes left to the queue. Out of line:
+/// inlined, it grew the tile loop, whose other calls the compiler then inlined differently
+/// (fill, which never takes it, 4% slower on two threads).
+#[inline(never)]
+fn shade_small_run<'a, S: Record, F: TriangleFragments<S::Payload>>(
+    band: &mut TargetBand<'_>,
+    records: &[&'a S],
+    (run, boxes, depth_test): (std::ops::Range<usize>, &[PixelRect; 8], DepthTest),
     fragments: &F,
+    queue: &mut shade::SharedLaneQueue<'a, S::Payload>,
     setup: &mut EightSetup,
-) -> Option<SimdLevel> {
+) -> Option<u64> {
     let mut level = None;
-    for m in run {
+    for m in run.clone() {
         let p = records[m].kept()?;
         let Some((l, SpanColor::Perspective(c))) = fragments.span_color(&p.payload) else {
             return None;
@@ -901,7 +907,9 @@ fn small_shading<S: Record, F: TriangleFragments<S::Payload>>(
         setup.shading.set(m, &boxes[m], &p.depth, &c, p.id);
         level = Some(l);
     }
-    level
+    queue.flush(band, fragments);
+    let (small, shading) = (&setup.small, &setup.shading);
+    Some(crate::simd::shade_small_eight(level?, small, shading, run, band, depth_test))
 }
 
 /// The lanes of eight records that [`shade_eight`] takes together as small triangles

@@ -1101,6 +1101,7 @@ pub fn shade_small_eight(
 
 /// [`shade_small_eight`] one pixel at a time, through [`KernelTarget::pixel`]: the
 /// definition the AVX-512 kernel is tested against.
+#[inline(never)]
 pub fn shade_small_eight_scalar(
     eight: &SmallEight,
     shading: &SmallShading,
