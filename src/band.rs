@@ -97,6 +97,11 @@ const LOCAL_RUN: i64 = 1024;
 /// (window triangles: each band sets up all of them).
 const FOOTPRINT: i64 = 1 << 20;
 
+/// Triangles a band prepares and draws at a time, a quarter of a chunk ([`bin::CHUNK`],
+/// whose reach and owner are still decided whole): their records stay in the first-level
+/// cache from the front end to the kernels.
+const PIECE: usize = bin::CHUNK / 4;
+
 /// Which schedule [`plan`] chose.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Plan {
@@ -319,45 +324,52 @@ impl Bands {
                         Take::Draw => &mut uncounted,
                         Take::Own => &mut stats,
                     };
-                    records.clear();
-                    covers.clear();
-                    let mut sink = Sink::new(&mut records, &mut covers, coverage, counts);
-                    prepare(range, &mut sink);
-                    // Small triangles' fragments share a queue (see `bin::shade_record`).
-                    let mut queue = shade::SharedLaneQueue::new();
-                    let stages = (&kernel, &fragments);
-                    let one = |band: &mut TargetBand<'_>, queue: &mut _, k: usize| {
-                        let (record, rect) = (&records[k], &covers[k]);
-                        bin::shade_record(
-                            band,
-                            record,
-                            rect,
-                            depth_test,
-                            |_| true,
-                            stages,
-                            queue,
-                            |band, p| {
-                                let kernel = kernel(&p.payload);
-                                bin::shade_prepared(band, p, rect, depth_test, kernel, &fragments)
-                            },
-                        )
-                    };
-                    // Eight at a time where the records allow (as `bin::draw_binned`).
-                    for (c, next) in records.chunks(8).enumerate() {
-                        let mut refs = [&next[0]; 8];
-                        for (r, record) in refs.iter_mut().zip(next) {
-                            *r = record;
-                        }
-                        let refs = &refs[..next.len()];
-                        let stages = (|_: &_| true, stages);
-                        let one = |band: &mut TargetBand<'_>, queue: &mut _, l| {
-                            one(band, queue, 8 * c + l)
+                    // A piece at a time: a chunk's records (40 KB for the grid's 256
+                    // triangles) had left the first-level cache before they were drawn.
+                    for first in range.clone().step_by(PIECE) {
+                        let range = first..(first + PIECE).min(range.end);
+                        records.clear();
+                        covers.clear();
+                        let mut sink = Sink::new(&mut records, &mut covers, coverage, &mut *counts);
+                        prepare(range, &mut sink);
+                        // Small triangles' fragments share a queue (see `bin::shade_record`).
+                        let mut queue = shade::SharedLaneQueue::new();
+                        let stages = (&kernel, &fragments);
+                        let one = |band: &mut TargetBand<'_>, queue: &mut _, k: usize| {
+                            let (record, rect) = (&records[k], &covers[k]);
+                            bin::shade_record(
+                                band,
+                                record,
+                                rect,
+                                depth_test,
+                                |_| true,
+                                stages,
+                                queue,
+                                |band, p| {
+                                    let kernel = kernel(&p.payload);
+                                    bin::shade_prepared(
+                                        band, p, rect, depth_test, kernel, &fragments,
+                                    )
+                                },
+                            )
                         };
-                        let run = (kind, &clip, depth_test);
-                        let setup = (&mut queue, &mut setup);
-                        covered += bin::shade_eight(&mut band, refs, run, stages, setup, one);
+                        // Eight at a time where the records allow (as `bin::draw_binned`).
+                        for (c, next) in records.chunks(8).enumerate() {
+                            let mut refs = [&next[0]; 8];
+                            for (r, record) in refs.iter_mut().zip(next) {
+                                *r = record;
+                            }
+                            let refs = &refs[..next.len()];
+                            let stages = (|_: &_| true, stages);
+                            let one = |band: &mut TargetBand<'_>, queue: &mut _, l| {
+                                one(band, queue, 8 * c + l)
+                            };
+                            let run = (kind, &clip, depth_test);
+                            let setup = (&mut queue, &mut setup);
+                            covered += bin::shade_eight(&mut band, refs, run, stages, setup, one);
+                        }
+                        queue.flush(&mut band, &fragments);
                     }
-                    queue.flush(&mut band, &fragments);
                 }
                 (stats, covered)
             })
