@@ -1263,15 +1263,11 @@ fn small_colors(
     let (l1, l2) = (_mm512_mul_pd(f1, inv_area2), _mm512_mul_pd(f2, inv_area2));
     let l0 = _mm512_sub_pd(_mm512_sub_pd(_mm512_set1_pd(1.0), l1), l2);
     let mut w = [_mm512_cvtpd_ps(l0), _mm512_cvtpd_ps(l1), _mm512_cvtpd_ps(l2)];
-    let q = [lanes_pd(&s.inv_w[0]), lanes_pd(&s.inv_w[1]), lanes_pd(&s.inv_w[2])];
-    // `crate::pipeline::is_affine`: one positive `1 / w`.
-    let affine = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(q[0], _mm512_setzero_pd())
-        & _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(q[0], q[1])
-        & _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(q[1], q[2]);
+    let affine = _mm256_test_epi32_mask(lanes_i32(&s.affine), lanes_i32(&s.affine));
     if pass & !affine != 0 {
-        let w0 = _mm512_mul_pd(l0, q[0]);
-        let w1 = _mm512_mul_pd(l1, q[1]);
-        let w2 = _mm512_mul_pd(l2, q[2]);
+        let w0 = _mm512_mul_pd(l0, lanes_pd(&s.inv_w[0]));
+        let w1 = _mm512_mul_pd(l1, lanes_pd(&s.inv_w[1]));
+        let w2 = _mm512_mul_pd(l2, lanes_pd(&s.inv_w[2]));
         let sum = _mm512_add_pd(_mm512_add_pd(w0, w1), w2);
         // `sum > 0`, false for NaN: thirds elsewhere.
         let positive = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(sum, _mm512_setzero_pd());

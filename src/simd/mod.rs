@@ -1009,6 +1009,8 @@ pub struct SmallShading {
     inv_area2: [f64; 8],
     /// The vertices' `1 / w`, vertex by vertex.
     inv_w: [[f64; 8]; 3],
+    /// -1 where the `1 / w` are affine ([`crate::pipeline::is_affine`]), else 0.
+    affine: [i32; 8],
     /// Channel `ch` of vertex `k`'s colour at `colors[k][ch]`.
     colors: [[[f32; 8]; 4]; 3],
     scale: [[f32; 8]; 4],
@@ -1037,9 +1039,10 @@ impl SmallShading {
         (self.x0[l], self.y0[l]) = (rect.x0, rect.y0);
         let [a0, g1, g2] = depth.coefficients();
         (self.depth[0][l], self.depth[1][l], self.depth[2][l]) = (a0, g1, g2);
-        let q = color.inv_w.map(f64::from);
+        let (q, affine) = color.inv_w();
         self.inv_area2[l] = color.inv_area2;
         (self.inv_w[0][l], self.inv_w[1][l], self.inv_w[2][l]) = (q[0], q[1], q[2]);
+        self.affine[l] = -i32::from(affine);
         for k in 0..3 {
             for ch in 0..4 {
                 self.colors[k][ch][l] = color.colors[k][ch];
