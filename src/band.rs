@@ -5,12 +5,13 @@
 //! Why: binning ([`crate::bin`], sort-middle) writes each set-up triangle's record (64 to about 200
 //! bytes) to memory and reads it back tile by tile. For a mesh of small triangles submitted in
 //! spatial order that round trip costs more than the tiles' cache locality gives back: a grid of
-//! 1,000,000 two-pixel triangles took 114 ms binned on one thread and 85-90 ms here. Here a chunk
-//! of records is written to a buffer that stays in the cache and drawn straight away, and the
-//! pixels a coherent mesh reaches next are the ones it reached last. The price: every band runs the
-//! first tests (for a mesh, the corner tests; for window triangles, setup) on every triangle, and
-//! triangles in random order lose the tiles' locality (1,000,000 random 10-pixel triangles: no
-//! faster on one thread, slower on two). [`plan`] chooses from a sample of the draw call.
+//! 1,000,000 two-pixel triangles took 114 ms binned on one thread and 85-90 ms here. Here a piece
+//! of a chunk (`PIECE` triangles) has its records written to a buffer that stays in the
+//! first-level cache and drawn straight away, and the pixels a coherent mesh reaches next are
+//! the ones it reached last. The price: every band runs the first tests (for a mesh, the
+//! corner tests; for window triangles, setup) on every triangle, and triangles in random order
+//! lose the tiles' locality (1,000,000 random 10-pixel triangles: no faster on one thread,
+//! slower on two). [`plan`] chooses from a sample of the draw call.
 //!
 //! **Determinism.** Every pixel lies in one band, and a band draws its triangles in submission
 //! order, so the output is the reference's whatever the bands.

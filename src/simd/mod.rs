@@ -1099,7 +1099,7 @@ pub fn shade_small_eight(
     shade_small_eight_scalar(eight, shading, lanes, target, depth_test)
 }
 
-/// [`shade_small_eight`] one pixel at a time, through [`KernelTarget::pixel`]: the
+/// [`shade_small_eight`] one pixel at a time, through `KernelTarget::pixel`: the
 /// definition the AVX-512 kernel is tested against.
 #[inline(never)]
 pub fn shade_small_eight_scalar(
