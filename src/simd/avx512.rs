@@ -1156,6 +1156,7 @@ pub(super) unsafe fn shade_small_eight(
     let bias = [load(&eight.bias[0]), load(&eight.bias[1])];
     let depth = s.depth.each_ref().map(load_pd);
     let table = crate::color::srgb8_table();
+    let columns = columns_of(&s.color_rows);
     let stride_v = _mm256_set1_epi32(stride as i32);
     let depth_out = target.depth.as_mut_ptr();
     let color_out = target.color.as_mut_ptr().cast::<i32>();
@@ -1226,7 +1227,7 @@ pub(super) unsafe fn shade_small_eight(
         if pass == 0 {
             continue;
         }
-        let rgba = small_colors(s, table, tri, (f1, f2), pass);
+        let rgba = small_colors(s, (table, &columns), tri, (f1, f2), pass);
         // SAFETY: as above.
         unsafe { _mm256_mask_i32scatter_epi32::<4>(color_out, pass, at, rgba) };
     }
@@ -1240,7 +1241,7 @@ pub(super) unsafe fn shade_small_eight(
 #[target_feature(enable = "avx512f,avx512vl,avx2")]
 fn small_colors(
     s: &SmallShading,
-    table: &[u32; ENCODE_BUCKETS],
+    (table, columns): (&[u32; ENCODE_BUCKETS], &[__m256; 16]),
     tri: __m256i,
     (f1, f2): (__m512d, __m512d),
     pass: __mmask8,
@@ -1250,10 +1251,7 @@ fn small_colors(
         // SAFETY: eight `f64`s, 64 bytes; the load needs no alignment.
         _mm512_permutexvar_pd(tri64, unsafe { _mm512_loadu_pd(v.as_ptr()) })
     };
-    let lanes_ps = |v: &[f32; 8]| {
-        // SAFETY: eight `f32`s, 32 bytes; the load needs no alignment.
-        _mm256_permutexvar_ps(tri, unsafe { _mm256_loadu_ps(v.as_ptr()) })
-    };
+    let lanes_ps = |column: usize| _mm256_permutexvar_ps(tri, columns[column]);
     let lanes_i32 = |v: &[i32; 8]| {
         // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
         _mm256_permutexvar_epi32(tri, unsafe { _mm256_loadu_si256(v.as_ptr().cast()) })
@@ -1283,10 +1281,10 @@ fn small_colors(
     }
     // Channel `ch`: `(c0 w0 + c1 w1 + c2 w2) scale`, left to right.
     let channel = |ch: usize| {
-        let c = |k: usize| lanes_ps(&s.colors[k][ch]);
+        let c = |k: usize| lanes_ps(4 * k + ch);
         let t = _mm256_add_ps(_mm256_mul_ps(c(0), w[0]), _mm256_mul_ps(c(1), w[1]));
         let t = _mm256_add_ps(t, _mm256_mul_ps(c(2), w[2]));
-        _mm256_mul_ps(t, lanes_ps(&s.scale[ch]))
+        _mm256_mul_ps(t, lanes_ps(12 + ch))
     };
     let r = super::avx2::srgb8(channel(0), table);
     let g = super::avx2::srgb8(channel(1), table);
@@ -1302,4 +1300,42 @@ fn small_colors(
         _mm256_or_si256(r, _mm256_slli_epi32::<8>(g)),
         _mm256_or_si256(_mm256_slli_epi32::<16>(b), _mm256_slli_epi32::<24>(alpha)),
     )
+}
+
+/// The sixteen columns of eight rows of sixteen `f32`: lane `l` of column `c` is `rows[l][c]`.
+/// Pairs of rows interleaved, then pairs of pairs, each 128-bit lane then holding four rows of
+/// one column, which the last shuffles put side by side (as `narrow_eight` transposes words).
+#[inline]
+#[target_feature(enable = "avx512f,avx512dq")]
+fn columns_of(rows: &[[f32; 16]; 8]) -> [__m256; 16] {
+    // SAFETY: each load reads one row, sixteen `f32`s (64 bytes); it needs no alignment.
+    let r: [__m512; 8] = std::array::from_fn(|l| unsafe { _mm512_loadu_ps(rows[l].as_ptr()) });
+    // `t[2p]`, `t[2p + 1]`: rows `2p` and `2p + 1` interleaved, low and high halves of each
+    // 128-bit lane.
+    let t: [__m512d; 8] = std::array::from_fn(|k| {
+        let (a, b) = (r[k & !1], r[k | 1]);
+        let v = if k % 2 == 0 { _mm512_unpacklo_ps(a, b) } else { _mm512_unpackhi_ps(a, b) };
+        _mm512_castps_pd(v)
+    });
+    // `u[4h + i]`: in 128-bit lane `j`, rows `4h..4h + 4` of column `4j + i`.
+    let u: [__m512; 8] = std::array::from_fn(|k| {
+        let (h, i) = (k / 4, k % 4);
+        let (a, b) = (t[4 * h + i / 2], t[4 * h + 2 + i / 2]);
+        let v = if i % 2 == 0 { _mm512_unpacklo_pd(a, b) } else { _mm512_unpackhi_pd(a, b) };
+        _mm512_castpd_ps(v)
+    });
+    let mut out = [_mm256_setzero_ps(); 16];
+    for i in 0..4 {
+        let (a, b) = (u[i], u[4 + i]);
+        // [a.0, b.0, a.1, b.1]: columns `i` and `4 + i`; then columns `8 + i` and `12 + i`.
+        let lo = _mm512_shuffle_f32x4::<0b01_00_01_00>(a, b);
+        let lo = _mm512_shuffle_f32x4::<0b11_01_10_00>(lo, lo);
+        let hi = _mm512_shuffle_f32x4::<0b11_10_11_10>(a, b);
+        let hi = _mm512_shuffle_f32x4::<0b11_01_10_00>(hi, hi);
+        out[i] = _mm512_castps512_ps256(lo);
+        out[4 + i] = _mm512_extractf32x8_ps::<1>(lo);
+        out[8 + i] = _mm512_castps512_ps256(hi);
+        out[12 + i] = _mm512_extractf32x8_ps::<1>(hi);
+    }
+    out
 }

@@ -1011,9 +1011,10 @@ pub struct SmallShading {
     inv_w: [[f64; 8]; 3],
     /// -1 where the `1 / w` are affine ([`crate::pipeline::is_affine`]), else 0.
     affine: [i32; 8],
-    /// Channel `ch` of vertex `k`'s colour at `colors[k][ch]`.
-    colors: [[[f32; 8]; 4]; 3],
-    scale: [[f32; 8]; 4],
+    /// Lane `l`'s colours and scale in a row: channel `ch` of vertex `k` at `4 k + ch`, of
+    /// the scale at `12 + ch`. Each set at once (a lane's sixteen values one by one had been
+    /// most of the stores setting a lane), the rows transposed where the kernel reads them.
+    color_rows: [[f32; 16]; 8],
     /// The 8-bit alpha every fragment gets ([`PerspectiveColor::alpha`]), or -1 for the
     /// weighted one.
     alpha: [i32; 8],
@@ -1043,14 +1044,9 @@ impl SmallShading {
         self.inv_area2[l] = color.inv_area2;
         (self.inv_w[0][l], self.inv_w[1][l], self.inv_w[2][l]) = (q[0], q[1], q[2]);
         self.affine[l] = -i32::from(affine);
-        for k in 0..3 {
-            for ch in 0..4 {
-                self.colors[k][ch][l] = color.colors[k][ch];
-            }
-        }
-        for ch in 0..4 {
-            self.scale[ch][l] = color.scale[ch];
-        }
+        let [[r0, g0, b0, a0], [r1, g1, b1, a1], [r2, g2, b2, a2]] = color.colors;
+        let [sr, sg, sb, sa] = color.scale;
+        self.color_rows[l] = [r0, g0, b0, a0, r1, g1, b1, a1, r2, g2, b2, a2, sr, sg, sb, sa];
         self.alpha[l] = color.alpha.map_or(-1, |a| i32::from(crate::color::unorm8(a)));
         self.id[l] = id;
     }
@@ -1059,8 +1055,10 @@ impl SmallShading {
     /// 255`, whose 8-bit value is that byte).
     fn color(&self, l: usize) -> PerspectiveColor {
         PerspectiveColor {
-            colors: std::array::from_fn(|k| std::array::from_fn(|ch| self.colors[k][ch][l])),
-            scale: std::array::from_fn(|ch| self.scale[ch][l]),
+            colors: std::array::from_fn(|k| {
+                std::array::from_fn(|ch| self.color_rows[l][4 * k + ch])
+            }),
+            scale: std::array::from_fn(|ch| self.color_rows[l][12 + ch]),
             alpha: (self.alpha[l] >= 0).then(|| self.alpha[l] as f32 / 255.0),
             inv_w: std::array::from_fn(|k| self.inv_w[k][l] as f32),
             inv_area2: self.inv_area2[l],
