@@ -1,6 +1,7 @@
 //! Micro-benchmarks of the pipeline stages: triangle setup, binning, the span and narrow
-//! triangle kernels (1x, 4x, 8x), and the 3D front end's window corners and corner tests, at
-//! every SIMD level this CPU has. `cargo bench --bench stages`.
+//! triangle kernels (1x, 4x, 8x), eight two-pixel triangles shaded together, and the 3D
+//! front end's window corners and corner tests, at every SIMD level this CPU has.
+//! `cargo bench --bench stages`.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec4;
@@ -14,8 +15,8 @@ use trirast::pipeline::Viewport;
 use trirast::sample::SampleCount;
 use trirast::shade::DepthTest;
 use trirast::simd::{
-    self, Corner, KernelTarget, NarrowJob, NarrowSamplesJob, SampleSpanJob, SimdLevel, SpanColor,
-    SpanJob,
+    self, Corner, KernelTarget, NarrowJob, NarrowSamplesJob, PerspectiveColor, SampleSpanJob,
+    SimdLevel, SmallEight, SmallLane, SmallShading, SpanColor, SpanJob,
 };
 use trirast::{CullMode, PixelRect, TriangleSetup, Vertex};
 
@@ -206,6 +207,51 @@ fn narrow(c: &mut Criterion) {
     g.finish();
 }
 
+fn small(c: &mut Criterion) {
+    // Four quads of a grid of 1.92 x 2.16-pixel quads (the bench grid's), two triangles each,
+    // with Gouraud colours in perspective-free weights, as the 3D pipeline sets them up.
+    let (w, h) = (1.92f32, 2.16f32);
+    let corner = |i: usize, j: usize| (0.3 + w * i as f32, 0.4 + h * j as f32);
+    let tris: Vec<[Vertex; 3]> = (0..4)
+        .flat_map(|i| {
+            let v = |(x, y): (f32, f32)| Vertex::new(x, y, 0.2 + 0.01 * x, [9; 4]);
+            let (a, b, c, d) = (corner(i, 0), corner(i + 1, 0), corner(i + 1, 1), corner(i, 1));
+            [[v(a), v(b), v(c)], [v(a), v(c), v(d)]]
+        })
+        .collect();
+    let mut target = trirast::Target::new(16, 8).expect("a target");
+    let mut lanes = [SmallLane::default(); 8];
+    let mut shading = SmallShading::default();
+    for (l, tri) in tris.iter().enumerate() {
+        let s = TriangleSetup::new(tri, CullMode::None).expect("a triangle");
+        lanes[l] =
+            SmallLane { xy: s.xy, clockwise: s.clockwise, first: [s.bounds.x0, s.bounds.y0] };
+        let depth = trirast::shade::PlaneEquation::from_coefficients([0.5, 1e-6, -1e-6]);
+        let color = PerspectiveColor {
+            colors: [[0.1, 0.5, 0.9, 1.0], [0.9, 0.2, 0.4, 1.0], [0.3, 0.8, 0.1, 1.0]],
+            scale: [1.0; 4],
+            alpha: Some(1.0),
+            inv_w: [1.0; 3],
+            inv_area2: 1.0 / s.area2 as f64,
+        };
+        shading.set(l, &s.bounds, &depth, &color, l as i32);
+    }
+    let mut g = c.benchmark_group("small kernel");
+    g.throughput(Throughput::Elements(8));
+    for level in SimdLevel::available() {
+        let mut eight = SmallEight::default();
+        simd::small_eight(level, &lanes, &mut eight);
+        g.bench_function(format!("{level:?}, eight two-pixel triangles"), |b| {
+            b.iter(|| {
+                let mut band = target.band();
+                let (eight, shading) = (black_box(&eight), black_box(&shading));
+                simd::shade_small_eight(level, eight, shading, 0..8, &mut band, DepthTest::Always)
+            })
+        });
+    }
+    g.finish();
+}
+
 fn front_end(c: &mut Criterion) {
     let mut rng = SmallRng::seed_from_u64(3);
     let positions: Vec<Vec4> = (0..1024)
@@ -257,5 +303,5 @@ fn front_end(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, setup, binning, kernels, sample_kernels, narrow, front_end);
+criterion_group!(benches, setup, binning, kernels, sample_kernels, narrow, small, front_end);
 criterion_main!(benches);

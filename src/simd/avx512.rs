@@ -1119,20 +1119,11 @@ pub(super) unsafe fn shade_small_eight(
     // Sixteen entries a lane at most, each lane's stored as sixteen, and room for a full
     // group's load from the last entry.
     let mut entries = [0i32; 8 * 16 + 8];
-    let mut first = [0i32; 8];
     let mut listed = 0;
     let bits = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     for l in lanes {
         assert!(l < 8, "eight lanes");
         let cells = eight.inside[l] & s.cells[l];
-        if cells == 0 {
-            continue;
-        }
-        // The box's first and last covered pixels lie in the buffers: so do all between.
-        let last = 31 - cells.leading_zeros() as usize;
-        let at = target.index(s.x0[l], s.y0[l]);
-        assert!(at + (last >> 2) * stride + (last & 3) < n, "the box must lie in the buffers");
-        first[l] = at as i32;
         let tagged = _mm512_or_si512(bits, _mm512_set1_epi32((l as i32) << 4));
         // Compressed in a register and stored whole: a compressing store to memory is
         // microcoded on AMD's Zen 4, and took over half of this function's time.
@@ -1149,7 +1140,13 @@ pub(super) unsafe fn shade_small_eight(
         // SAFETY: eight `f64`s, 64 bytes; the load needs no alignment.
         unsafe { _mm512_loadu_pd(v.as_ptr()) }
     };
-    let first = load(&first);
+    // Each box's first pixel, `target.index` in `i32` lanes (wrapping: whatever a lane
+    // holds, each pixel's index is checked before it is read or written).
+    let top = _mm256_set1_epi32(target.rect().y0);
+    let first = _mm256_add_epi32(
+        _mm256_mullo_epi32(_mm256_sub_epi32(load(&s.y0), top), _mm256_set1_epi32(stride as i32)),
+        load(&s.x0),
+    );
     let edges = [load(&eight.edges[1]), load(&eight.edges[2])];
     let step_x = [load(&eight.step_x[1]), load(&eight.step_x[2])];
     let step_y = [load(&eight.step_y[1]), load(&eight.step_y[2])];
@@ -1178,6 +1175,8 @@ pub(super) unsafe fn shade_small_eight(
         let active =
             if clash == 0 { active } else { active & ((1u8 << clash.trailing_zeros()) - 1) };
         g += active.count_ones() as usize;
+        let inside = _mm256_mask_cmplt_epu32_mask(active, at, _mm256_set1_epi32(n as i32));
+        assert!(inside == active, "the boxes must lie in the buffers");
         // `E_k + r step_y + c step_x - bias` in `i32` (below 2^23 within the box, as
         // `SmallEight` says), exact in `f64`.
         let numerator = |k: usize| {
@@ -1200,8 +1199,8 @@ pub(super) unsafe fn shade_small_eight(
         );
         let z = _mm512_cvtpd_ps(z);
         let z = _mm256_min_ps(_mm256_set1_ps(1.0), _mm256_max_ps(_mm256_setzero_ps(), z));
-        // SAFETY (every gather and scatter below): each lane of `active` holds the index of a
-        // pixel of its box, which lies in the buffers (asserted above), all of length `n`;
+        // SAFETY (every gather and scatter below): each lane of `active` holds an index below
+        // `n` (asserted above), the length of every buffer;
         // no two lanes of `active` share an index; `f32`, `i32` and `[u8; 4]` are four bytes.
         let pass = unsafe {
             if let Some(o) = target.overdraw.as_deref_mut() {

@@ -1079,7 +1079,7 @@ impl SmallShading {
 /// every earlier write, as in the reference order.
 ///
 /// # Panics
-/// If a box does not lie in the buffers.
+/// If a covered pixel of a box does not lie in the buffers.
 #[inline]
 pub fn shade_small_eight(
     level: SimdLevel,
@@ -2864,6 +2864,38 @@ mod tests {
             }
         }
         assert!(covered > 30_000 && shared > 3_000, "{covered} covered, {shared} shared");
+    }
+
+    /// A small triangle's box reaching outside the band, above it or below (a caller's
+    /// error: boxes are clipped to it), panics at every level rather than reading or writing
+    /// past the buffers: the AVX-512 kernel checks each group's indices, whatever the box's
+    /// first pixel computes to, before it gathers or scatters (so here nothing is written;
+    /// the scalar loop writes the pixels before the first outside).
+    #[test]
+    fn small_eights_outside_the_buffers_panic() {
+        let mut eight = SmallEight::default();
+        // The box's first column on its two rows: the first row lies above the band.
+        eight.inside[0] = 0b1_0001;
+        let mut shading = SmallShading::default();
+        let depth = PlaneEquation::from_coefficients([0.5, 0.0, 0.0]);
+        let color = random_perspective(&mut SmallRng::seed_from_u64(67), 1);
+        for rect in
+            [PixelRect { x0: 0, y0: 3, x1: 0, y1: 4 }, PixelRect { x0: 0, y0: 9, x1: 0, y1: 10 }]
+        {
+            shading.set(0, &rect, &depth, &color, 1);
+            for level in SimdLevel::available() {
+                let mut target = crate::target::Target::new(4, 10).unwrap();
+                let before = target.clone();
+                let drawn = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    let mut bands = target.bands_from(&[0, 4]);
+                    shade_small_eight(level, &eight, &shading, 0..1, &mut bands[1], DepthTest::Less)
+                }));
+                assert!(drawn.is_err(), "{level:?}, {rect:?}: drawn");
+                if level == SimdLevel::Avx512 {
+                    assert!(target.color == before.color, "{level:?}, {rect:?}: written");
+                }
+            }
+        }
     }
 
     /// Eight lanes' colours encode at every level as lane by lane: each channel in its byte,
