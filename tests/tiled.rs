@@ -1154,53 +1154,70 @@ fn vertex_colours_match_the_reference() {
         }
         triangles.push([3 * k, 3 * k + 1, 3 * k + 2]);
     }
-    let indices: Vec<u32> = (0..positions.len() as u32).collect();
-    let vs4 = |&i: &u32| (positions[i as usize], colors[i as usize]);
-    let vs3 = |&i: &u32| (positions[i as usize], colors[i as usize].truncate());
+    let mesh = (&positions[..], &colors[..], &triangles[..]);
     for samples in [SampleCount::X1, SampleCount::X4] {
         let fresh = || {
             let t = Target::multisampled(320, 240, samples).unwrap().with_ids();
             if samples == SampleCount::X1 { t.with_overdraw() } else { t }
         };
         let pipeline = Pipeline::default().with_cull(FaceCull::None);
-        let draw = |backend: Backend, schedule, level: Option<SimdLevel>, shader: &Tinted| {
-            let mut targets = [fresh(), fresh(), fresh()];
-            let p = pipeline.with_backend(backend).with_schedule(schedule);
-            let p = level.map_or(p, |l| p.with_simd(l));
-            let vc = trirast::pipeline::VertexColor;
-            let stats = [
-                p.draw(&mut targets[0], &vs4, &vc, &indices, &triangles).unwrap(),
-                p.draw(&mut targets[1], &vs3, &vc, &indices, &triangles).unwrap(),
-                p.draw(&mut targets[2], &vs4, shader, &indices, &triangles).unwrap(),
-            ];
-            (targets, stats)
-        };
-        let counted = Tinted(0.into());
-        let (reference, ref_stats) = draw(Backend::Reference, Schedule::Auto, None, &counted);
-        let reference_calls = counted.0.into_inner();
-        assert!(ref_stats[0].fragments > 50_000, "{:?}", ref_stats[0]);
-        for level in SimdLevel::available() {
-            for threads in [1, 2, 7] {
-                for schedule in SCHEDULES {
-                    let counted = Tinted(0.into());
-                    let (tiled, stats) = pool(threads)
-                        .install(|| draw(Backend::Tiled, schedule, Some(level), &counted));
-                    let what = format!("{samples:?}, {level:?}, {threads} threads, {schedule:?}");
-                    assert_eq!(stats, ref_stats, "{what}");
-                    for (k, (a, b)) in reference.iter().zip(&tiled).enumerate() {
-                        assert_same(a, b, &format!("{what}, shader {k}"));
-                    }
-                    let calls = counted.0.into_inner();
-                    if samples == SampleCount::X1 && level == SimdLevel::Avx512 {
-                        assert!(
-                            4 * calls < reference_calls,
-                            "{what}: {calls} of {reference_calls}"
-                        );
-                    }
+        let kernels = samples == SampleCount::X1;
+        let what = format!("{samples:?}");
+        let stats = assert_vertex_colours_match(mesh, pipeline, fresh, kernels, &what);
+        assert!(stats[0].fragments > 50_000, "{:?}", stats[0]);
+    }
+}
+
+/// Draws the mesh `(positions, colors, triangles)` with `pipeline` into targets `fresh`
+/// makes, with `VertexColor` on `Vec4` and `Vec3` colours and the tinted shader: the
+/// reference's buffers and counts at every SIMD level, on 1, 2 and 7 threads, binned and
+/// banded. With `kernels` (where the SIMD kernels take these shaders), at AVX-512 the tinted
+/// shader is called for under a quarter of the fragments the reference shaded. Returns the
+/// reference's counts, shader by shader.
+fn assert_vertex_colours_match(
+    (positions, colors, triangles): (&[Vec4], &[Vec4], &[[u32; 3]]),
+    pipeline: Pipeline,
+    fresh: impl Fn() -> Target + Sync,
+    kernels: bool,
+    what: &str,
+) -> [trirast::render::DrawStats; 3] {
+    let indices: Vec<u32> = (0..positions.len() as u32).collect();
+    let vs4 = |&i: &u32| (positions[i as usize], colors[i as usize]);
+    let vs3 = |&i: &u32| (positions[i as usize], colors[i as usize].truncate());
+    let draw = |backend: Backend, schedule, level: Option<SimdLevel>, shader: &Tinted| {
+        let mut targets = [fresh(), fresh(), fresh()];
+        let p = pipeline.with_backend(backend).with_schedule(schedule);
+        let p = level.map_or(p, |l| p.with_simd(l));
+        let vc = trirast::pipeline::VertexColor;
+        let stats = [
+            p.draw(&mut targets[0], &vs4, &vc, &indices, triangles).unwrap(),
+            p.draw(&mut targets[1], &vs3, &vc, &indices, triangles).unwrap(),
+            p.draw(&mut targets[2], &vs4, shader, &indices, triangles).unwrap(),
+        ];
+        (targets, stats)
+    };
+    let counted = Tinted(0.into());
+    let (reference, ref_stats) = draw(Backend::Reference, Schedule::Auto, None, &counted);
+    let reference_calls = counted.0.into_inner();
+    for level in SimdLevel::available() {
+        for threads in [1, 2, 7] {
+            for schedule in SCHEDULES {
+                let counted = Tinted(0.into());
+                let (tiled, stats) =
+                    pool(threads).install(|| draw(Backend::Tiled, schedule, Some(level), &counted));
+                let what = format!("{what}, {level:?}, {threads} threads, {schedule:?}");
+                assert_eq!(stats, ref_stats, "{what}");
+                for (k, (a, b)) in reference.iter().zip(&tiled).enumerate() {
+                    assert_same(a, b, &format!("{what}, shader {k}"));
+                }
+                let calls = counted.0.into_inner();
+                if kernels && level == SimdLevel::Avx512 {
+                    assert!(4 * calls < reference_calls, "{what}: {calls} of {reference_calls}");
                 }
             }
         }
     }
+    ref_stats
 }
 
 /// Two-pixel triangles with interpolated vertex colours, which the tiled backend shades
@@ -1251,54 +1268,16 @@ fn tiny_vertex_coloured_triangles_match_the_reference() {
             triangles.push([first, first + 1, first + 2]);
         }
     }
-    let indices: Vec<u32> = (0..positions.len() as u32).collect();
-    let vs4 = |&i: &u32| (positions[i as usize], colors[i as usize]);
-    let vs3 = |&i: &u32| (positions[i as usize], colors[i as usize].truncate());
-    for (k, depth_test) in
-        [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always].into_iter().enumerate()
-    {
+    let mesh = (&positions[..], &colors[..], &triangles[..]);
+    let tests = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always];
+    for (k, depth_test) in tests.into_iter().enumerate() {
         let fresh = || {
             let t = Target::new(96, 72).unwrap();
             if k == 0 { t.with_ids().with_overdraw() } else { t }
         };
         let pipeline = Pipeline::default().with_cull(FaceCull::None).with_depth_test(depth_test);
-        let draw = |backend: Backend, schedule, level: Option<SimdLevel>, shader: &Tinted| {
-            let mut targets = [fresh(), fresh(), fresh()];
-            let p = pipeline.with_backend(backend).with_schedule(schedule);
-            let p = level.map_or(p, |l| p.with_simd(l));
-            let vc = trirast::pipeline::VertexColor;
-            let stats = [
-                p.draw(&mut targets[0], &vs4, &vc, &indices, &triangles).unwrap(),
-                p.draw(&mut targets[1], &vs3, &vc, &indices, &triangles).unwrap(),
-                p.draw(&mut targets[2], &vs4, shader, &indices, &triangles).unwrap(),
-            ];
-            (targets, stats)
-        };
-        let counted = Tinted(0.into());
-        let (reference, ref_stats) = draw(Backend::Reference, Schedule::Auto, None, &counted);
-        let reference_calls = counted.0.into_inner();
-        assert!(ref_stats[0].fragments > 10_000, "{:?}", ref_stats[0]);
-        for level in SimdLevel::available() {
-            for threads in [1, 2, 7] {
-                for schedule in SCHEDULES {
-                    let counted = Tinted(0.into());
-                    let (tiled, stats) = pool(threads)
-                        .install(|| draw(Backend::Tiled, schedule, Some(level), &counted));
-                    let what =
-                        format!("{depth_test:?}, {level:?}, {threads} threads, {schedule:?}");
-                    assert_eq!(stats, ref_stats, "{what}");
-                    for (s, (a, b)) in reference.iter().zip(&tiled).enumerate() {
-                        assert_same(a, b, &format!("{what}, shader {s}"));
-                    }
-                    let calls = counted.0.into_inner();
-                    if level == SimdLevel::Avx512 {
-                        assert!(
-                            4 * calls < reference_calls,
-                            "{what}: {calls} of {reference_calls}"
-                        );
-                    }
-                }
-            }
-        }
+        let what = format!("{depth_test:?}");
+        let stats = assert_vertex_colours_match(mesh, pipeline, fresh, true, &what);
+        assert!(stats[0].fragments > 10_000, "{:?}", stats[0]);
     }
 }
