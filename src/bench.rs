@@ -30,7 +30,8 @@ pub enum BenchScene {
     Bunny,
     /// 1,000,000 random triangles of about 10 px area, 1920x1080, Gouraud + depth.
     Soup,
-    /// A 1,000,000-triangle indexed grid mesh covering 1920x1080.
+    /// A 1,000,000-triangle indexed grid mesh covering 1920x1080, random vertex colours
+    /// and depths, drawn by the 3D pipeline with [`crate::pipeline::VertexColor`].
     Grid,
     /// 256 large random triangles, 3840x2160, Gouraud + depth.
     Fill,

@@ -1097,7 +1097,7 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
 
 /// [`super::shade_small_eight`] in AVX-512. The covered pixels of the lanes are listed in
 /// drawing order (lane by lane, each box row by row, left to right), as `l << 4 | bit` with
-/// `bit` the pixel's [`super::SmallEight::inside`] bit, one compressing store per lane; then
+/// `bit` the pixel's [`super::SmallEight::inside`] bit, one compress and store per lane; then
 /// each group of eight listed pixels takes its triangles' values from registers of all
 /// eight lanes (`vpermd`, `vpermpd`), and its buffers through gathers and scatters.
 ///
@@ -1200,8 +1200,8 @@ pub(super) unsafe fn shade_small_eight(
         let z = _mm512_cvtpd_ps(z);
         let z = _mm256_min_ps(_mm256_set1_ps(1.0), _mm256_max_ps(_mm256_setzero_ps(), z));
         // SAFETY (every gather and scatter below): each lane of `active` holds an index below
-        // `n` (asserted above), the length of every buffer;
-        // no two lanes of `active` share an index; `f32`, `i32` and `[u8; 4]` are four bytes.
+        // `n` (asserted above), the length of every buffer, and no two share one; `f32`,
+        // `i32` and `[u8; 4]` are four bytes.
         let pass = unsafe {
             if let Some(o) = target.overdraw.as_deref_mut() {
                 let o = o.as_mut_ptr().cast::<i32>();

@@ -2776,7 +2776,7 @@ mod tests {
     /// pixels, which ends groups early), random colours ([`random_perspective`]: affine and
     /// divided weights, thirds, constant and weighted alpha, NaN and infinities), depth planes
     /// reaching outside [0, 1], every depth test, stored depths in [0, 1], with and without
-    /// id and overdraw buffers, in a band that starts below row 0, boxes clipped to it.
+    /// id and overdraw buffers, in a band that does not start at row 0, boxes clipped to it.
     #[test]
     fn small_eights_shade_as_scalar() {
         let mut rng = SmallRng::seed_from_u64(66);
