@@ -313,8 +313,8 @@ impl Bands {
             .map(|(b, mut band)| {
                 let clip = coverage.clip.intersect(&band.rect()).unwrap_or(PixelRect::EMPTY);
                 let coverage = Coverage { clip, ..coverage };
-                let mut records: Vec<S> = Vec::with_capacity(bin::CHUNK);
-                let mut covers = Vec::with_capacity(bin::CHUNK);
+                let mut records: Vec<S> = Vec::with_capacity(PIECE);
+                let mut covers = Vec::with_capacity(PIECE);
                 let mut setup = bin::EightSetup::default();
                 let (mut stats, mut uncounted) = (DrawStats::default(), DrawStats::default());
                 let mut covered = 0;

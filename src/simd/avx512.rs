@@ -1151,6 +1151,7 @@ pub(super) unsafe fn shade_small_eight(
     let step_x = [load(&eight.step_x[1]), load(&eight.step_x[2])];
     let step_y = [load(&eight.step_y[1]), load(&eight.step_y[2])];
     let bias = [load(&eight.bias[0]), load(&eight.bias[1])];
+    let ids_v = load(&s.id);
     let depth = s.depth.each_ref().map(load_pd);
     let table = crate::color::srgb8_table();
     let columns = columns_of(&s.color_rows);
@@ -1218,7 +1219,7 @@ pub(super) unsafe fn shade_small_eight(
             };
             _mm256_mask_i32scatter_ps::<4>(depth_out, pass, at, z);
             if let Some(ids) = target.ids.as_deref_mut() {
-                let id = _mm256_permutexvar_epi32(tri, load(&s.id));
+                let id = _mm256_permutexvar_epi32(tri, ids_v);
                 _mm256_mask_i32scatter_epi32::<4>(ids.as_mut_ptr(), pass, at, id);
             }
             pass
@@ -1260,7 +1261,8 @@ fn small_colors(
     let (l1, l2) = (_mm512_mul_pd(f1, inv_area2), _mm512_mul_pd(f2, inv_area2));
     let l0 = _mm512_sub_pd(_mm512_sub_pd(_mm512_set1_pd(1.0), l1), l2);
     let mut w = [_mm512_cvtpd_ps(l0), _mm512_cvtpd_ps(l1), _mm512_cvtpd_ps(l2)];
-    let affine = _mm256_test_epi32_mask(lanes_i32(&s.affine), lanes_i32(&s.affine));
+    let affine = lanes_i32(&s.affine);
+    let affine = _mm256_test_epi32_mask(affine, affine);
     if pass & !affine != 0 {
         let w0 = _mm512_mul_pd(l0, lanes_pd(&s.inv_w[0]));
         let w1 = _mm512_mul_pd(l1, lanes_pd(&s.inv_w[1]));

@@ -1107,11 +1107,10 @@ pub fn shade_small_eight_scalar(
     target: &mut crate::target::TargetBand<'_>,
     depth_test: DepthTest,
 ) -> u64 {
-    let mut covered = 0;
+    let (mut covered, stride) = (0, target.stride());
     for l in lanes {
         let (x0, y0) = (shading.x0[l], shading.y0[l]);
         let first = target.index(x0, y0);
-        let stride = target.stride();
         let color = SpanColor::Perspective(shading.color(l));
         let s = shading;
         let mut t = KernelTarget {
