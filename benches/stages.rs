@@ -222,8 +222,11 @@ fn small(c: &mut Criterion) {
     let mut target = trirast::Target::new(16, 8).expect("a target");
     let mut lanes = [SmallLane::default(); 8];
     let mut shading = SmallShading::default();
+    let mut span = [1, 1];
     for (l, tri) in tris.iter().enumerate() {
         let s = TriangleSetup::new(tri, CullMode::None).expect("a triangle");
+        let b = s.bounds;
+        span = [span[0].max((b.x1 - b.x0 + 1) as usize), span[1].max((b.y1 - b.y0 + 1) as usize)];
         lanes[l] =
             SmallLane { xy: s.xy, clockwise: s.clockwise, first: [s.bounds.x0, s.bounds.y0] };
         let depth = trirast::shade::PlaneEquation::from_coefficients([0.5, 1e-6, -1e-6]);
@@ -240,7 +243,7 @@ fn small(c: &mut Criterion) {
     g.throughput(Throughput::Elements(8));
     for level in SimdLevel::available() {
         let mut eight = SmallEight::default();
-        simd::small_eight(level, &lanes, &mut eight);
+        simd::small_eight(level, &lanes, span, &mut eight);
         g.bench_function(format!("{level:?}, eight two-pixel triangles"), |b| {
             b.iter(|| {
                 let mut band = target.band();

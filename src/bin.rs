@@ -817,6 +817,9 @@ pub(crate) struct EightSetup {
 /// few among larger ones (the bunny's) cost more together than alone.
 const SMALL_EIGHT_MIN: u32 = 4;
 
+/// [`crate::simd::SMALL_BOX`], the widest and tallest box of a triangle [`small_lanes`] takes.
+const SMALL_BOX: i32 = crate::simd::SMALL_BOX;
+
 /// Shades up to eight records in order within `clip` (the tile, or the band's rows) with
 /// `depth_test`, as [`shade_record`] would each: eight of them set up together as `kind`
 /// says, where they can be (window triangles through the narrow kernel,
@@ -841,10 +844,15 @@ where
 {
     debug_assert!(records.len() <= 8, "eight records at most");
     let mut boxes = [PixelRect::EMPTY; 8];
-    let lanes = match (kind, <&[&S; 8]>::try_from(records)) {
-        (Eight::Narrow(level), Ok(eight)) => S::narrow_eight(eight, clip, level, &mut setup.narrow),
-        (Eight::Small, Ok(eight)) => small_lanes(eight, (clip, shared, kernel), setup, &mut boxes),
-        _ => 0,
+    let (mut lanes, queue_lanes) = match (kind, <&[&S; 8]>::try_from(records)) {
+        (Eight::Narrow(level), Ok(eight)) => {
+            (S::narrow_eight(eight, clip, level, &mut setup.narrow), 0)
+        }
+        (Eight::Small, Ok(eight)) => {
+            let tests = (clip, shared, kernel, fragments.span_colors());
+            small_lanes(eight, tests, setup, &mut boxes)
+        }
+        _ => (0, 0),
     };
     let (mut covered, mut l) = (0, 0);
     while l < records.len() {
@@ -857,38 +865,46 @@ where
         if let Eight::Narrow(level) = kind {
             covered +=
                 crate::simd::shade_narrow_eight(level, &setup.narrow, l..l + run, band, depth_test);
-        } else if let Some(n) = shade_small_run(
-            band,
-            records,
-            (l..l + run, &boxes, depth_test),
-            fragments,
-            queue,
-            setup,
-        ) {
-            covered += n;
         } else {
-            // A loop: the closure of a `map` here was left out of line, a call per triangle
-            // (no difference measured on the grid, within the noise).
-            for m in l..l + run {
-                let p = records[m].kept().expect("a small lane keeps its triangle");
-                let (lane, id) = ((&setup.small, m), (depth_test, p.id));
+            let (kernel_lanes, n) = shade_small_run(
+                band,
+                records,
+                (l..l + run, &boxes, depth_test),
+                fragments,
+                queue,
+                setup,
+            );
+            covered += n;
+            l += kernel_lanes;
+            // The lane after those, which the kernel cannot shade (its triangle has no kernel
+            // colour): to the queue if it shares it, else on its own (the next turn's `one`,
+            // called from one place).
+            if kernel_lanes < run {
+                if queue_lanes >> l & 1 == 0 {
+                    lanes &= !(1 << l);
+                    continue;
+                }
+                let p = records[l].kept().expect("a small lane keeps its triangle");
+                let (lane, id) = ((&setup.small, l), (depth_test, p.id));
                 let (depth, t) = (&p.depth, &p.payload);
                 covered +=
-                    shade::shade_small_lane(band, lane, &boxes[m], depth, id, t, fragments, queue);
+                    shade::shade_small_lane(band, lane, &boxes[l], depth, id, t, fragments, queue);
+                l += 1;
             }
+            continue;
         }
         l += run;
     }
     covered
 }
 
-/// Shades `run`'s small triangles (of `records`, with boxes `boxes`; their coverage in
-/// `setup.small`) at once with [`crate::simd::shade_small_eight`], after the queue's earlier
-/// fragments, when the fragment stage gives every one of them a kernel's colour
-/// ([`SpanColor::Perspective`], the 3D pipeline's interpolated vertex colours): their
-/// covered pixels. Else `None`, nothing drawn, the lanes left to the queue. Out of line:
-/// inlined, it grew the tile loop, whose other calls the compiler then inlined differently
-/// (fill, which never takes it, 4% slower on two threads).
+/// Shades the first triangles of `run` (of `records`, with boxes `boxes`; their coverage in
+/// `setup.small`) that the fragment stage gives a kernel's colour
+/// ([`SpanColor::Perspective`], the 3D pipeline's interpolated vertex colours) at once with
+/// [`crate::simd::shade_small_eight`], after the queue's earlier fragments: returns how many
+/// and their covered pixels (none, nothing drawn, when the first has no such colour). Out of
+/// line: inlined, it grew the tile loop, whose other calls the compiler then inlined
+/// differently (fill, which never takes it, 4% slower on two threads).
 #[inline(never)]
 fn shade_small_run<'a, S: Record, F: TriangleFragments<S::Payload>>(
     band: &mut TargetBand<'_>,
@@ -897,57 +913,70 @@ fn shade_small_run<'a, S: Record, F: TriangleFragments<S::Payload>>(
     fragments: &F,
     queue: &mut shade::SharedLaneQueue<'a, S::Payload>,
     setup: &mut EightSetup,
-) -> Option<u64> {
-    let mut level = None;
-    for m in run.clone() {
-        let p = records[m].kept()?;
+) -> (usize, u64) {
+    let (mut level, mut end) = (None, run.start);
+    while end < run.end {
+        let Some(p) = records[end].kept() else { break };
         let Some((l, SpanColor::Perspective(c))) = fragments.span_color(&p.payload) else {
-            return None;
+            break;
         };
-        setup.shading.set(m, &boxes[m], &p.depth, &c, p.id);
-        level = Some(l);
+        setup.shading.set(end, &boxes[end], &p.depth, &c, p.id);
+        (level, end) = (Some(l), end + 1);
     }
+    let Some(level) = level else { return (0, 0) };
     queue.flush(band, fragments);
     let (small, shading) = (&setup.small, &setup.shading);
-    Some(crate::simd::shade_small_eight(level?, small, shading, run, band, depth_test))
+    let covered =
+        crate::simd::shade_small_eight(level, small, shading, run.start..end, band, depth_test);
+    (end - run.start, covered)
 }
 
-/// The lanes of eight records that [`shade_eight`] takes together as small triangles
-/// (`shade_record`'s test for the shared queue, and a box of at most 4 x 4 pixels that
-/// reaches `clip`), their coverage set up in `setup` and their boxes within `clip` in
-/// `boxes`; none where fewer than [`SMALL_EIGHT_MIN`] are.
+/// The lanes of eight records that [`shade_eight`] takes together as small triangles, and
+/// of those the ones that share the lane queue: kept whole, without a span kernel, `shared`,
+/// with a box of at most [`SMALL_BOX`] x [`SMALL_BOX`] pixels that reaches `clip`, and
+/// either small enough for the queue ([`queued`]'s test) or, when `kernels` (the fragment
+/// stage may give kernel colours, [`TriangleFragments::span_colors`]), larger. Their
+/// coverage is set up in `setup` and their boxes within `clip` in `boxes`; none where fewer
+/// than [`SMALL_EIGHT_MIN`] are.
 #[inline(always)]
 fn small_lanes<S: Record, K>(
     records: &[&S; 8],
-    (clip, shared, kernel): (&PixelRect, impl Fn(&Prepared<S::Payload>) -> bool, &K),
+    (clip, shared, kernel, kernels): (&PixelRect, impl Fn(&Prepared<S::Payload>) -> bool, &K, bool),
     setup: &mut EightSetup,
     boxes: &mut [PixelRect; 8],
-) -> u8
+) -> (u8, u8)
 where
     K: Fn(&S::Payload) -> Option<(SimdLevel, &SpanColor)>,
 {
     let mut lanes = [crate::simd::SmallLane::default(); 8];
-    let mut smallest = 0u8;
+    let (mut smallest, mut queue) = (0u8, 0u8);
+    let mut span = [1, 1];
     for (l, &record) in records.iter().enumerate() {
         let Some(p) = record.kept() else { continue };
         let b = &p.setup.bounds;
-        // The box first: the queue's test asks `shared` last.
-        if b.x1 - b.x0 < 4
-            && b.y1 - b.y0 < 4
-            && queued(record, kernel, &shared).is_some()
+        let fits_queue = p.setup.area2 <= shade::SHARED_QUEUE_AREA2;
+        // The box first, `shared` last (it may compute the coverage rectangle).
+        if b.x1 - b.x0 < SMALL_BOX
+            && b.y1 - b.y0 < SMALL_BOX
+            && (fits_queue || kernels)
+            && kernel(&p.payload).is_none()
+            && shared(p)
             && let Some(r) = b.intersect(clip)
         {
             let (xy, clockwise) = (p.setup.xy, p.setup.clockwise);
             lanes[l] = crate::simd::SmallLane { xy, clockwise, first: [r.x0, r.y0] };
             boxes[l] = r;
+            span = [span[0].max(r.x1 - r.x0 + 1), span[1].max(r.y1 - r.y0 + 1)];
             smallest |= 1 << l;
+            queue |= u8::from(fits_queue) << l;
         }
     }
     if smallest.count_ones() < SMALL_EIGHT_MIN {
-        return 0;
+        return (0, 0);
     }
-    crate::simd::small_eight(SimdLevel::detected(), &lanes, &mut setup.small);
-    smallest
+    let span = span.map(|s| s as usize);
+    crate::simd::small_eight(SimdLevel::detected(), &lanes, span, &mut setup.small);
+    (smallest, queue)
 }
 
 /// Shades prepared triangle `p` within `rect`: with the span kernel `kernel` where there is

@@ -742,6 +742,11 @@ where
         Some((level, SpanColor::Perspective(color)))
     }
 
+    #[inline(always)]
+    fn span_colors(&self) -> bool {
+        self.kernel.is_some()
+    }
+
     /// [`TriangleFragments::fragment`] of each lane. With perspective, the weights of all
     /// lanes first: one loop of divisions, which pipeline, rather than three divisions
     /// waiting in each fragment's chain (see ARCHITECTURE.md, `shade`). Affine triangles need

@@ -539,6 +539,12 @@ pub trait TriangleFragments<T>: Sync {
     fn span_color(&self, _t: &T) -> Option<(SimdLevel, SpanColor)> {
         None
     }
+
+    /// Whether [`TriangleFragments::span_color`] may give any triangle a colour: where it
+    /// cannot, the tile loops do not set triangles up for the kernels that would ask it.
+    fn span_colors(&self) -> bool {
+        false
+    }
 }
 
 impl<T, F> TriangleFragments<T> for F
@@ -1385,7 +1391,7 @@ pub(crate) fn shade_small_lane<'a, T, F: TriangleFragments<T>>(
     };
     let mut covered = 0;
     for (n, py) in (r.y0..=r.y1).enumerate() {
-        let mask = eight.inside[l] >> (4 * n) & ((1 << columns) - 1);
+        let mask = (eight.inside[l] >> (8 * n)) as u32 & ((1 << columns) - 1);
         covered += row_pixels(target, &mut pixel, mask, (&row, step_x, bias), (r.x0, py));
         row = std::array::from_fn(|k| row[k] + step_y[k]);
     }

@@ -392,13 +392,14 @@ fn lanes_i32(lanes: &[SmallLane; 8], f: fn(&SmallLane) -> i32) -> __m256i {
 /// [`super::small_eight`]: each lane's vertices and box assembled in registers from the
 /// lanes (scalar loads: vector loads of what the caller just stored one value at a time
 /// would wait for the stores), the edges as `TriangleSetup::edges_at` computes them, and
-/// the 16 pixels of each 4 x 4 box tested by stepping the edge values, their sign bits
-/// gathered into one mask per lane.
+/// the `span` of each box tested by stepping the edge values, their sign bits gathered into
+/// one mask per lane (rows 0 to 3 in one `i32` lane, rows 4 to 7 in another, interleaved
+/// into `u64`s at the end).
 ///
 /// # Safety
 /// The CPU must support AVX2.
 #[target_feature(enable = "avx2")]
-pub(super) unsafe fn small_eight(lanes: &[SmallLane; 8], out: &mut SmallEight) {
+pub(super) unsafe fn small_eight(lanes: &[SmallLane; 8], span: [usize; 2], out: &mut SmallEight) {
     let each = |f: fn(&SmallLane) -> i32| lanes_i32(lanes, f);
     let x = [each(|l| l.xy[0][0]), each(|l| l.xy[1][0]), each(|l| l.xy[2][0])];
     let y = [each(|l| l.xy[0][1]), each(|l| l.xy[1][1]), each(|l| l.xy[2][1])];
@@ -440,23 +441,38 @@ pub(super) unsafe fn small_eight(lanes: &[SmallLane; 8], out: &mut SmallEight) {
             put(&mut out.bias[k - 1], bias);
         }
     }
-    // Bit `4 r + c` of each lane: the sign of `e0 | e1 | e2` there (set: outside), the
-    // values stepped from pixel to pixel.
-    let mut outside = zero;
+    // Bit `8 r + c` of each lane (less 32 from row 4 on): the sign of `e0 | e1 | e2` there
+    // (set: outside), the values stepped from pixel to pixel.
+    let (columns, rows) = (span[0].min(8), span[1].min(8));
+    let (mut outside, mut inside) = ([zero; 2], [zero; 2]);
     let mut row = value;
-    for r in 0..4 {
+    for r in 0..rows {
         let mut v = row;
-        for c in 0..4 {
+        for c in 0..columns {
             let any = _mm256_or_si256(_mm256_or_si256(v[0], v[1]), v[2]);
-            let at = _mm_cvtsi32_si128(4 * r + c);
-            outside = _mm256_or_si256(outside, _mm256_sll_epi32(_mm256_srli_epi32::<31>(any), at));
+            let at = _mm_cvtsi32_si128((8 * (r % 4) + c) as i32);
+            let o = &mut outside[r / 4];
+            *o = _mm256_or_si256(*o, _mm256_sll_epi32(_mm256_srli_epi32::<31>(any), at));
             v = std::array::from_fn(|k| _mm256_add_epi32(v[k], step_x[k]));
         }
         row = std::array::from_fn(|k| _mm256_add_epi32(row[k], step_y[k]));
     }
-    let inside = _mm256_andnot_si256(outside, _mm256_set1_epi32(0xFFFF));
-    // SAFETY: eight `u32`s, 32 bytes; the store needs no alignment.
-    unsafe { _mm256_storeu_si256(out.inside.as_mut_ptr().cast(), inside) };
+    // The bits of the span: its columns in each of its rows.
+    let row_bits = (1u32 << columns) - 1;
+    for (h, inside) in inside.iter_mut().enumerate() {
+        let cells = (0..rows.saturating_sub(4 * h).min(4)).fold(0, |m, r| m | row_bits << (8 * r));
+        *inside = _mm256_andnot_si256(outside[h], _mm256_set1_epi32(cells as i32));
+    }
+    // Lanes 0, 1, 4, 5 and 2, 3, 6, 7 as `u64`s, low half first; then in order.
+    let (a, b) =
+        (_mm256_unpacklo_epi32(inside[0], inside[1]), _mm256_unpackhi_epi32(inside[0], inside[1]));
+    let (first, last) =
+        (_mm256_permute2x128_si256::<0x20>(a, b), _mm256_permute2x128_si256::<0x31>(a, b));
+    // SAFETY: eight `u64`s, 64 bytes, in two stores of 32; they need no alignment.
+    unsafe {
+        _mm256_storeu_si256(out.inside.as_mut_ptr().cast(), first);
+        _mm256_storeu_si256(out.inside.as_mut_ptr().add(4).cast(), last);
+    }
 }
 
 /// [`super::srgb8_lanes`]: the eight colours transposed into a register per channel (each

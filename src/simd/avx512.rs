@@ -1096,8 +1096,9 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
 }
 
 /// [`super::shade_small_eight`] in AVX-512. The covered pixels of the lanes are listed in
-/// drawing order (lane by lane, each box row by row, left to right), as `l << 4 | bit` with
-/// `bit` the pixel's [`super::SmallEight::inside`] bit, one compress and store per lane; then
+/// drawing order (lane by lane, each box row by row, left to right), as `l << 6 | bit` with
+/// `bit` the pixel's [`super::SmallEight::inside`] bit, one compress and store per two rows
+/// that have any; then
 /// each group of eight listed pixels takes its triangles' values from registers of all
 /// eight lanes (`vpermd`, `vpermpd`), and its buffers through gathers and scatters.
 ///
@@ -1116,21 +1117,28 @@ pub(super) unsafe fn shade_small_eight(
     assert!(target.ids.as_ref().is_none_or(|b| b.len() == n), "buffers of one length");
     assert!(target.overdraw.as_ref().is_none_or(|b| b.len() == n), "buffers of one length");
     let stride = target.stride();
-    // Sixteen entries a lane at most, each lane's stored as sixteen, and room for a full
+    // 64 entries a lane at most, each two rows' stored as sixteen, and room for a full
     // group's load from the last entry.
-    let mut entries = [0i32; 8 * 16 + 8];
+    let mut entries = [0i32; 8 * 64 + 16];
     let mut listed = 0;
     let bits = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     for l in lanes {
         assert!(l < 8, "eight lanes");
-        let cells = eight.inside[l] & s.cells[l];
-        let tagged = _mm512_or_si512(bits, _mm512_set1_epi32((l as i32) << 4));
-        // Compressed in a register and stored whole: a compressing store to memory is
-        // microcoded on AMD's Zen 4, and took over half of this function's time.
-        let packed = _mm512_maskz_compress_epi32(cells as __mmask16, tagged);
-        // SAFETY: sixteen entries from `listed`, which is at most 16 l: within `entries`.
-        unsafe { _mm512_storeu_si512(entries.as_mut_ptr().add(listed).cast(), packed) };
-        listed += cells.count_ones() as usize;
+        let mut cells = eight.inside[l] & s.cells[l];
+        while cells != 0 {
+            // The two rows of the first pixel left.
+            let pair = cells.trailing_zeros() & !15;
+            let two = (cells >> pair) as u16;
+            cells &= !(0xFFFF << pair);
+            let tagged = _mm512_or_si512(bits, _mm512_set1_epi32((l as i32) << 6 | pair as i32));
+            // Compressed in a register and stored whole: a compressing store to memory is
+            // microcoded on AMD's Zen 4, and took over half of this function's time.
+            let packed = _mm512_maskz_compress_epi32(two, tagged);
+            // SAFETY: sixteen entries from `listed`, which is below 64 l + pair: within
+            // `entries`.
+            unsafe { _mm512_storeu_si512(entries.as_mut_ptr().add(listed).cast(), packed) };
+            listed += two.count_ones() as usize;
+        }
     }
     let load = |v: &[i32; 8]| {
         // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
@@ -1161,11 +1169,11 @@ pub(super) unsafe fn shade_small_eight(
     let mut g = 0;
     while g < listed {
         let active = (0xFFu32 >> 8usize.saturating_sub(listed - g)) as __mmask8;
-        // SAFETY: `g < listed <= 8 * 16`: eight entries from `g` are within `entries`.
+        // SAFETY: `g < listed <= 8 * 64`: eight entries from `g` are within `entries`.
         let e = unsafe { _mm256_loadu_si256(entries.as_ptr().add(g).cast()) };
-        let tri = _mm256_srli_epi32::<4>(e);
-        let column = _mm256_and_si256(e, _mm256_set1_epi32(3));
-        let row = _mm256_and_si256(_mm256_srli_epi32::<2>(e), _mm256_set1_epi32(3));
+        let tri = _mm256_srli_epi32::<6>(e);
+        let column = _mm256_and_si256(e, _mm256_set1_epi32(7));
+        let row = _mm256_and_si256(_mm256_srli_epi32::<3>(e), _mm256_set1_epi32(7));
         let at = _mm256_add_epi32(
             _mm256_add_epi32(_mm256_permutexvar_epi32(tri, first), column),
             _mm256_mullo_epi32(row, stride_v),
@@ -1178,7 +1186,7 @@ pub(super) unsafe fn shade_small_eight(
         g += active.count_ones() as usize;
         let inside = _mm256_mask_cmplt_epu32_mask(active, at, _mm256_set1_epi32(n as i32));
         assert!(inside == active, "the boxes must lie in the buffers");
-        // `E_k + r step_y + c step_x - bias` in `i32` (below 2^23 within the box, as
+        // `E_k + r step_y + c step_x - bias` in `i32` (below 2^25 within the box, as
         // `SmallEight` says), exact in `f64`.
         let numerator = |k: usize| {
             let v = _mm256_add_epi32(

@@ -922,9 +922,11 @@ fn narrow_eight_jobs(
 
 /// Eight small triangles' coverage at once ([`small_eight`]), lane `l` for the `l`-th: the
 /// values [`TriangleSetup::edges_at`] gives at the centre of its box's first pixel, and the
-/// box's pixels inside all three edges. For boxes of at most 4 x 4 pixels (before clipping):
-/// their edges' coefficients are below 5 * 256 and their values within the box below 2^23,
-/// so `i32` lanes hold them exactly.
+/// box's pixels inside all three edges. For boxes of at most [`SMALL_BOX`] x [`SMALL_BOX`]
+/// pixels (before clipping): the vertices then lie within 9 * 256 of each other and of every
+/// pixel centre of the box on each axis, so the edges' coefficients are below 2^12 and their
+/// values within the box, even stepped seven rows and seven columns from the first pixel,
+/// below 2^25: `i32` lanes hold them exactly.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SmallEight {
     /// Biased edge values at the first pixel's centre.
@@ -935,10 +937,14 @@ pub struct SmallEight {
     pub step_y: [[i32; 8]; 3],
     /// Edges 1 and 2's fill-rule biases (0 or -1).
     pub bias: [[i32; 8]; 2],
-    /// Bit `4 r + c`: the pixel `c` columns right of the first and `r` rows down is inside
-    /// (for `r`, `c` below 4; the caller keeps those within its box).
-    pub inside: [u32; 8],
+    /// Bit `8 r + c`: the pixel `c` columns right of the first and `r` rows down is inside
+    /// (for `c` and `r` within the span [`small_eight`] was given, else 0; the caller keeps
+    /// those within its box).
+    pub inside: [u64; 8],
 }
+
+/// The widest and tallest box (pixels, before clipping) of a triangle [`small_eight`] takes.
+pub const SMALL_BOX: i32 = 8;
 
 /// What [`small_eight`] needs of one triangle: its snapped vertices, winding, and the first
 /// pixel of its box.
@@ -952,33 +958,46 @@ pub struct SmallLane {
     pub first: [i32; 2],
 }
 
-/// The coverage of eight small triangles `lanes` into `out` (see [`SmallEight`]), side by
-/// side in `i32` lanes from AVX2 on: one at a time, deriving each small triangle's edges and
-/// row masks had been about a fifth of a frame of two-pixel triangles (the grid, one
-/// thread: doing it twice added 17 ms to 72). Integer arithmetic, the same at every level.
-/// Each lane's box must be at most 4 x 4 pixels before clipping, and `first` within it.
+/// The coverage of eight small triangles `lanes` into `out` (see [`SmallEight`]), the first
+/// `span[0]` columns of the first `span[1]` rows of each box (the largest box's, 1 to
+/// [`SMALL_BOX`] each), side by side in `i32` lanes from AVX2 on: one at a time, deriving
+/// each small triangle's edges and row masks had been about a fifth of a frame of two-pixel
+/// triangles (the grid, one thread: doing it twice added 17 ms to 72). Integer arithmetic,
+/// the same at every level. Each lane's box must be at most [`SMALL_BOX`] x [`SMALL_BOX`]
+/// pixels before clipping, and `first` within it.
+///
+/// # Panics
+/// If `span` is outside those bounds.
 #[inline]
-pub fn small_eight(level: SimdLevel, lanes: &[SmallLane; 8], out: &mut SmallEight) {
+pub fn small_eight(
+    level: SimdLevel,
+    lanes: &[SmallLane; 8],
+    span: [usize; 2],
+    out: &mut SmallEight,
+) {
+    let limit = 1..=SMALL_BOX as usize;
+    assert!(limit.contains(&span[0]) && limit.contains(&span[1]), "a span within a small box");
     #[cfg(target_arch = "x86_64")]
     if level.has_avx2() {
         // SAFETY: AVX2 and FMA support was just checked at run time.
-        return unsafe { avx2::small_eight(lanes, out) };
+        return unsafe { avx2::small_eight(lanes, span, out) };
     }
-    small_eight_scalar(lanes, out);
+    small_eight_scalar(lanes, span, out);
 }
 
 /// [`small_eight`] a triangle at a time: [`TriangleSetup::edges_at`] and
 /// [`crate::raster::edge::row_coverage_within`] on each row, as the narrow path computes
 /// them.
-pub fn small_eight_scalar(lanes: &[SmallLane; 8], out: &mut SmallEight) {
+pub fn small_eight_scalar(lanes: &[SmallLane; 8], span: [usize; 2], out: &mut SmallEight) {
     for (l, lane) in lanes.iter().enumerate() {
         let setup = TriangleSetup::from_kept(lane.xy, lane.clockwise);
         let (x, y) = (fixed::pixel_centre(lane.first[0]), fixed::pixel_centre(lane.first[1]));
         let (edges, step_x, step_y, bias) = setup.edges_at(x, y);
         let mut row = edges;
         let mut inside = 0;
-        for r in 0..4 {
-            inside |= crate::raster::edge::row_coverage_within(row, step_x, 4) << (4 * r);
+        for r in 0..span[1].min(SMALL_BOX as usize) {
+            let mask = crate::raster::edge::row_coverage_within(row, step_x, span[0]);
+            inside |= u64::from(mask) << (8 * r);
             row = std::array::from_fn(|k| row[k] + step_y[k]);
         }
         out.inside[l] = inside;
@@ -1002,8 +1021,8 @@ pub struct SmallShading {
     /// The box's first pixel (column, row).
     x0: [i32; 8],
     y0: [i32; 8],
-    /// The box's pixels, numbered as [`SmallEight::inside`] numbers them (bit `4 r + c`).
-    cells: [u32; 8],
+    /// The box's pixels, numbered as [`SmallEight::inside`] numbers them (bit `8 r + c`).
+    cells: [u64; 8],
     /// Depth plane `[a0, g1, g2]`, coefficient by coefficient.
     depth: [[f64; 8]; 3],
     inv_area2: [f64; 8],
@@ -1023,7 +1042,7 @@ pub struct SmallShading {
 
 impl SmallShading {
     /// Lane `l`: the triangle with id `id`, depth plane `depth` and colour `color`, whose
-    /// box (within the clip rectangle, at most 4 x 4 pixels) is `rect`.
+    /// box (within the clip rectangle, at most [`SMALL_BOX`] pixels a side) is `rect`.
     #[inline(always)]
     pub fn set(
         &mut self,
@@ -1033,10 +1052,13 @@ impl SmallShading {
         color: &PerspectiveColor,
         id: i32,
     ) {
-        debug_assert!(rect.x1 - rect.x0 < 4 && rect.y1 - rect.y0 < 4, "a box of 4 x 4 at most");
-        let (columns, rows) = ((rect.x1 - rect.x0 + 1) as u32, (rect.y1 - rect.y0 + 1) as u32);
-        let row = (1u32 << columns.min(4)) - 1;
-        self.cells[l] = (0..rows.min(4)).fold(0, |cells, r| cells | row << (4 * r));
+        let small = |a: i32, b: i32| (b - a).clamp(0, SMALL_BOX - 1) as u32 + 1;
+        debug_assert!(small(rect.x0, rect.x1) == (rect.x1 - rect.x0 + 1) as u32, "a small box");
+        debug_assert!(small(rect.y0, rect.y1) == (rect.y1 - rect.y0 + 1) as u32, "a small box");
+        let (columns, rows) = (small(rect.x0, rect.x1), small(rect.y0, rect.y1));
+        // A row's bits repeated in every byte, cut to `rows` bytes.
+        let row = ((1u64 << columns) - 1) * 0x0101_0101_0101_0101;
+        self.cells[l] = row & (u64::MAX >> (64 - 8 * rows));
         (self.x0[l], self.y0[l]) = (rect.x0, rect.y0);
         let [a0, g1, g2] = depth.coefficients();
         (self.depth[0][l], self.depth[1][l], self.depth[2][l]) = (a0, g1, g2);
@@ -1128,7 +1150,7 @@ pub fn shade_small_eight_scalar(
         while inside != 0 {
             let bit = inside.trailing_zeros() as i32;
             inside &= inside - 1;
-            let (c, r) = (bit & 3, bit >> 2);
+            let (c, r) = (bit & 7, bit >> 3);
             let f = |k: usize, b: usize| {
                 let v = eight.edges[k][l] + r * eight.step_y[k][l] + c * eight.step_x[k][l];
                 f64::from(v - eight.bias[b][l])
@@ -2720,9 +2742,10 @@ mod tests {
     }
 
     /// Eight small triangles' coverage at every level is the scalar one's (`edges_at` and
-    /// the row masks of each): boxes of 1 to 4 pixels a side before clipping, both
+    /// the row masks of each): boxes of 1 to 8 pixels a side before clipping, both
     /// windings, slivers, vertices on pixel centres and edges through them (fill-rule ties),
-    /// near the ends of the fixed-point range, first pixels anywhere in the box.
+    /// near the ends of the fixed-point range, first pixels anywhere in the box, spans of
+    /// every size (larger and smaller than the boxes).
     #[test]
     fn small_eights_match_scalar() {
         let mut rng = SmallRng::seed_from_u64(64);
@@ -2730,39 +2753,43 @@ mod tests {
         for round in 0..20_000 {
             let lanes: [SmallLane; 8] = std::array::from_fn(|_| {
                 loop {
-                    // Within 2^23 (the snapped range) with the box's 5 * 256 units beyond.
+                    // Within 2^23 (the snapped range) with the box's 9 * 256 units beyond.
                     let coordinate = |rng: &mut SmallRng| {
                         if round % 4 == 0 {
                             let sign = if rng.random() { 1 } else { -1 };
-                            sign * ((1 << 23) - rng.random_range(1536..4096))
+                            sign * ((1 << 23) - rng.random_range(2560..4096))
                         } else {
                             rng.random_range(-20_000..20_000) * 256
                         }
                     };
                     let origin = [coordinate(&mut rng), coordinate(&mut rng)];
-                    // Snapped positions on a coarse grid some rounds, for exact ties.
+                    // Snapped positions on a coarse grid some rounds, for exact ties; boxes
+                    // up to 4 or 8 pixels a side.
                     let step = if round % 3 == 0 { 128 } else { 1 };
+                    let reach = if round % 2 == 0 { 5 * 256 } else { 9 * 256 };
                     let mut v = || {
-                        let d = |rng: &mut SmallRng| rng.random_range(0..5 * 256 / step) * step;
+                        let d = |rng: &mut SmallRng| rng.random_range(0..reach / step) * step;
                         [origin[0] + d(&mut rng), origin[1] + d(&mut rng)]
                     };
                     let xy = [v(), v(), v()];
                     let clockwise = rng.random();
                     let setup = TriangleSetup::from_kept(xy, clockwise);
                     let b = setup.bounds;
-                    if b.x0 > b.x1 || b.y0 > b.y1 || b.x1 - b.x0 >= 4 || b.y1 - b.y0 >= 4 {
+                    let small = SMALL_BOX;
+                    if b.x0 > b.x1 || b.y0 > b.y1 || b.x1 - b.x0 >= small || b.y1 - b.y0 >= small {
                         continue;
                     }
                     let first = [rng.random_range(b.x0..=b.x1), rng.random_range(b.y0..=b.y1)];
                     break SmallLane { xy, clockwise, first };
                 }
             });
+            let span = [rng.random_range(1..=8), rng.random_range(1..=8)];
             let mut want = SmallEight::default();
-            small_eight_scalar(&lanes, &mut want);
+            small_eight_scalar(&lanes, span, &mut want);
             for level in SimdLevel::available() {
                 let mut got = SmallEight::default();
-                small_eight(level, &lanes, &mut got);
-                assert_eq!(got, want, "{level:?}: {lanes:?}");
+                small_eight(level, &lanes, span, &mut got);
+                assert_eq!(got, want, "{level:?}: {lanes:?}, {span:?}");
             }
             checked += want.inside.iter().filter(|&&m| m != 0).count();
         }
@@ -2771,8 +2798,8 @@ mod tests {
 
     /// Eight small triangles shaded together at AVX-512 are shaded as one pixel at a time
     /// (`shade_small_eight_scalar`: `KernelTarget::pixel` of each covered pixel, in order):
-    /// runs of random lanes whose boxes crowd a few pixels (so the triangles of a group share
-    /// pixels, which ends groups early), random colours ([`random_perspective`]: affine and
+    /// runs of random lanes whose boxes (up to 4 or 8 pixels a side) crowd a few pixels (so
+    /// the triangles of a group share pixels, which ends groups early), random colours ([`random_perspective`]: affine and
     /// divided weights, thirds, constant and weighted alpha, NaN and infinities), depth planes
     /// reaching outside [0, 1], every depth test, stored depths in [0, 1], with and without
     /// id and overdraw buffers, in a band that does not start at row 0, boxes clipped to it.
@@ -2781,8 +2808,9 @@ mod tests {
         let mut rng = SmallRng::seed_from_u64(66);
         let (mut covered, mut shared) = (0, 0);
         for round in 0..20_000 {
-            let (width, height) = (12, 10);
+            let (width, height) = (16, 14);
             let band_rows = [0, 4];
+            let small = if round % 2 == 0 { 4 } else { SMALL_BOX };
             let clip = PixelRect { x0: 0, y0: 4, x1: width - 1, y1: height - 1 };
             let spot = [rng.random_range(0..width - 2), rng.random_range(2..height - 2)];
             let mut lanes = [SmallLane::default(); 8];
@@ -2791,7 +2819,7 @@ mod tests {
                 (lanes[l], boxes[l]) = loop {
                     let mut v = || {
                         let d = |rng: &mut SmallRng, at: i32| {
-                            at * 256 + rng.random_range(-2 * 256..3 * 256)
+                            at * 256 + rng.random_range(-small / 2 * 256..(small / 2 + 1) * 256)
                         };
                         [d(&mut rng, spot[0]), d(&mut rng, spot[1])]
                     };
@@ -2799,7 +2827,7 @@ mod tests {
                     let clockwise = rng.random();
                     let setup = TriangleSetup::from_kept(xy, clockwise);
                     let b = setup.bounds;
-                    if b.x0 > b.x1 || b.y0 > b.y1 || b.x1 - b.x0 >= 4 || b.y1 - b.y0 >= 4 {
+                    if b.x0 > b.x1 || b.y0 > b.y1 || b.x1 - b.x0 >= small || b.y1 - b.y0 >= small {
                         continue;
                     }
                     let Some(r) = b.intersect(&clip) else { continue };
@@ -2807,7 +2835,10 @@ mod tests {
                 };
             }
             let mut eight = SmallEight::default();
-            small_eight_scalar(&lanes, &mut eight);
+            let span = boxes.iter().fold([1, 1], |s: [usize; 2], r| {
+                [s[0].max((r.x1 - r.x0 + 1) as usize), s[1].max((r.y1 - r.y0 + 1) as usize)]
+            });
+            small_eight_scalar(&lanes, span, &mut eight);
             let mut shading = SmallShading::default();
             for (l, rect) in boxes.iter().enumerate() {
                 let depth = PlaneEquation::from_coefficients([
@@ -2857,8 +2888,8 @@ mod tests {
             let mut seen = std::collections::HashSet::new();
             for l in run {
                 let cells = eight.inside[l] & shading.cells[l];
-                for b in (0..16).filter(|b| cells >> b & 1 != 0) {
-                    shared += usize::from(!seen.insert((boxes[l].x0 + b % 4, boxes[l].y0 + b / 4)));
+                for b in (0..64).filter(|b| cells >> b & 1 != 0) {
+                    shared += usize::from(!seen.insert((boxes[l].x0 + b % 8, boxes[l].y0 + b / 8)));
                 }
             }
         }
@@ -2874,7 +2905,7 @@ mod tests {
     fn small_eights_outside_the_buffers_panic() {
         let mut eight = SmallEight::default();
         // The box's first column on its two rows: the first row lies above the band.
-        eight.inside[0] = 0b1_0001;
+        eight.inside[0] = 0x101;
         let mut shading = SmallShading::default();
         let depth = PlaneEquation::from_coefficients([0.5, 0.0, 0.0]);
         let color = random_perspective(&mut SmallRng::seed_from_u64(67), 1);
