@@ -1117,9 +1117,10 @@ pub(super) unsafe fn shade_small_eight(
     assert!(target.ids.as_ref().is_none_or(|b| b.len() == n), "buffers of one length");
     assert!(target.overdraw.as_ref().is_none_or(|b| b.len() == n), "buffers of one length");
     let stride = target.stride();
-    // 64 entries a lane at most, each two rows' stored as sixteen, and room for a full
-    // group's load from the last entry.
-    let mut entries = [0i32; 8 * 64 + 16];
+    // 64 entries a lane at most, each two rows' stored as sixteen. Left uninitialized (to
+    // zero it was a twentieth of the grid's frame): only the entries listed are read, by
+    // masked loads.
+    let mut entries = [std::mem::MaybeUninit::<i32>::uninit(); 8 * 64 + 16];
     let mut listed = 0;
     let bits = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     for l in lanes {
@@ -1169,8 +1170,9 @@ pub(super) unsafe fn shade_small_eight(
     let mut g = 0;
     while g < listed {
         let active = (0xFFu32 >> 8usize.saturating_sub(listed - g)) as __mmask8;
-        // SAFETY: `g < listed <= 8 * 64`: eight entries from `g` are within `entries`.
-        let e = unsafe { _mm256_loadu_si256(entries.as_ptr().add(g).cast()) };
+        // SAFETY: `g < listed <= 8 * 64`: eight entries from `g` are within `entries`, and
+        // those of `active` (below `listed`) are initialized; the others are not read.
+        let e = unsafe { _mm256_maskz_loadu_epi32(active, entries.as_ptr().add(g).cast()) };
         let tri = _mm256_srli_epi32::<6>(e);
         let column = _mm256_and_si256(e, _mm256_set1_epi32(7));
         let row = _mm256_and_si256(_mm256_srli_epi32::<3>(e), _mm256_set1_epi32(7));
