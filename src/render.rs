@@ -794,6 +794,98 @@ mod tests {
         assert!(kinds.iter().all(|&k| k > 1_000), "flat, smooth, smooth, one alpha: {kinds:?}");
     }
 
+    /// Eight window records shaded together at AVX-512 (`simd::shade_narrow_eight`, lane by
+    /// lane from registers of all eight) write what the scalar level writes, each lane the
+    /// `NarrowJob` it stands for, in order: triangles crowding a few pixels, boxes of one
+    /// pixel to more than eight rows, one to eight columns, clipped by a band that does not
+    /// start at row 0, flat and Gouraud colours with one alpha and three, depths in and out
+    /// of [0, 1], every depth test, with and without ids and overdraw, runs of lanes starting
+    /// anywhere.
+    #[test]
+    fn eight_records_shade_as_each_alone() {
+        if !SimdLevel::Avx512.is_available() {
+            return;
+        }
+        let mut rng = SmallRng::seed_from_u64(23);
+        let (mut covered, mut wide) = (0, 0);
+        let (width, height) = (24, 20);
+        let band_rows = [0, 3];
+        let clip = PixelRect { x0: 0, y0: 3, x1: width - 1, y1: height - 1 };
+        for round in 0..20_000 {
+            let spread = [1.5, 3.0, 4.5, 6.0][round % 4];
+            let (cx, cy) = (rng.random_range(4.0..20.0f32), rng.random_range(2.0..18.0f32));
+            let records: Vec<WindowRecord> = (0..8)
+                .filter_map(|k| {
+                    let alpha = if rng.random_range(0..3) > 0 { Some(255) } else { None };
+                    let v: [Vertex; 3] = std::array::from_fn(|_| {
+                        let a = alpha.unwrap_or_else(|| rng.random());
+                        let z = rng.random_range(-0.2..1.2);
+                        let (x, y) =
+                            (rng.random_range(-spread..spread), rng.random_range(-spread..spread));
+                        Vertex::new(
+                            cx + x,
+                            cy + 1.5 * y,
+                            z,
+                            [rng.random(), rng.random(), rng.random(), a],
+                        )
+                    });
+                    let setup = TriangleSetup::new(&v, CullMode::None).ok()?;
+                    let smooth = rng.random_range(0..4) > 0;
+                    let inv_area2 = 1.0 / setup.area2 as f64;
+                    Some(WindowRecord::new(&v, &setup, inv_area2, smooth, (round * 8 + k) as i32))
+                })
+                .collect();
+            let Ok(records) = <[WindowRecord; 8]>::try_from(records) else { continue };
+            let mut eight = simd::NarrowEight::default();
+            let refs = std::array::from_fn(|l| &records[l]);
+            let lanes = simd::narrow_eight(SimdLevel::Avx512, &refs, &clip, &mut eight);
+            // The longest run of lanes set up from a random start.
+            let start = rng.random_range(0..8);
+            let run = start..start + (lanes >> start).trailing_ones() as usize;
+            if run.is_empty() {
+                continue;
+            }
+            let depth_test = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always][round % 3];
+            let mut want = Target::new(width as u32, height as u32).unwrap();
+            if round % 2 == 0 {
+                want = want.with_ids().with_overdraw();
+            }
+            for d in want.depth.iter_mut() {
+                *d = rng.random_range(0.0..1.0);
+            }
+            let before = want.clone();
+            let n = {
+                let mut bands = want.bands_from(&band_rows);
+                simd::shade_narrow_eight(
+                    SimdLevel::Scalar,
+                    &eight,
+                    run.clone(),
+                    &mut bands[1],
+                    depth_test,
+                )
+            };
+            let mut got = before.clone();
+            let m = {
+                let mut bands = got.bands_from(&band_rows);
+                simd::shade_narrow_eight(
+                    SimdLevel::Avx512,
+                    &eight,
+                    run.clone(),
+                    &mut bands[1],
+                    depth_test,
+                )
+            };
+            let what = format!("round {round}, lanes {run:?}");
+            assert_eq!(m, n, "{what}");
+            let bits = |t: &Target| t.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
+            assert!(bits(&want) == bits(&got) && want.color == got.color, "{what}");
+            assert!(want.ids == got.ids && want.overdraw == got.overdraw, "{what}");
+            covered += n;
+            wide += run.filter(|&l| eight.columns[l] > 4).count();
+        }
+        assert!(covered > 200_000 && wide > 10_000, "{covered} covered, {wide} lanes over 4 wide");
+    }
+
     /// The boxes `band::plan` samples from window triangles: a grid of two-pixel triangles is
     /// banded; a non-finite vertex makes a triangle's box unknown.
     #[test]
