@@ -823,10 +823,11 @@ const SMALL_BOX: i32 = crate::simd::SMALL_BOX;
 /// Shades up to eight records in order within `clip` (the tile, or the band's rows) with
 /// `depth_test`, as [`shade_record`] would each: eight of them set up together as `kind`
 /// says, where they can be (window triangles through the narrow kernel,
-/// [`crate::simd::shade_narrow_eight`]; the smallest triangles that share the lane queue,
-/// with boxes of at most 4 x 4 pixels, queued as [`shade::shade_small_triangle`] queues
-/// them, [`shade::shade_small_lane`]), the others with `one(band, queue, l)` (record `l`
-/// through `shade_record`). `one` is called from this one place, so that it is inlined: from
+/// [`crate::simd::shade_narrow_eight`]; small triangles, with boxes of at most 8 x 8
+/// pixels, through [`crate::simd::shade_small_eight`] where the fragment stage gives them
+/// kernel colours, else queued as [`shade::shade_small_triangle`] queues them,
+/// [`shade::shade_small_lane`], if they share the lane queue), the others with
+/// `one(band, queue, l)` (record `l` through `shade_record`). `one` is called from this one place, so that it is inlined: from
 /// two, it was left out of line, a call per record (bunny 3-5% slower on two threads).
 #[inline(always)]
 pub(crate) fn shade_eight<'a, S, K, F>(

@@ -1362,7 +1362,7 @@ pub(crate) fn shade_small_triangle<'a, T, F: TriangleFragments<T>>(
 }
 
 /// [`shade_small_triangle`] of lane `l` of `eight` ([`simd::small_eight`]: the edges and
-/// the inside pixels of a box of at most 4 x 4 pixels, computed with seven others), whose
+/// the inside pixels of a box of at most 8 x 8 pixels, computed with seven others), whose
 /// box within the clip rectangle is `r`: the same fragments in the same order, the same
 /// queue.
 #[allow(clippy::too_many_arguments)]
@@ -1378,7 +1378,8 @@ pub(crate) fn shade_small_lane<'a, T, F: TriangleFragments<T>>(
     queue: &mut SharedLaneQueue<'a, T>,
 ) -> u64 {
     debug_assert_eq!(target.samples().count(), 1, "a shared queue at 1x only");
-    debug_assert!(r.x1 - r.x0 < 4 && r.y1 - r.y0 < 4, "a box of at most 4 x 4 pixels");
+    let small = simd::SMALL_BOX;
+    debug_assert!(r.x1 - r.x0 < small && r.y1 - r.y0 < small, "a box of at most 8 x 8 pixels");
     // The lanes queued so far are now an earlier triangle's.
     (queue.earlier, queue.current) = (queue.earlier | queue.current, 0);
     let columns = (r.x1 - r.x0 + 1) as u32;

@@ -1092,7 +1092,8 @@ impl SmallShading {
 /// [`small_eight`], the rest set in `shading`), into `target` with `depth_test`: each
 /// covered pixel of each box as [`KernelTarget`]'s reference loop does (overdraw, depth test,
 /// depth, [`PerspectiveColor::at`], id); returns the number of covered pixels. What the 3D
-/// pipeline's two-pixel triangles (the grid's) take in place of the fragment stage's lanes.
+/// pipeline's small triangles (boxes of at most 8 x 8 pixels: the grid's two-pixel ones, most
+/// of the bunny's) take in place of the fragment stage (its lanes, or the narrow kernel).
 ///
 /// At AVX-512 the covered pixels of all the lanes are packed eight to a group, whatever
 /// triangle each belongs to, and a group is shaded at once, its buffers gathered and
