@@ -849,9 +849,11 @@ where
         (Eight::Narrow(level), Ok(eight)) => {
             (S::narrow_eight(eight, clip, level, &mut setup.narrow), 0)
         }
-        (Eight::Small, Ok(eight)) => {
+        // Fewer than eight too: a band's piece ends with them (about one record in seven of
+        // the bunny's, whose pieces lose half their triangles to culling).
+        (Eight::Small, _) => {
             let tests = (clip, shared, kernel, fragments.span_colors());
-            small_lanes(eight, tests, setup, &mut boxes)
+            small_lanes(records, tests, setup, &mut boxes)
         }
         _ => (0, 0),
     };
@@ -932,7 +934,7 @@ fn shade_small_run<'a, S: Record, F: TriangleFragments<S::Payload>>(
     (end - run.start, covered)
 }
 
-/// The lanes of eight records that [`shade_eight`] takes together as small triangles, and
+/// The lanes of up to eight records that [`shade_eight`] takes together as small triangles, and
 /// of those the ones that share the lane queue: kept whole, without a span kernel, `shared`,
 /// with a box of at most [`SMALL_BOX`] x [`SMALL_BOX`] pixels that reaches `clip`, and
 /// either small enough for the queue ([`queued`]'s test) or, when `kernels` (the fragment
@@ -941,7 +943,7 @@ fn shade_small_run<'a, S: Record, F: TriangleFragments<S::Payload>>(
 /// than [`SMALL_EIGHT_MIN`] are.
 #[inline(always)]
 fn small_lanes<S: Record, K>(
-    records: &[&S; 8],
+    records: &[&S],
     (clip, shared, kernel, kernels): (&PixelRect, impl Fn(&Prepared<S::Payload>) -> bool, &K, bool),
     setup: &mut EightSetup,
     boxes: &mut [PixelRect; 8],
