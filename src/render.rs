@@ -683,6 +683,36 @@ mod tests {
         }
     }
 
+    /// Eight random window records around `centre` (within `spread` on each axis), ids
+    /// from `round`, depths from `depth`, one in `one_alpha` with three alphas, one in four
+    /// flat; `None` where one of them is rejected by setup.
+    fn random_records(
+        rng: &mut SmallRng,
+        round: usize,
+        (centre, spread, one_alpha): ([f32; 2], [f32; 2], u32),
+        depth: impl Fn(&mut SmallRng) -> f32,
+    ) -> Option<[WindowRecord; 8]> {
+        let records: Vec<WindowRecord> = (0..8)
+            .filter_map(|k| {
+                let alpha = if rng.random_range(0..one_alpha) > 0 { Some(255) } else { None };
+                let v: [Vertex; 3] = std::array::from_fn(|_| {
+                    let a = alpha.unwrap_or_else(|| rng.random());
+                    Vertex::new(
+                        centre[0] + rng.random_range(-spread[0]..spread[0]),
+                        centre[1] + rng.random_range(-spread[1]..spread[1]),
+                        depth(rng),
+                        [rng.random(), rng.random(), rng.random(), a],
+                    )
+                });
+                let setup = TriangleSetup::new(&v, CullMode::None).ok()?;
+                let smooth = rng.random_range(0..4) > 0;
+                let inv_area2 = 1.0 / setup.area2 as f64;
+                Some(WindowRecord::new(&v, &setup, inv_area2, smooth, (round * 8 + k) as i32))
+            })
+            .collect();
+        records.try_into().ok()
+    }
+
     fn eight_records_set_up_at(level: SimdLevel) {
         let mut rng = SmallRng::seed_from_u64(22);
         let (mut lanes_set_up, mut lanes_left, mut kinds) = (0, 0, [0; 3]);
@@ -702,25 +732,8 @@ mod tests {
                 2 => -1e30,
                 _ => rng.random_range(-0.5..1.5),
             };
-            let records: Vec<WindowRecord> = (0..8)
-                .filter_map(|k| {
-                    let alpha = if rng.random_range(0..4) > 0 { Some(255) } else { None };
-                    let v: [Vertex; 3] = std::array::from_fn(|_| {
-                        let a = alpha.unwrap_or_else(|| rng.random());
-                        Vertex::new(
-                            cx + rng.random_range(-spread..spread),
-                            cy + rng.random_range(-spread..spread),
-                            depth(&mut rng),
-                            [rng.random(), rng.random(), rng.random(), a],
-                        )
-                    });
-                    let setup = TriangleSetup::new(&v, CullMode::None).ok()?;
-                    let smooth = rng.random_range(0..4) > 0;
-                    let inv_area2 = 1.0 / setup.area2 as f64;
-                    Some(WindowRecord::new(&v, &setup, inv_area2, smooth, (round * 8 + k) as i32))
-                })
-                .collect();
-            let Ok(records) = <[WindowRecord; 8]>::try_from(records) else { continue };
+            let around = ([cx, cy], [spread; 2], 4);
+            let Some(records) = random_records(&mut rng, round, around, depth) else { continue };
             // A tile around the triangles, often cutting their boxes.
             let (tx, ty) = (cx.floor() as i32, cy.floor() as i32);
             let tile = PixelRect {
@@ -814,28 +827,9 @@ mod tests {
         for round in 0..20_000 {
             let spread = [1.5, 3.0, 4.5, 6.0][round % 4];
             let (cx, cy) = (rng.random_range(4.0..20.0f32), rng.random_range(2.0..18.0f32));
-            let records: Vec<WindowRecord> = (0..8)
-                .filter_map(|k| {
-                    let alpha = if rng.random_range(0..3) > 0 { Some(255) } else { None };
-                    let v: [Vertex; 3] = std::array::from_fn(|_| {
-                        let a = alpha.unwrap_or_else(|| rng.random());
-                        let z = rng.random_range(-0.2..1.2);
-                        let (x, y) =
-                            (rng.random_range(-spread..spread), rng.random_range(-spread..spread));
-                        Vertex::new(
-                            cx + x,
-                            cy + 1.5 * y,
-                            z,
-                            [rng.random(), rng.random(), rng.random(), a],
-                        )
-                    });
-                    let setup = TriangleSetup::new(&v, CullMode::None).ok()?;
-                    let smooth = rng.random_range(0..4) > 0;
-                    let inv_area2 = 1.0 / setup.area2 as f64;
-                    Some(WindowRecord::new(&v, &setup, inv_area2, smooth, (round * 8 + k) as i32))
-                })
-                .collect();
-            let Ok(records) = <[WindowRecord; 8]>::try_from(records) else { continue };
+            let around = ([cx, cy], [spread, 1.5 * spread], 3);
+            let depth = |rng: &mut SmallRng| rng.random_range(-0.2..1.2);
+            let Some(records) = random_records(&mut rng, round, around, depth) else { continue };
             let mut eight = simd::NarrowEight::default();
             let refs = std::array::from_fn(|l| &records[l]);
             let lanes = simd::narrow_eight(SimdLevel::Avx512, &refs, &clip, &mut eight);
@@ -846,13 +840,8 @@ mod tests {
                 continue;
             }
             let depth_test = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always][round % 3];
-            let mut want = Target::new(width as u32, height as u32).unwrap();
-            if round % 2 == 0 {
-                want = want.with_ids().with_overdraw();
-            }
-            for d in want.depth.iter_mut() {
-                *d = rng.random_range(0.0..1.0);
-            }
+            let mut want =
+                Target::random_depths(width as u32, height as u32, round % 2 == 0, &mut rng);
             let before = want.clone();
             let n = {
                 let mut bands = want.bands_from(&band_rows);

@@ -437,6 +437,27 @@ impl Target {
 }
 
 #[cfg(test)]
+impl Target {
+    /// A `width x height` target (with ids and overdraw if `extra`) whose depths are random
+    /// in [0, 1): what the kernels' tests draw into.
+    pub(crate) fn random_depths(
+        width: u32,
+        height: u32,
+        extra: bool,
+        rng: &mut impl rand::Rng,
+    ) -> Self {
+        let mut target = Self::new(width, height).expect("a test target");
+        if extra {
+            target = target.with_ids().with_overdraw();
+        }
+        for d in &mut target.depth {
+            *d = rng.random_range(0.0..1.0);
+        }
+        target
+    }
+}
+
+#[cfg(test)]
 mod tests {
     use super::*;
 

@@ -2853,13 +2853,8 @@ mod tests {
             let start = rng.random_range(0..8);
             let run = start..rng.random_range(start + 1..=8);
             let depth_test = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always][round % 3];
-            let mut want = crate::target::Target::new(width as u32, height as u32).unwrap();
-            if round % 2 == 0 {
-                want = want.with_ids().with_overdraw();
-            }
-            for d in want.depth.iter_mut() {
-                *d = rng.random_range(0.0..1.0);
-            }
+            let (w, h) = (width as u32, height as u32);
+            let mut want = crate::target::Target::random_depths(w, h, round % 2 == 0, &mut rng);
             let before = want.clone();
             let n = {
                 let mut bands = want.bands_from(&band_rows);
