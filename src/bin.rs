@@ -827,8 +827,9 @@ const SMALL_BOX: i32 = crate::simd::SMALL_BOX;
 /// pixels, through [`crate::simd::shade_small_eight`] where the fragment stage gives them
 /// kernel colours, else queued as [`shade::shade_small_triangle`] queues them,
 /// [`shade::shade_small_lane`], if they share the lane queue), the others with
-/// `one(band, queue, l)` (record `l` through `shade_record`). `one` is called from this one place, so that it is inlined: from
-/// two, it was left out of line, a call per record (bunny 3-5% slower on two threads).
+/// `one(band, queue, l)` (record `l` through `shade_record`). `one` is called from this one
+/// place, so that it is inlined: from two, it was left out of line, a call per record (bunny
+/// 3-5% slower on two threads).
 #[inline(always)]
 pub(crate) fn shade_eight<'a, S, K, F>(
     band: &mut TargetBand<'_>,
@@ -934,13 +935,13 @@ fn shade_small_run<'a, S: Record, F: TriangleFragments<S::Payload>>(
     (end - run.start, covered)
 }
 
-/// The lanes of up to eight records that [`shade_eight`] takes together as small triangles, and
-/// of those the ones that share the lane queue: kept whole, without a span kernel, `shared`,
-/// with a box of at most [`SMALL_BOX`] x [`SMALL_BOX`] pixels that reaches `clip`, and
-/// either small enough for the queue ([`queued`]'s test) or, when `kernels` (the fragment
-/// stage may give kernel colours, [`TriangleFragments::span_colors`]), larger. Their
-/// coverage is set up in `setup` and their boxes within `clip` in `boxes`; none where fewer
-/// than [`SMALL_EIGHT_MIN`] are.
+/// The lanes of up to eight records that [`shade_eight`] takes together as small
+/// triangles, and of those the ones that share the lane queue: kept whole, without a span
+/// kernel, `shared`, with a box of at most [`SMALL_BOX`] x [`SMALL_BOX`] pixels that reaches
+/// `clip`, and either small enough for the queue ([`queued`]'s test) or, when `kernels` (the
+/// fragment stage may give kernel colours, [`TriangleFragments::span_colors`]), larger.
+/// Their coverage is set up in `setup` and their boxes within `clip` in `boxes`; none where
+/// fewer than [`SMALL_EIGHT_MIN`] are.
 #[inline(always)]
 fn small_lanes<S: Record, K>(
     records: &[&S],

@@ -2800,10 +2800,11 @@ mod tests {
     /// Eight small triangles shaded together at AVX-512 are shaded as one pixel at a time
     /// (`shade_small_eight_scalar`: `KernelTarget::pixel` of each covered pixel, in order):
     /// runs of random lanes whose boxes (up to 4 or 8 pixels a side) crowd a few pixels (so
-    /// the triangles of a group share pixels, which ends groups early), random colours ([`random_perspective`]: affine and
-    /// divided weights, thirds, constant and weighted alpha, NaN and infinities), depth planes
-    /// reaching outside [0, 1], every depth test, stored depths in [0, 1], with and without
-    /// id and overdraw buffers, in a band that does not start at row 0, boxes clipped to it.
+    /// the triangles of a group share pixels, which ends groups early), random colours
+    /// ([`random_perspective`]: affine and divided weights, thirds, constant and weighted
+    /// alpha, NaN and infinities), depth planes reaching outside [0, 1], every depth test,
+    /// stored depths in [0, 1], with and without id and overdraw buffers, in a band that does
+    /// not start at row 0, boxes clipped to it.
     #[test]
     fn small_eights_shade_as_scalar() {
         let mut rng = SmallRng::seed_from_u64(66);
