@@ -1098,9 +1098,9 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
 /// [`super::shade_small_eight`] in AVX-512. The covered pixels of the lanes are listed in
 /// drawing order (lane by lane, each box row by row, left to right), as `l << 6 | bit` with
 /// `bit` the pixel's [`super::SmallEight::inside`] bit, one compress and store per two rows
-/// that have any; then
-/// each group of eight listed pixels takes its triangles' values from registers of all
-/// eight lanes (`vpermd`, `vpermpd`), and its buffers through gathers and scatters.
+/// that have any; then each group of eight listed pixels takes its triangles' values from
+/// registers of all eight lanes (`vpermd`, `vpermpd`), and its buffers through gathers and
+/// scatters.
 ///
 /// # Safety
 /// The CPU must support AVX-512 F, VL, DQ and CD.

@@ -995,8 +995,9 @@ pub fn small_eight_scalar(lanes: &[SmallLane; 8], span: [usize; 2], out: &mut Sm
         let (edges, step_x, step_y, bias) = setup.edges_at(x, y);
         let mut row = edges;
         let mut inside = 0;
-        for r in 0..span[1].min(SMALL_BOX as usize) {
-            let mask = crate::raster::edge::row_coverage_within(row, step_x, span[0]);
+        let (columns, rows) = (span[0].min(SMALL_BOX as usize), span[1].min(SMALL_BOX as usize));
+        for r in 0..rows {
+            let mask = crate::raster::edge::row_coverage_within(row, step_x, columns);
             inside |= u64::from(mask) << (8 * r);
             row = std::array::from_fn(|k| row[k] + step_y[k]);
         }
