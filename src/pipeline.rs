@@ -110,8 +110,8 @@ pub trait FragmentShader<V>: Sync {
     /// describes, and never discards there. The tiled backend may then shade the triangle in
     /// SIMD kernels, which compute that colour as the pipeline's own arithmetic does, bit for
     /// bit, without calling `shade` (it does with AVX-512, at 1x, on targets without a normal
-    /// buffer). `None` by default; a shader that says
-    /// `Some` and then computes something else draws wrong pictures.
+    /// buffer). `None` by default; a shader that says `Some` and then computes something else
+    /// draws wrong pictures.
     fn interpolated_color(&self, _varyings: [&V; 3], _primitive: u32) -> Option<InterpolatedColor> {
         None
     }
