@@ -817,9 +817,6 @@ pub(crate) struct EightSetup {
 /// few among larger ones (the bunny's) cost more together than alone.
 const SMALL_EIGHT_MIN: u32 = 4;
 
-/// [`crate::simd::SMALL_BOX`], the widest and tallest box of a triangle [`small_lanes`] takes.
-const SMALL_BOX: i32 = crate::simd::SMALL_BOX;
-
 /// Shades up to eight records in order within `clip` (the tile, or the band's rows) with
 /// `depth_test`, as [`shade_record`] would each: eight of them set up together as `kind`
 /// says, where they can be (window triangles through the narrow kernel,
@@ -943,11 +940,11 @@ fn shade_small_run<'a, S: Record, F: TriangleFragments<S::Payload>>(
 
 /// The lanes of up to eight records that [`shade_eight`] takes together as small
 /// triangles, and of those the ones that share the lane queue: kept whole, without a span
-/// kernel, `shared`, with a box of at most [`SMALL_BOX`] x [`SMALL_BOX`] pixels that reaches
-/// `clip`, and either small enough for the queue ([`queued`]'s test) or, when `kernels` (the
-/// fragment stage may give kernel colours, [`TriangleFragments::span_colors`]), larger.
-/// Their coverage is set up in `setup` and their boxes within `clip` in `boxes`; none where
-/// fewer than [`SMALL_EIGHT_MIN`] are.
+/// kernel, `shared`, with a box of at most [`crate::simd::SMALL_BOX`] pixels a side that
+/// reaches `clip`, and either small enough for the queue ([`queued`]'s test) or, when
+/// `kernels` (the fragment stage may give kernel colours,
+/// [`TriangleFragments::span_colors`]), larger. Their coverage is set up in `setup` and
+/// their boxes within `clip` in `boxes`; none where fewer than [`SMALL_EIGHT_MIN`] are.
 #[inline(always)]
 fn small_lanes<S: Record, K>(
     records: &[&S],
@@ -966,8 +963,9 @@ where
         let b = &p.setup.bounds;
         let fits_queue = p.setup.area2 <= shade::SHARED_QUEUE_AREA2;
         // The box first, `shared` last (it may compute the coverage rectangle).
-        if b.x1 - b.x0 < SMALL_BOX
-            && b.y1 - b.y0 < SMALL_BOX
+        let small = crate::simd::SMALL_BOX;
+        if b.x1 - b.x0 < small
+            && b.y1 - b.y0 < small
             && (fits_queue || kernels)
             && kernel(&p.payload).is_none()
             && shared(p)
