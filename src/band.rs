@@ -316,6 +316,7 @@ impl Bands {
                 let mut records: Vec<S> = Vec::with_capacity(PIECE);
                 let mut covers = Vec::with_capacity(PIECE);
                 let mut setup = bin::EightSetup::default();
+                let mut runs = bin::SmallRuns::default();
                 let (mut stats, mut uncounted) = (DrawStats::default(), DrawStats::default());
                 let mut covered = 0;
                 for first in (0..len).step_by(bin::CHUNK) {
@@ -331,7 +332,9 @@ impl Bands {
                         let range = first..(first + PIECE).min(range.end);
                         records.clear();
                         covers.clear();
-                        let mut sink = Sink::new(&mut records, &mut covers, coverage, &mut *counts);
+                        runs.clear();
+                        let mut sink = Sink::new(&mut records, &mut covers, coverage, &mut *counts)
+                            .with_small_runs(&mut runs);
                         prepare(range, &mut sink);
                         // Small triangles' fragments share a queue (see `bin::shade_record`).
                         let mut queue = shade::SharedLaneQueue::new();
@@ -354,20 +357,35 @@ impl Bands {
                                 },
                             )
                         };
-                        // Eight at a time where the records allow (as `bin::draw_binned`).
-                        for (c, next) in records.chunks(8).enumerate() {
-                            let mut refs = [&next[0]; 8];
-                            for (r, record) in refs.iter_mut().zip(next) {
-                                *r = record;
+                        // The records before each small run the front end set up (see
+                        // `bin::SmallRun`), then the run; the records after the last.
+                        let mut from = 0;
+                        for r in 0..=runs.runs().len() {
+                            let run = runs.runs().get(r);
+                            let to = run.map_or(records.len(), |run| run.at());
+                            // Eight at a time where the records allow (as `bin::draw_binned`).
+                            for (c, next) in records[from..to].chunks(8).enumerate() {
+                                let mut refs = [&next[0]; 8];
+                                for (r, record) in refs.iter_mut().zip(next) {
+                                    *r = record;
+                                }
+                                let refs = &refs[..next.len()];
+                                let stages = (|_: &_| true, stages);
+                                let one = |band: &mut TargetBand<'_>, queue: &mut _, l| {
+                                    one(band, queue, from + 8 * c + l)
+                                };
+                                let run = (kind, &clip, depth_test);
+                                let setup = (&mut queue, &mut setup);
+                                covered +=
+                                    bin::shade_eight(&mut band, refs, run, stages, setup, one);
                             }
-                            let refs = &refs[..next.len()];
-                            let stages = (|_: &_| true, stages);
-                            let one = |band: &mut TargetBand<'_>, queue: &mut _, l| {
-                                one(band, queue, 8 * c + l)
-                            };
-                            let run = (kind, &clip, depth_test);
-                            let setup = (&mut queue, &mut setup);
-                            covered += bin::shade_eight(&mut band, refs, run, stages, setup, one);
+                            if let Some(run) = run {
+                                let stage = (&fragments, &mut queue);
+                                covered += bin::shade_small_run_lanes(
+                                    &mut band, run, depth_test, stage, &mut setup,
+                                );
+                            }
+                            from = to;
                         }
                         queue.flush(&mut band, &fragments);
                     }

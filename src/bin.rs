@@ -271,6 +271,87 @@ pub struct Sink<'a, S> {
     covers: &'a mut Vec<PixelRect>,
     coverage: Coverage,
     stats: &'a mut DrawStats,
+    /// Where the front end may set small triangles up as kernel lanes rather than records
+    /// (the band loop's, drawn there in order with the records).
+    runs: Option<&'a mut SmallRuns>,
+}
+
+/// Up to eight small triangles a front end set up straight into the lanes of the
+/// small-triangle kernels ([`crate::simd::small_eight`], [`crate::simd::shade_small_eight`]),
+/// without records: what the band loop would have given those kernels for the same
+/// triangles' records, drawn after the records before them. Building each record and
+/// reading it back to fill the same lanes was most of a frame of two-pixel triangles.
+#[derive(Clone, Debug)]
+pub struct SmallRun {
+    /// How many records come before it.
+    at: usize,
+    /// Its lanes, the first `len` of `lanes` and `shading`.
+    len: usize,
+    level: SimdLevel,
+    lanes: [crate::simd::SmallLane; 8],
+    /// The largest box's columns and rows (see [`crate::simd::small_eight`]).
+    span: [usize; 2],
+    shading: crate::simd::SmallShading,
+}
+
+/// The [`SmallRun`]s of a band's piece, in order, kept from one piece to the next (each is
+/// over a kilobyte: set in place, never cleared).
+#[derive(Debug, Default)]
+pub struct SmallRuns {
+    runs: Vec<SmallRun>,
+    used: usize,
+}
+
+impl SmallRuns {
+    /// Forgets every run (their memory is kept).
+    pub(crate) fn clear(&mut self) {
+        self.used = 0;
+    }
+
+    /// The runs set since the last [`SmallRuns::clear`].
+    pub(crate) fn runs(&self) -> &[SmallRun] {
+        &self.runs[..self.used]
+    }
+}
+
+/// A [`SmallRun`] being set, lane by lane: nothing counts until [`SmallRunSetter::finish`]
+/// (a front end that finds a triangle it cannot take drops the run and makes records).
+pub struct SmallRunSetter<'r> {
+    run: &'r mut SmallRun,
+    used: &'r mut usize,
+    stats: &'r mut DrawStats,
+}
+
+impl SmallRunSetter<'_> {
+    /// Sets the next lane: the triangle with snapped vertices `xy` (winding `clockwise`), id
+    /// `id`, depth plane `depth` and colour `color`, whose box within the clip rectangle
+    /// (at most [`crate::simd::SMALL_BOX`] pixels a side) is `rect`.
+    #[inline(always)]
+    pub fn push(
+        &mut self,
+        (xy, clockwise): ([[i32; 2]; 3], bool),
+        rect: &PixelRect,
+        depth: &PlaneEquation,
+        color: &crate::simd::PerspectiveColor,
+        id: i32,
+    ) {
+        let run = &mut *self.run;
+        let l = run.len;
+        run.lanes[l] = crate::simd::SmallLane { xy, clockwise, first: [rect.x0, rect.y0] };
+        run.shading.set(l, rect, depth, color, id);
+        let (columns, rows) = ((rect.x1 - rect.x0 + 1) as usize, (rect.y1 - rect.y0 + 1) as usize);
+        run.span = [run.span[0].max(columns), run.span[1].max(rows)];
+        run.len += 1;
+    }
+
+    /// Keeps the run (when it has a lane), its lanes counted as rasterized triangles.
+    pub fn finish(self, level: SimdLevel) {
+        if self.run.len > 0 {
+            self.run.level = level;
+            self.stats.rasterized += self.run.len;
+            *self.used += 1;
+        }
+    }
 }
 
 impl<'a, S> Sink<'a, S> {
@@ -282,7 +363,24 @@ impl<'a, S> Sink<'a, S> {
         coverage: Coverage,
         stats: &'a mut DrawStats,
     ) -> Self {
-        Self { out, covers, coverage, stats }
+        Self { out, covers, coverage, stats, runs: None }
+    }
+
+    /// The same sink, taking [`SmallRun`]s into `runs` too.
+    pub(crate) fn with_small_runs(self, runs: &'a mut SmallRuns) -> Self {
+        Self { runs: Some(runs), ..self }
+    }
+
+    /// A new [`SmallRun`] after the records taken so far, when the sink takes them.
+    #[inline]
+    pub fn small_run(&mut self) -> Option<SmallRunSetter<'_>> {
+        let runs = self.runs.as_deref_mut()?;
+        if runs.used == runs.runs.len() {
+            runs.runs.push(SmallRun::default());
+        }
+        let run = &mut runs.runs[runs.used];
+        (run.at, run.len, run.span) = (self.out.len(), 0, [1, 1]);
+        Some(SmallRunSetter { run, used: &mut runs.used, stats: self.stats })
     }
 
     /// Takes one piece, as `record`, with setup `setup`. A piece covering no sample (front
@@ -936,6 +1034,47 @@ fn shade_small_run<'a, S: Record, F: TriangleFragments<S::Payload>>(
     let covered =
         crate::simd::shade_small_eight(level, small, shading, run.start..end, band, depth_test);
     (end - run.start, covered)
+}
+
+/// Shades `run` (see [`SmallRun`]) within `band` with `depth_test`, after the queue's earlier
+/// fragments; returns its covered pixels.
+pub(crate) fn shade_small_run_lanes<'a, T, F: TriangleFragments<T>>(
+    band: &mut TargetBand<'_>,
+    run: &SmallRun,
+    depth_test: DepthTest,
+    (fragments, queue): (&F, &mut shade::SharedLaneQueue<'a, T>),
+    setup: &mut EightSetup,
+) -> u64 {
+    queue.flush(band, fragments);
+    crate::simd::small_eight(SimdLevel::detected(), &run.lanes, run.span, &mut setup.small);
+    crate::simd::shade_small_eight(
+        run.level,
+        &setup.small,
+        &run.shading,
+        0..run.len,
+        band,
+        depth_test,
+    )
+}
+
+impl Default for SmallRun {
+    fn default() -> Self {
+        Self {
+            at: 0,
+            len: 0,
+            level: SimdLevel::Scalar,
+            lanes: Default::default(),
+            span: [1, 1],
+            shading: Default::default(),
+        }
+    }
+}
+
+impl SmallRun {
+    /// How many records come before it.
+    pub(crate) fn at(&self) -> usize {
+        self.at
+    }
 }
 
 /// The lanes of up to eight records that [`shade_eight`] takes together as small

@@ -440,6 +440,10 @@ impl Pipeline {
                         debug_assert!(range.start.is_multiple_of(bin::CHUNK), "a chunk's start");
                         chunk_rows(*chunk_ranges.get(range.start / bin::CHUNK)?, rows)
                     };
+                    // Small triangles' kernel colours, where the stage shades in kernels.
+                    let colors =
+                        |v: [&_; 3], primitive| fragment_shader.interpolated_color(v, primitive);
+                    let colors = kernel.map(|_| &colors);
                     let (counts, covered) = bands.draw(
                         target,
                         front.coverage,
@@ -450,7 +454,8 @@ impl Pipeline {
                             // The band's rows are the clip rectangle.
                             let front = FrontEnd { coverage: sink.coverage(), ..front };
                             let source = (window.as_slice(), 0, |i: u32| &shaded[i as usize]);
-                            front.prepare_range(triangles, range, 0, source, level, sink);
+                            let out = (sink, colors);
+                            front.prepare_range(triangles, range, 0, source, level, out);
                         },
                         chunk_rows,
                     );
@@ -502,11 +507,13 @@ impl Pipeline {
                                 // Vertices by reference: a triangle reads its corners in place.
                                 let vertex = |i: u32| &shaded[i as usize];
                                 let source = (window.as_slice(), 0, vertex);
-                                front.prepare_range(batch, range, first, source, level, sink);
+                                let out = (sink, None::<&fn([&_; 3], u32) -> _>);
+                                front.prepare_range(batch, range, first, source, level, out);
                             } else if let Some((lo, _)) = windowed {
                                 let vertex = |i: u32| shade_vertex(&vertices[i as usize]);
                                 let source = (window.as_slice(), lo, vertex);
-                                front.prepare_range(batch, range, first, source, level, sink);
+                                let out = (sink, None::<&fn([&_; 3], u32) -> _>);
+                                front.prepare_range(batch, range, first, source, level, out);
                             } else {
                                 for k in range {
                                     let owned =
@@ -908,15 +915,17 @@ impl FrontEnd {
     /// dense mesh nearly all stop there, counted, before their vertices are read; those that
     /// pass go straight to setup (as `setup_inside` would after the same tests), and those
     /// needing clipping through `prepare`.
-    fn prepare_range<V: Varyings, R: Borrow<ShadedVertex<V>>>(
+    fn prepare_range<V: Varyings, R: Borrow<ShadedVertex<V>>, C>(
         &self,
         batch: &[[u32; 3]],
         range: std::ops::Range<usize>,
         first_id: usize,
         (corners, base, vertex): (&[Corner], u32, impl Fn(u32) -> R),
         level: SimdLevel,
-        sink: &mut Sink<'_, Prepared<TriangleData<V>>>,
-    ) {
+        (sink, colors): (&mut Sink<'_, Prepared<TriangleData<V>>>, Option<&C>),
+    ) where
+        C: Fn([&V; 3], u32) -> Option<InterpolatedColor>,
+    {
         let vertices = |k: usize| batch[k].map(&vertex);
         for start in range.clone().step_by(8) {
             let len = (range.end - start).min(8);
@@ -945,6 +954,19 @@ impl FrontEnd {
             // Those that passed the tests, and those with a corner outside (to be clipped).
             let live = ((1u32 << len) - 1) as u8;
             let mut rest = (!(t.degenerate | t.culled | t.empty)) & live;
+            // Small triangles inside the clip volume, straight into kernel lanes.
+            if let Some(colors) = colors
+                && rest != 0
+                && rest & !t.inside == 0
+                && let Some(mut run) = sink.small_run()
+            {
+                let source = (corners, base, &vertex);
+                if self.small_run(batch, (start, rest, first_id), source, colors, &mut run) {
+                    // `colors` come only with kernels, which shade at the front end's level.
+                    run.finish(level);
+                    continue;
+                }
+            }
             // The records after these ones' start loading (see `Sink::prefetch`); nothing to
             // do when none passes (most of a dense mesh's groups).
             if rest != 0 {
@@ -968,6 +990,51 @@ impl FrontEnd {
                 }
             }
         }
+    }
+
+    /// Sets up triangles `start + j` for each bit `j` of `rest` (of `batch`, whose first has
+    /// id `first_id`; their corners inside the clip volume, past the corner tests) as the lanes
+    /// of `run`, with the colours `colors` gives: what [`FrontEnd::prepare_range`] and the band
+    /// loop's small lanes compute for them, without the records. False, with `run` to be
+    /// dropped, when one has a box over [`simd::SMALL_BOX`] pixels a side or no such colour.
+    #[inline]
+    fn small_run<V: Varyings, R: Borrow<ShadedVertex<V>>>(
+        &self,
+        batch: &[[u32; 3]],
+        (start, mut rest, first_id): (usize, u8, usize),
+        (corners, base, vertex): (&[Corner], u32, impl Fn(u32) -> R),
+        colors: impl Fn([&V; 3], u32) -> Option<InterpolatedColor>,
+        run: &mut bin::SmallRunSetter<'_>,
+    ) -> bool {
+        while rest != 0 {
+            let j = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            let k = start + j;
+            let xy = setup::widen(batch[k].map(|i| corners[(i - base) as usize]));
+            let Ok(setup) = TriangleSetup::from_snapped(xy, self.cull) else { return false };
+            let b = &setup.bounds;
+            if b.x1 - b.x0 >= simd::SMALL_BOX || b.y1 - b.y0 >= simd::SMALL_BOX {
+                return false;
+            }
+            let Some(rect) = b.intersect(&self.coverage.clip) else { return false };
+            let owned = batch[k].map(&vertex);
+            let [a, b, c] = each_ref(&owned);
+            let id = first_id + k;
+            let varyings = [&a.clip.varyings, &b.clip.varyings, &c.clip.varyings];
+            let Some(color) = colors(varyings, id as u32) else { return false };
+            let inv_area2 = 1.0 / setup.area2 as f64;
+            let z = [a.z, b.z, c.z].map(f64::from);
+            let depth = PlaneEquation::with_inv_area2(z, inv_area2);
+            let color = PerspectiveColor {
+                colors: color.colors.map(|c| c.to_array()),
+                scale: color.scale.to_array(),
+                alpha: color.alpha,
+                inv_w: [a.inv_w, b.inv_w, c.inv_w],
+                inv_area2,
+            };
+            run.push((setup.xy, setup.clockwise), &rect, &depth, &color, id as i32);
+        }
+        true
     }
 
     /// Clip, viewport and setup of triangle `id`: each piece (the triangle, nothing, or a

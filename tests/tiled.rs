@@ -1261,6 +1261,14 @@ fn tiny_vertex_coloured_triangles_match_the_reference() {
             }
         }
     }
+    // One triangle alone first: the pairs below then start at odd ids, and some straddle the
+    // front end's groups of eight (a pair's first in a group the shader declines, its second
+    // set up straight into kernel lanes).
+    let lone = positions.len() as u32;
+    positions.extend([Vec4::new(0.0, 0.0, 0.5, 1.0), Vec4::new(0.05, 0.0, 0.5, 1.0)]);
+    positions.push(Vec4::new(0.0, 0.05, 0.5, 1.0));
+    colors.extend((0..3).map(|_| color(&mut rng)));
+    triangles.push([lone, lone + 1, lone + 2]);
     for k in 0..2000 {
         let (cx, cy) = (rng.random_range(-1.0..1.0f32), rng.random_range(-1.0..1.0f32));
         let r = if k % 3 == 0 { 0.09 } else { 0.04 };
