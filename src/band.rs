@@ -381,9 +381,8 @@ impl Bands {
                             }
                             if let Some(run) = run {
                                 let stage = (&fragments, &mut queue);
-                                covered += bin::shade_small_run_lanes(
-                                    &mut band, run, depth_test, stage, &mut setup,
-                                );
+                                covered +=
+                                    bin::shade_small_run_lanes(&mut band, run, depth_test, stage);
                             }
                             from = to;
                         }

@@ -276,22 +276,37 @@ pub struct Sink<'a, S> {
     runs: Option<&'a mut SmallRuns>,
 }
 
-/// Up to eight small triangles a front end set up straight into the lanes of the
-/// small-triangle kernels ([`crate::simd::small_eight`], [`crate::simd::shade_small_eight`]),
-/// without records: what the band loop would have given those kernels for the same
-/// triangles' records, drawn after the records before them. Building each record and
-/// reading it back to fill the same lanes was most of a frame of two-pixel triangles.
+/// Eight small triangles a front end set up straight into the lanes of the small-triangle
+/// kernel ([`crate::simd::shade_small_eight`]), without records: the coverage and shading the
+/// band loop would have given that kernel for the same triangles' records (lane `l` the
+/// group's `l`-th triangle; those not drawn have no pixels), drawn after the records before
+/// them. Building each record and reading it back to fill the same lanes was most of a frame
+/// of two-pixel triangles.
 #[derive(Clone, Debug)]
 pub struct SmallRun {
     /// How many records come before it.
     at: usize,
-    /// Its lanes, the first `len` of `lanes` and `shading`.
-    len: usize,
     level: SimdLevel,
-    lanes: [crate::simd::SmallLane; 8],
-    /// The largest box's columns and rows (see [`crate::simd::small_eight`]).
-    span: [usize; 2],
+    coverage: crate::simd::SmallEight,
     shading: crate::simd::SmallShading,
+}
+
+impl Default for SmallRun {
+    fn default() -> Self {
+        Self {
+            at: 0,
+            level: SimdLevel::Scalar,
+            coverage: Default::default(),
+            shading: Default::default(),
+        }
+    }
+}
+
+impl SmallRun {
+    /// How many records come before it.
+    pub(crate) fn at(&self) -> usize {
+        self.at
+    }
 }
 
 /// The [`SmallRun`]s of a band's piece, in order, kept from one piece to the next (each is
@@ -314,8 +329,8 @@ impl SmallRuns {
     }
 }
 
-/// A [`SmallRun`] being set, lane by lane: nothing counts until [`SmallRunSetter::finish`]
-/// (a front end that finds a triangle it cannot take drops the run and makes records).
+/// A [`SmallRun`] being set: nothing counts until [`SmallRunSetter::finish`] (a front end
+/// that finds a triangle it cannot take drops the run and makes records).
 pub struct SmallRunSetter<'r> {
     run: &'r mut SmallRun,
     used: &'r mut usize,
@@ -323,34 +338,18 @@ pub struct SmallRunSetter<'r> {
 }
 
 impl SmallRunSetter<'_> {
-    /// Sets the next lane: the triangle with snapped vertices `xy` (winding `clockwise`), id
-    /// `id`, depth plane `depth` and colour `color`, whose box within the clip rectangle
-    /// (at most [`crate::simd::SMALL_BOX`] pixels a side) is `rect`.
+    /// The run's coverage and shading, to be set (see [`crate::simd::small_run_geometry`]).
     #[inline(always)]
-    pub fn push(
-        &mut self,
-        (xy, clockwise): ([[i32; 2]; 3], bool),
-        rect: &PixelRect,
-        depth: &PlaneEquation,
-        color: &crate::simd::PerspectiveColor,
-        id: i32,
-    ) {
-        let run = &mut *self.run;
-        let l = run.len;
-        run.lanes[l] = crate::simd::SmallLane { xy, clockwise, first: [rect.x0, rect.y0] };
-        run.shading.set(l, rect, depth, color, id);
-        let (columns, rows) = ((rect.x1 - rect.x0 + 1) as usize, (rect.y1 - rect.y0 + 1) as usize);
-        run.span = [run.span[0].max(columns), run.span[1].max(rows)];
-        run.len += 1;
+    pub fn parts(&mut self) -> (&mut crate::simd::SmallEight, &mut crate::simd::SmallShading) {
+        (&mut self.run.coverage, &mut self.run.shading)
     }
 
-    /// Keeps the run (when it has a lane), its lanes counted as rasterized triangles.
-    pub fn finish(self, level: SimdLevel) {
-        if self.run.len > 0 {
-            self.run.level = level;
-            self.stats.rasterized += self.run.len;
-            *self.used += 1;
-        }
+    /// Keeps the run, for the kernel at `level`, with its `lanes` triangles counted as
+    /// rasterized.
+    pub fn finish(self, level: SimdLevel, lanes: usize) {
+        self.run.level = level;
+        self.stats.rasterized += lanes;
+        *self.used += 1;
     }
 }
 
@@ -379,7 +378,7 @@ impl<'a, S> Sink<'a, S> {
             runs.runs.push(SmallRun::default());
         }
         let run = &mut runs.runs[runs.used];
-        (run.at, run.len, run.span) = (self.out.len(), 0, [1, 1]);
+        run.at = self.out.len();
         Some(SmallRunSetter { run, used: &mut runs.used, stats: self.stats })
     }
 
@@ -1043,38 +1042,9 @@ pub(crate) fn shade_small_run_lanes<'a, T, F: TriangleFragments<T>>(
     run: &SmallRun,
     depth_test: DepthTest,
     (fragments, queue): (&F, &mut shade::SharedLaneQueue<'a, T>),
-    setup: &mut EightSetup,
 ) -> u64 {
     queue.flush(band, fragments);
-    crate::simd::small_eight(SimdLevel::detected(), &run.lanes, run.span, &mut setup.small);
-    crate::simd::shade_small_eight(
-        run.level,
-        &setup.small,
-        &run.shading,
-        0..run.len,
-        band,
-        depth_test,
-    )
-}
-
-impl Default for SmallRun {
-    fn default() -> Self {
-        Self {
-            at: 0,
-            len: 0,
-            level: SimdLevel::Scalar,
-            lanes: Default::default(),
-            span: [1, 1],
-            shading: Default::default(),
-        }
-    }
-}
-
-impl SmallRun {
-    /// How many records come before it.
-    pub(crate) fn at(&self) -> usize {
-        self.at
-    }
+    crate::simd::shade_small_eight(run.level, &run.coverage, &run.shading, 0..8, band, depth_test)
 }
 
 /// The lanes of up to eight records that [`shade_eight`] takes together as small

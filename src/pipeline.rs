@@ -954,16 +954,17 @@ impl FrontEnd {
             // Those that passed the tests, and those with a corner outside (to be clipped).
             let live = ((1u32 << len) - 1) as u8;
             let mut rest = (!(t.degenerate | t.culled | t.empty)) & live;
-            // Small triangles inside the clip volume, straight into kernel lanes.
+            // Small triangles inside the clip volume, straight into kernel lanes (`colors`
+            // come only with kernels, which shade at the front end's level).
             if let Some(colors) = colors
                 && rest != 0
                 && rest & !t.inside == 0
+                && let Ok(eight) = <&[[u32; 3]; 8]>::try_from(&batch[start..start + len])
                 && let Some(mut run) = sink.small_run()
             {
-                let source = (corners, base, &vertex);
-                if self.small_run(batch, (start, rest, first_id), source, colors, &mut run) {
-                    // `colors` come only with kernels, which shade at the front end's level.
-                    run.finish(level);
+                let (source, lanes) = ((corners, base, &vertex), (start, rest, first_id));
+                if self.small_run(eight, lanes, source, (colors, level), &mut run) {
+                    run.finish(level, rest.count_ones() as usize);
                     continue;
                 }
             }
@@ -992,37 +993,38 @@ impl FrontEnd {
         }
     }
 
-    /// Sets up triangles `start + j` for each bit `j` of `rest` (of `batch`, whose first has
-    /// id `first_id`; their corners inside the clip volume, past the corner tests) as the lanes
-    /// of `run`, with the colours `colors` gives: what [`FrontEnd::prepare_range`] and the band
-    /// loop's small lanes compute for them, without the records. False, with `run` to be
-    /// dropped, when one has a box over [`simd::SMALL_BOX`] pixels a side or no such colour.
+    /// Sets up triangles `start + j` of `batch` for each bit `j` of `rest` (the group of eight
+    /// from `start`, the first of `batch` with id `first_id`; their corners inside the clip
+    /// volume, past the corner tests) as the lanes of `run`, with the colours `colors` gives:
+    /// what [`FrontEnd::prepare_range`] and the band loop's small lanes compute for them,
+    /// without setups or records (the boxes, `1 / area2` and coverage eight at a time,
+    /// [`simd::small_run_geometry`]). False, with `run` to be dropped, when one has a box over
+    /// [`simd::SMALL_BOX`] pixels a side or no such colour.
     #[inline]
     fn small_run<V: Varyings, R: Borrow<ShadedVertex<V>>>(
         &self,
-        batch: &[[u32; 3]],
-        (start, mut rest, first_id): (usize, u8, usize),
+        eight: &[[u32; 3]; 8],
+        (start, rest, first_id): (usize, u8, usize),
         (corners, base, vertex): (&[Corner], u32, impl Fn(u32) -> R),
-        colors: impl Fn([&V; 3], u32) -> Option<InterpolatedColor>,
+        (colors, level): (impl Fn([&V; 3], u32) -> Option<InterpolatedColor>, SimdLevel),
         run: &mut bin::SmallRunSetter<'_>,
     ) -> bool {
-        while rest != 0 {
-            let j = rest.trailing_zeros() as usize;
-            rest &= rest - 1;
-            let k = start + j;
-            let xy = setup::widen(batch[k].map(|i| corners[(i - base) as usize]));
-            let Ok(setup) = TriangleSetup::from_snapped(xy, self.cull) else { return false };
-            let b = &setup.bounds;
-            if b.x1 - b.x0 >= simd::SMALL_BOX || b.y1 - b.y0 >= simd::SMALL_BOX {
-                return false;
-            }
-            let Some(rect) = b.intersect(&self.coverage.clip) else { return false };
-            let owned = batch[k].map(&vertex);
+        let (coverage, shading) = run.parts();
+        let clip = &self.coverage.clip;
+        let group = (eight, corners, base);
+        if simd::small_run_geometry(level, group, rest, clip, coverage, shading).is_none() {
+            return false;
+        }
+        let mut bits = rest;
+        while bits != 0 {
+            let j = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let owned = eight[j].map(&vertex);
             let [a, b, c] = each_ref(&owned);
-            let id = first_id + k;
+            let id = first_id + start + j;
             let varyings = [&a.clip.varyings, &b.clip.varyings, &c.clip.varyings];
             let Some(color) = colors(varyings, id as u32) else { return false };
-            let inv_area2 = 1.0 / setup.area2 as f64;
+            let inv_area2 = shading.inv_area2(j);
             let z = [a.z, b.z, c.z].map(f64::from);
             let depth = PlaneEquation::with_inv_area2(z, inv_area2);
             let color = PerspectiveColor {
@@ -1032,7 +1034,7 @@ impl FrontEnd {
                 inv_w: [a.inv_w, b.inv_w, c.inv_w],
                 inv_area2,
             };
-            run.push((setup.xy, setup.clockwise), &rect, &depth, &color, id as i32);
+            shading.set_shading(j, &depth, &color, id as i32);
         }
         true
     }

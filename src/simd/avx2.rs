@@ -6,7 +6,8 @@ use glam::Vec4;
 
 use super::{
     Corner, CornerGroup, CornerTests, KernelTarget, NarrowEight, NarrowJob, NarrowSamplesJob,
-    PerspectiveColor, SampleSpanJob, SmallEight, SmallLane, SpanColor, SpanJob, WindowGroup,
+    PerspectiveColor, SampleSpanJob, SmallEight, SmallLane, SmallShading, SpanColor, SpanJob,
+    WindowGroup,
 };
 use crate::clip::MIN_W;
 use crate::color::ENCODE_BUCKETS;
@@ -53,6 +54,19 @@ pub(super) unsafe fn corner_tests_indexed(
     clip: &PixelRect,
     samples: SampleCount,
 ) -> CornerTests {
+    let (x, y) = corner_rows(tris, window, base);
+    tests(x, y, cull, clip, samples)
+}
+
+/// The corners of eight triangles of an index buffer (`window[i - base]` for index `i`) in
+/// rows: `x[v]`, `y[v]` hold corner `v`'s coordinates, lane `k` triangle `k`'s. Each corner
+/// is read as one 8-byte load straight into a vector.
+///
+/// # Panics
+/// If an index minus `base` falls outside the window.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn corner_rows(tris: &[[u32; 3]; 8], window: &[Corner], base: u32) -> ([__m256i; 3], [__m256i; 3]) {
     // A corner's 8 bytes as the low half of a vector; slice indexing checks the index.
     let corner = |k: usize, v: usize| -> __m128i {
         let c: &Corner = &window[tris[k][v].wrapping_sub(base) as usize];
@@ -77,7 +91,114 @@ pub(super) unsafe fn corner_tests_indexed(
         x[v] = _mm256_permute4x64_epi64::<0b11_01_10_00>(xs);
         y[v] = _mm256_permute4x64_epi64::<0b11_01_10_00>(ys);
     }
-    tests(x, y, cull, clip, samples)
+    (x, y)
+}
+
+/// [`super::small_run_geometry`]: the corners read as the corner tests read them, the
+/// setup's integers in `i32` lanes (the areas of boxes of at most 8 x 8 pixels stay below
+/// 2^23; lanes outside `mask` may wrap, and are dropped), `1 / area2` in two `f64` halves,
+/// and the coverage as [`small_eight`] computes it.
+///
+/// # Safety
+/// The CPU must support AVX2.
+///
+/// # Panics
+/// If an index minus `base` falls outside the window.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn small_run_geometry(
+    (tris, window, base): (&[[u32; 3]; 8], &[Corner], u32),
+    mask: u8,
+    clip: &PixelRect,
+    eight: &mut SmallEight,
+    shading: &mut SmallShading,
+) -> Option<[usize; 2]> {
+    let (x, y) = corner_rows(tris, window, base);
+    let lanes = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+    let mask =
+        _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(i32::from(mask)), lanes), lanes);
+    let min3 = |a, b, c| _mm256_min_epi32(_mm256_min_epi32(a, b), c);
+    let max3 = |a, b, c| _mm256_max_epi32(_mm256_max_epi32(a, b), c);
+    // `setup::sample_bounds` at the centre: first centres at or after, last at or before.
+    let first = |v| _mm256_srai_epi32::<8>(_mm256_add_epi32(v, _mm256_set1_epi32(127)));
+    let last = |v| _mm256_srai_epi32::<8>(_mm256_sub_epi32(v, _mm256_set1_epi32(128)));
+    let (bx0, bx1) = (first(min3(x[0], x[1], x[2])), last(max3(x[0], x[1], x[2])));
+    let (by0, by1) = (first(min3(y[0], y[1], y[2])), last(max3(y[0], y[1], y[2])));
+    let most = _mm256_set1_epi32(super::SMALL_BOX - 1);
+    let large = _mm256_or_si256(
+        _mm256_cmpgt_epi32(_mm256_sub_epi32(bx1, bx0), most),
+        _mm256_cmpgt_epi32(_mm256_sub_epi32(by1, by0), most),
+    );
+    // Within the clip rectangle.
+    let rx0 = _mm256_max_epi32(bx0, _mm256_set1_epi32(clip.x0));
+    let ry0 = _mm256_max_epi32(by0, _mm256_set1_epi32(clip.y0));
+    let rx1 = _mm256_min_epi32(bx1, _mm256_set1_epi32(clip.x1));
+    let ry1 = _mm256_min_epi32(by1, _mm256_set1_epi32(clip.y1));
+    let empty = _mm256_or_si256(_mm256_cmpgt_epi32(rx0, rx1), _mm256_cmpgt_epi32(ry0, ry1));
+    let refused = _mm256_and_si256(_mm256_or_si256(large, empty), mask);
+    if _mm256_movemask_ps(_mm256_castsi256_ps(refused)) != 0 {
+        return None;
+    }
+    // Columns and rows of each box (1 outside `mask`), and the largest of each.
+    let one = _mm256_set1_epi32(1);
+    let columns = _mm256_blendv_epi8(one, _mm256_add_epi32(_mm256_sub_epi32(rx1, rx0), one), mask);
+    let rows = _mm256_blendv_epi8(one, _mm256_add_epi32(_mm256_sub_epi32(ry1, ry0), one), mask);
+    let largest = |v: __m256i| {
+        let v = _mm256_max_epi32(v, _mm256_permute2x128_si256::<0x01>(v, v));
+        let v = _mm256_max_epi32(v, _mm256_shuffle_epi32::<0b01_00_11_10>(v));
+        let v = _mm256_max_epi32(v, _mm256_shuffle_epi32::<0b10_11_00_01>(v));
+        _mm256_cvtsi256_si32(v) as usize
+    };
+    let span = [largest(columns), largest(rows)];
+    // Twice the signed area, `(x1 - x0)(y2 - y0) - (x2 - x0)(y1 - y0)`: clockwise when
+    // positive, its magnitude `area2`.
+    let area = _mm256_sub_epi32(
+        _mm256_mullo_epi32(_mm256_sub_epi32(x[1], x[0]), _mm256_sub_epi32(y[2], y[0])),
+        _mm256_mullo_epi32(_mm256_sub_epi32(x[2], x[0]), _mm256_sub_epi32(y[1], y[0])),
+    );
+    let clockwise = _mm256_cmpgt_epi32(area, _mm256_setzero_si256());
+    // 1 where clockwise, else -1.
+    let sign = _mm256_or_si256(_mm256_xor_si256(clockwise, _mm256_set1_epi32(-1)), one);
+    small_eight_rows((x, y, sign), [rx0, ry0], span, eight);
+    // `1 / area2`, as `1.0 / area2 as f64`.
+    let area2 = _mm256_abs_epi32(area);
+    let inverse = |v: __m128i| _mm256_div_pd(_mm256_set1_pd(1.0), _mm256_cvtepi32_pd(v));
+    let put_i32 = |out: &mut [i32; 8], v: __m256i| {
+        // SAFETY: eight `i32`s, 32 bytes; the store needs no alignment.
+        unsafe { _mm256_storeu_si256(out.as_mut_ptr().cast(), v) }
+    };
+    // SAFETY: eight `f64`s, 64 bytes, in two stores of 32; they need no alignment.
+    unsafe {
+        let out = shading.inv_area2.as_mut_ptr();
+        _mm256_storeu_pd(out, inverse(_mm256_castsi256_si128(area2)));
+        _mm256_storeu_pd(out.add(4), inverse(_mm256_extracti128_si256::<1>(area2)));
+    }
+    put_i32(&mut shading.x0, rx0);
+    put_i32(&mut shading.y0, ry0);
+    // Each box's pixels (`SmallShading::set`): a row's `columns` bits in each of its `rows`
+    // bytes; none outside `mask`. As `u64`s, four lanes at a time: the row's bits (below
+    // 2^8) times 0x0101_0101 repeat them in the low four bytes, shifted up into the high
+    // four, then cut to the rows.
+    let row = _mm256_sub_epi32(_mm256_sllv_epi32(one, columns), one);
+    let row = _mm256_and_si256(row, mask);
+    let cells = |row: __m128i, rows: __m128i| {
+        let row = _mm256_mul_epu32(_mm256_cvtepu32_epi64(row), _mm256_set1_epi64x(0x0101_0101));
+        let row = _mm256_or_si256(row, _mm256_slli_epi64::<32>(row));
+        let cut = _mm256_sub_epi64(
+            _mm256_set1_epi64x(64),
+            _mm256_slli_epi64::<3>(_mm256_cvtepu32_epi64(rows)),
+        );
+        _mm256_and_si256(row, _mm256_srlv_epi64(_mm256_set1_epi64x(-1), cut))
+    };
+    let half = |v: __m256i, high: bool| {
+        if high { _mm256_extracti128_si256::<1>(v) } else { _mm256_castsi256_si128(v) }
+    };
+    // SAFETY: eight `u64`s, 64 bytes, in two stores of 32; they need no alignment.
+    unsafe {
+        let out = shading.cells.as_mut_ptr();
+        _mm256_storeu_si256(out.cast(), cells(half(row, false), half(rows, false)));
+        _mm256_storeu_si256(out.add(4).cast(), cells(half(row, true), half(rows, true)));
+    }
+    Some(span)
 }
 
 /// The corner tests on eight triangles' corners in rows (`x[v]`: corner `v`'s x).
@@ -404,9 +525,23 @@ pub(super) unsafe fn small_eight(lanes: &[SmallLane; 8], span: [usize; 2], out: 
     let x = [each(|l| l.xy[0][0]), each(|l| l.xy[1][0]), each(|l| l.xy[2][0])];
     let y = [each(|l| l.xy[0][1]), each(|l| l.xy[1][1]), each(|l| l.xy[2][1])];
     let sign = each(|l| if l.clockwise { 1 } else { -1 });
+    let first = [each(|l| l.first[0]), each(|l| l.first[1])];
+    small_eight_rows((x, y, sign), first, span, out);
+}
+
+/// [`small_eight`] from the lanes in rows: corners `x`, `y` as [`corner_rows`] gives them,
+/// `sign` 1 (clockwise) or -1, and the boxes' first pixels.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn small_eight_rows(
+    (x, y, sign): ([__m256i; 3], [__m256i; 3], __m256i),
+    first: [__m256i; 2],
+    span: [usize; 2],
+    out: &mut SmallEight,
+) {
     let half = _mm256_set1_epi32(fixed::HALF);
-    let sx = _mm256_add_epi32(_mm256_slli_epi32::<8>(each(|l| l.first[0])), half);
-    let sy = _mm256_add_epi32(_mm256_slli_epi32::<8>(each(|l| l.first[1])), half);
+    let sx = _mm256_add_epi32(_mm256_slli_epi32::<8>(first[0]), half);
+    let sy = _mm256_add_epi32(_mm256_slli_epi32::<8>(first[1]), half);
     let put = |out: &mut [i32; 8], v: __m256i| {
         // SAFETY: eight `i32`s, 32 bytes; the store needs no alignment.
         unsafe { _mm256_storeu_si256(out.as_mut_ptr().cast(), v) }

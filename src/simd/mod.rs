@@ -1053,6 +1053,20 @@ impl SmallShading {
         color: &PerspectiveColor,
         id: i32,
     ) {
+        self.set_box(l, rect);
+        self.set_shading(l, depth, color, id);
+    }
+
+    /// Lane `l`'s `1 / area2`, as set.
+    #[inline(always)]
+    #[must_use]
+    pub fn inv_area2(&self, l: usize) -> f64 {
+        self.inv_area2[l]
+    }
+
+    /// Lane `l`'s box (see [`SmallShading::set`]).
+    #[inline(always)]
+    fn set_box(&mut self, l: usize, rect: &PixelRect) {
         let small = |a: i32, b: i32| (b - a).clamp(0, SMALL_BOX - 1) as u32 + 1;
         debug_assert!(small(rect.x0, rect.x1) == (rect.x1 - rect.x0 + 1) as u32, "a small box");
         debug_assert!(small(rect.y0, rect.y1) == (rect.y1 - rect.y0 + 1) as u32, "a small box");
@@ -1061,6 +1075,18 @@ impl SmallShading {
         let row = ((1u64 << columns) - 1) * 0x0101_0101_0101_0101;
         self.cells[l] = row & (u64::MAX >> (64 - 8 * rows));
         (self.x0[l], self.y0[l]) = (rect.x0, rect.y0);
+    }
+
+    /// Lane `l`'s depth plane, colour and id (see [`SmallShading::set`]); after
+    /// [`small_run_geometry`], which set its box.
+    #[inline(always)]
+    pub fn set_shading(
+        &mut self,
+        l: usize,
+        depth: &PlaneEquation,
+        color: &PerspectiveColor,
+        id: i32,
+    ) {
         let [a0, g1, g2] = depth.coefficients();
         (self.depth[0][l], self.depth[1][l], self.depth[2][l]) = (a0, g1, g2);
         let (q, affine) = color.inv_w();
@@ -1087,6 +1113,70 @@ impl SmallShading {
             inv_area2: self.inv_area2[l],
         }
     }
+}
+
+/// Sets up eight small triangles' coverage (`eight`, as [`small_eight`] computes it) and boxes
+/// and `1 / area2` (in `shading`, as [`SmallShading::set`] sets them) straight from their
+/// corners (`window[i - base]` for each index `i` of `tris`), for the lanes of `mask`, whose
+/// corners must be inside the clip volume, with nonzero area: the front end's small runs
+/// (`bin::SmallRun`), set up without a `TriangleSetup` or a record. The other lanes get no
+/// pixels (their `cells` are 0). Returns the span of the boxes within `clip` (the largest's
+/// columns and rows), or `None`, with nothing meaningful set, when a lane of `mask` has a box
+/// over [`SMALL_BOX`] pixels a side, or none within `clip` (or, in the scalar version, zero
+/// area).
+///
+/// # Panics
+/// If an index minus `base` falls outside the window.
+pub fn small_run_geometry(
+    level: SimdLevel,
+    corners: (&[[u32; 3]; 8], &[Corner], u32),
+    mask: u8,
+    clip: &PixelRect,
+    eight: &mut SmallEight,
+    shading: &mut SmallShading,
+) -> Option<[usize; 2]> {
+    #[cfg(target_arch = "x86_64")]
+    if level.has_avx2() {
+        // SAFETY: AVX2 support was just checked at run time.
+        return unsafe { avx2::small_run_geometry(corners, mask, clip, eight, shading) };
+    }
+    small_run_geometry_scalar(corners, mask, clip, eight, shading)
+}
+
+/// [`small_run_geometry`] lane by lane, through setup's functions and [`small_eight_scalar`].
+///
+/// # Panics
+/// As [`small_run_geometry`].
+pub fn small_run_geometry_scalar(
+    (tris, window, base): (&[[u32; 3]; 8], &[Corner], u32),
+    mask: u8,
+    clip: &PixelRect,
+    eight: &mut SmallEight,
+    shading: &mut SmallShading,
+) -> Option<[usize; 2]> {
+    let mut lanes = [SmallLane::default(); 8];
+    let mut span = [1, 1];
+    for (l, tri) in tris.iter().enumerate() {
+        let xy = tri.map(|i| window[i.wrapping_sub(base) as usize]);
+        if mask & (1 << l) == 0 {
+            shading.cells[l] = 0;
+            continue;
+        }
+        let setup = TriangleSetup::from_snapped(setup::widen(xy), crate::setup::CullMode::None);
+        let setup = setup.ok()?;
+        let b = &setup.bounds;
+        if b.x1 - b.x0 >= SMALL_BOX || b.y1 - b.y0 >= SMALL_BOX {
+            return None;
+        }
+        let rect = b.intersect(clip)?;
+        lanes[l] = SmallLane { xy, clockwise: setup.clockwise, first: [rect.x0, rect.y0] };
+        shading.set_box(l, &rect);
+        shading.inv_area2[l] = 1.0 / setup.area2 as f64;
+        let (columns, rows) = ((rect.x1 - rect.x0 + 1) as usize, (rect.y1 - rect.y0 + 1) as usize);
+        span = [span[0].max(columns), span[1].max(rows)];
+    }
+    small_eight_scalar(&lanes, span, eight);
+    Some(span)
 }
 
 /// Shades lanes `lanes` of eight small triangles, in that order (their coverage from
@@ -1133,6 +1223,11 @@ pub fn shade_small_eight_scalar(
 ) -> u64 {
     let (mut covered, stride) = (0, target.stride());
     for l in lanes {
+        let mut inside = eight.inside[l] & shading.cells[l];
+        if inside == 0 {
+            // Nothing of its box is read (a lane a small run does not draw has none).
+            continue;
+        }
         let (x0, y0) = (shading.x0[l], shading.y0[l]);
         let first = target.index(x0, y0);
         let color = SpanColor::Perspective(shading.color(l));
@@ -1147,7 +1242,6 @@ pub fn shade_small_eight_scalar(
             ids: target.ids.as_deref_mut(),
             overdraw: target.overdraw.as_deref_mut(),
         };
-        let mut inside = eight.inside[l] & s.cells[l];
         covered += u64::from(inside.count_ones());
         while inside != 0 {
             let bit = inside.trailing_zeros() as i32;
@@ -2796,6 +2890,115 @@ mod tests {
             checked += want.inside.iter().filter(|&&m| m != 0).count();
         }
         assert!(checked > 30_000, "{checked} lanes with pixels inside");
+    }
+
+    /// Small runs set up from their corners ([`small_run_geometry`]) at every level as lane by
+    /// lane ([`small_run_geometry_scalar`]: setup's functions and [`small_eight_scalar`]):
+    /// groups of eight from a window of corners (indices offset by a base), random masks of
+    /// lanes (the others with `OUTSIDE` corners, zero areas or large boxes, which must change
+    /// nothing), boxes of up to 8 or 10 pixels a side (refused past 8 by both), both windings,
+    /// vertices on a coarse grid some rounds (fill-rule ties), near the ends of the fixed-point
+    /// range, clip rectangles cutting the boxes or missing them: the same verdict, span,
+    /// coverage of the lanes of the mask and boxes, `1 / area2` to the bit, and no pixels
+    /// elsewhere.
+    #[test]
+    fn small_runs_set_up_as_scalar() {
+        let mut rng = SmallRng::seed_from_u64(68);
+        let (mut runs, mut refused) = (0, 0);
+        for round in 0..20_000 {
+            let base = rng.random_range(0..1000u32);
+            let mut window = Vec::new();
+            let mut tris = [[0u32; 3]; 8];
+            let mut mask = 0u8;
+            let origin = |rng: &mut SmallRng| {
+                if round % 4 == 0 {
+                    let sign = if rng.random() { 1 } else { -1 };
+                    sign * ((1 << 23) - rng.random_range(2560..4096))
+                } else {
+                    rng.random_range(-200..200) * 256
+                }
+            };
+            let start = [origin(&mut rng), origin(&mut rng)];
+            for (l, tri) in tris.iter_mut().enumerate() {
+                let step = if round % 3 == 0 { 128 } else { 1 };
+                let reach = match rng.random_range(0..32) {
+                    0 => 11 * 256,
+                    1..16 => 9 * 256,
+                    _ => 5 * 256,
+                };
+                let o = [
+                    start[0] + rng.random_range(-8..8) * 256,
+                    start[1] + rng.random_range(-8..8) * 256,
+                ];
+                let mut corner = || {
+                    let d = |rng: &mut SmallRng| rng.random_range(0..reach / step) * step;
+                    [o[0] + d(&mut rng), o[1] + d(&mut rng)]
+                };
+                let mut xy = [corner(), corner(), corner()];
+                let kind = rng.random_range(0..10);
+                if kind == 0 {
+                    xy[1] = OUTSIDE;
+                }
+                for (v, c) in xy.iter().enumerate() {
+                    tri[v] = base + window.len() as u32;
+                    window.push(*c);
+                }
+                let area = || TriangleSetup::signed_area2(setup::widen(xy), CullMode::None);
+                if kind != 0 && area().is_ok() && rng.random_range(0..6) != 0 {
+                    mask |= 1 << l;
+                }
+            }
+            // Clip rectangles around the boxes, every eighth round cutting some and missing
+            // others.
+            let c = [start[0] >> 8, start[1] >> 8];
+            let cut = round % 8 == 0;
+            let mut end = |near: std::ops::Range<i32>, far: i32| {
+                if cut { rng.random_range(near) } else { far }
+            };
+            let clip = PixelRect {
+                x0: c[0] + end(-12..4, -30),
+                y0: c[1] + end(-12..4, -30),
+                x1: c[0] + end(-4..20, 30),
+                y1: c[1] + end(-4..20, 30),
+            };
+            let mut want = (SmallEight::default(), SmallShading::default());
+            let group = (&tris, &window[..], base);
+            let verdict = small_run_geometry_scalar(group, mask, &clip, &mut want.0, &mut want.1);
+            for level in SimdLevel::available() {
+                let mut got = (SmallEight::default(), SmallShading::default());
+                let v = small_run_geometry(level, group, mask, &clip, &mut got.0, &mut got.1);
+                let what = format!("{level:?}: round {round}, mask {mask:#b}, {clip:?}");
+                assert_eq!(v, verdict, "{what}");
+                if verdict.is_none() {
+                    continue;
+                }
+                for l in 0..8 {
+                    let (g, w) = (&got, &want);
+                    assert_eq!(g.1.cells[l], w.1.cells[l], "{what}, lane {l}");
+                    if mask & (1 << l) == 0 {
+                        assert_eq!(g.1.cells[l], 0, "{what}, lane {l}");
+                        continue;
+                    }
+                    assert_eq!(g.0.inside[l], w.0.inside[l], "{what}, lane {l}");
+                    for k in 0..3 {
+                        assert_eq!(g.0.edges[k][l], w.0.edges[k][l], "{what}, lane {l}");
+                        assert_eq!(g.0.step_x[k][l], w.0.step_x[k][l], "{what}, lane {l}");
+                        assert_eq!(g.0.step_y[k][l], w.0.step_y[k][l], "{what}, lane {l}");
+                    }
+                    for b in 0..2 {
+                        assert_eq!(g.0.bias[b][l], w.0.bias[b][l], "{what}, lane {l}");
+                    }
+                    assert_eq!([g.1.x0[l], g.1.y0[l]], [w.1.x0[l], w.1.y0[l]], "{what}, lane {l}");
+                    let bits = |s: &SmallShading| s.inv_area2[l].to_bits();
+                    assert_eq!(bits(&g.1), bits(&w.1), "{what}, lane {l}");
+                }
+            }
+            match verdict {
+                Some(_) => runs += 1,
+                None => refused += 1,
+            }
+        }
+        assert!(runs > 3000 && refused > 3000, "{runs} runs set up, {refused} refused");
     }
 
     /// Eight small triangles shaded together at AVX-512 are shaded as one pixel at a time
