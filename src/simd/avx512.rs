@@ -28,7 +28,7 @@ use crate::target::TargetBand;
 ///
 /// # Safety
 /// The CPU must support AVX-512 (F, VL, DQ).
-#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,popcnt,bmi1,bmi2")]
 pub(super) unsafe fn row_masks(
     e: [i64; 3],
     step_x: [i64; 3],
@@ -52,7 +52,7 @@ pub(super) unsafe fn row_masks(
 
 /// Eight lanes of `(a0 + f1 * g1) + f2 * g2`: a depth plane.
 #[inline]
-#[target_feature(enable = "avx512f")]
+#[target_feature(enable = "avx512f,popcnt,bmi1,bmi2")]
 fn plane(p: [f64; 3], f1: __m512d, f2: __m512d) -> __m512d {
     let t = _mm512_add_pd(_mm512_set1_pd(p[0]), _mm512_mul_pd(f1, _mm512_set1_pd(p[1])));
     _mm512_add_pd(t, _mm512_mul_pd(f2, _mm512_set1_pd(p[2])))
@@ -60,7 +60,7 @@ fn plane(p: [f64; 3], f1: __m512d, f2: __m512d) -> __m512d {
 
 /// Eight lanes of `fma(f2, g2, fma(f1, g1, a0))`: a colour plane (see [`SpanColor::at`]).
 #[inline]
-#[target_feature(enable = "avx512f")]
+#[target_feature(enable = "avx512f,popcnt,bmi1,bmi2")]
 fn color_plane(p: [f64; 3], f1: __m512d, f2: __m512d) -> __m512d {
     let t = _mm512_fmadd_pd(f1, _mm512_set1_pd(p[1]), _mm512_set1_pd(p[0]));
     _mm512_fmadd_pd(f2, _mm512_set1_pd(p[2]), t)
@@ -69,7 +69,7 @@ fn color_plane(p: [f64; 3], f1: __m512d, f2: __m512d) -> __m512d {
 /// `quantize_channel` on eight lanes, as the AVX2 `quantize`: `max(v, 0)` maps NaN to 0, the
 /// conversion rounds half to even.
 #[inline]
-#[target_feature(enable = "avx512f")]
+#[target_feature(enable = "avx512f,popcnt,bmi1,bmi2")]
 fn quantize(v: __m512d) -> __m256i {
     let v = _mm512_min_pd(_mm512_set1_pd(255.0), _mm512_max_pd(v, _mm512_setzero_pd()));
     _mm512_cvtpd_epi32(v)
@@ -77,7 +77,7 @@ fn quantize(v: __m512d) -> __m256i {
 
 /// Eight lanes of RGBA8 from planes (see the AVX2 `smooth`).
 #[inline]
-#[target_feature(enable = "avx512f")]
+#[target_feature(enable = "avx512f,popcnt,bmi1,bmi2")]
 fn smooth<const CLAMP: bool>(
     p: &[[f64; 3]],
     alpha: Option<u8>,
@@ -103,7 +103,7 @@ fn smooth<const CLAMP: bool>(
 /// the sRGB encoder's `table`): the weights in `f64` lanes (three divisions of eight), the
 /// colours in `f32` lanes, the encoder's lookups gathered ([`super::avx2::srgb8`]).
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl,avx2")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,popcnt,bmi1,bmi2")]
 fn perspective(
     p: &PerspectiveColor,
     q: ([f64; 3], bool),
@@ -129,7 +129,7 @@ fn perspective(
 
 /// Eight lanes of `crate::pipeline::perspective_weights(f1 inv_area2, f2 inv_area2, q)`.
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl")]
+#[target_feature(enable = "avx512f,avx512vl,popcnt,bmi1,bmi2")]
 fn perspective_weights(
     inv_area2: f64,
     (q, affine): ([f64; 3], bool),
@@ -158,7 +158,7 @@ fn perspective_weights(
 
 /// Channel `k` of the colour at weights `w`: `(c0 w0 + c1 w1 + c2 w2) scale`, left to right.
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl")]
+#[target_feature(enable = "avx512f,avx512vl,popcnt,bmi1,bmi2")]
 fn perspective_channel(p: &PerspectiveColor, w: &[__m256; 3], k: usize) -> __m256 {
     let [c0, c1, c2] = p.colors;
     let (c0, c1, c2) = (_mm256_set1_ps(c0[k]), _mm256_set1_ps(c1[k]), _mm256_set1_ps(c2[k]));
@@ -172,7 +172,7 @@ fn perspective_channel(p: &PerspectiveColor, w: &[__m256; 3], k: usize) -> __m25
 /// # Safety
 /// The CPU must support AVX-512 F and VL.
 #[cfg(test)]
-#[target_feature(enable = "avx512f,avx512vl")]
+#[target_feature(enable = "avx512f,avx512vl,popcnt,bmi1,bmi2")]
 pub(super) unsafe fn perspective_probe(
     p: &PerspectiveColor,
     f1: [f64; 8],
@@ -198,7 +198,7 @@ pub(super) unsafe fn perspective_probe(
 /// The CPU must support AVX-512 F and VL; both offsets must be within the buffer `p` points
 /// into (or one past it), and every lane of `m` must lie in it.
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl")]
+#[target_feature(enable = "avx512f,avx512vl,popcnt,bmi1,bmi2")]
 unsafe fn load<const PAIR: bool>(p: *const i32, at: [usize; 2], m: __mmask8) -> __m256i {
     // SAFETY: the offsets stay in the buffer (the caller's contract); masked loads read only
     // the lanes of `m`, which lie in it, and need no alignment.
@@ -218,7 +218,7 @@ unsafe fn load<const PAIR: bool>(p: *const i32, at: [usize; 2], m: __mmask8) -> 
 /// # Safety
 /// As [`load`].
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl")]
+#[target_feature(enable = "avx512f,avx512vl,popcnt,bmi1,bmi2")]
 unsafe fn store<const PAIR: bool>(p: *mut i32, at: [usize; 2], m: __mmask8, v: __m256i) {
     // SAFETY: as in `load`: masked stores write only the lanes of `m`.
     unsafe {
@@ -241,7 +241,7 @@ unsafe fn store<const PAIR: bool>(p: *mut i32, at: [usize; 2], m: __mmask8, v: _
 /// The CPU must support AVX-512 F and VL; the offsets must be at most `t.checked_len()`, and
 /// every lane set in `cover` must lie below it.
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl")]
+#[target_feature(enable = "avx512f,avx512vl,popcnt,bmi1,bmi2")]
 unsafe fn group<const SKIP_HIDDEN: bool, const PAIR: bool, const DEPTH: u8>(
     t: &mut KernelTarget<'_>,
     at: [usize; 2],
@@ -304,7 +304,7 @@ const DEPTH_ALWAYS: u8 = 3;
 
 /// The lanes `0..8` as `f64`.
 #[inline]
-#[target_feature(enable = "avx512f")]
+#[target_feature(enable = "avx512f,popcnt,bmi1,bmi2")]
 fn lanes() -> __m512d {
     _mm512_setr_pd(0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0)
 }
@@ -314,7 +314,7 @@ fn lanes() -> __m512d {
 /// through `dyn` with a division per lane, 32 per triangle, was a twentieth of a frame of
 /// small triangles at 4x).
 #[inline]
-#[target_feature(enable = "avx512f")]
+#[target_feature(enable = "avx512f,popcnt,bmi1,bmi2")]
 fn sample_lanes(n: usize, f: impl Fn(usize, usize) -> f64) -> __m512d {
     debug_assert!(n == 4 || n == 8, "4 or 8 samples per pixel");
     let shift = n.trailing_zeros();
@@ -328,7 +328,7 @@ fn sample_lanes(n: usize, f: impl Fn(usize, usize) -> f64) -> __m512d {
 ///
 /// # Safety
 /// The CPU must support AVX-512 F, VL and DQ.
-#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,popcnt,bmi1,bmi2")]
 pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
     // Packed lanes hold buffer indices in `i32` (any target's, and any band's buffers but
     // one of more than 2^31 pixels, which takes the unpacked loop).
@@ -355,7 +355,7 @@ pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
 /// # Safety
 /// The CPU must support AVX-512 F, VL and DQ.
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,popcnt,bmi1,bmi2")]
 unsafe fn narrow_rows(job: &mut NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) -> __m256i) -> u64 {
     job.assert_narrow();
     let box_ = NarrowBox::of(job);
@@ -373,7 +373,7 @@ unsafe fn narrow_rows(job: &mut NarrowJob<'_>, rgba: impl Fn(__m512d, __m512d) -
 ///
 /// # Safety
 /// The CPU must support AVX-512 F, VL and DQ.
-#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2,popcnt,bmi1,bmi2")]
 unsafe fn narrow_packed<const PAIR: bool>(job: &mut NarrowJob<'_>, p: &PerspectiveColor) -> u64 {
     job.assert_narrow();
     assert!(PAIR == (job.columns <= 4), "two rows per group for boxes up to four wide");
@@ -486,7 +486,7 @@ unsafe fn narrow_packed<const PAIR: bool>(job: &mut NarrowJob<'_>, p: &Perspecti
 /// The CPU must support AVX-512 F and VL; each lane of `m` must hold an index into the colour
 /// buffer `out` points to.
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl,avx2")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,popcnt,bmi1,bmi2")]
 unsafe fn packed_colors(
     p: &PerspectiveColor,
     (q, table): (([f64; 3], bool), &[u32; ENCODE_BUCKETS]),
@@ -533,7 +533,7 @@ impl NarrowBox {
     /// at each lane, the lanes within the box's columns, and the rows a group takes (boxes up
     /// to four pixels wide, most small triangles, two: lanes 0-3 the first, 4-7 the second).
     #[inline]
-    #[target_feature(enable = "avx512f")]
+    #[target_feature(enable = "avx512f,popcnt,bmi1,bmi2")]
     fn lanes(&self) -> ([__m512d; 3], __mmask8, usize) {
         let pair = self.columns <= 4;
         let (column, row_of_lane, rows_per_group) = if pair {
@@ -575,7 +575,7 @@ impl NarrowBox {
 /// (each lane's): the lanes outside an edge (the sign bits of `e0 | e1 | e2`) and the
 /// barycentric numerators (edges 1 and 2 less their `bias`).
 #[inline]
-#[target_feature(enable = "avx512f,avx512dq")]
+#[target_feature(enable = "avx512f,avx512dq,popcnt,bmi1,bmi2")]
 fn group_edges(
     row: [f64; 3],
     offsets: &[__m512d; 3],
@@ -597,7 +597,7 @@ fn group_edges(
 /// The CPU must support AVX-512 F, VL and DQ; `b` must be narrow (1 to 8 columns, a row or
 /// more).
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,popcnt,bmi1,bmi2")]
 unsafe fn narrow_box(
     b: &NarrowBox,
     t: &mut KernelTarget<'_>,
@@ -635,7 +635,7 @@ unsafe fn narrow_box(
 /// As [`narrow_box`], whose assertions it relies on; `PAIR` when the box is at most four
 /// wide.
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,popcnt,bmi1,bmi2")]
 unsafe fn narrow_groups<const PAIR: bool, const DEPTH: u8>(
     b: &NarrowBox,
     t: &mut KernelTarget<'_>,
@@ -671,7 +671,7 @@ unsafe fn narrow_groups<const PAIR: bool, const DEPTH: u8>(
 ///
 /// # Safety
 /// The CPU must support AVX-512 F, VL and DQ.
-#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2,popcnt,bmi1,bmi2")]
 pub(super) unsafe fn narrow_eight(
     records: &[&WindowRecord; 8],
     tile: &PixelRect,
@@ -784,7 +784,7 @@ pub(super) unsafe fn narrow_eight(
 ///
 /// # Safety
 /// The CPU must support AVX-512 F, VL and DQ.
-#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,popcnt,bmi1,bmi2")]
 pub(super) unsafe fn shade_narrow_eight(
     eight: &NarrowEight,
     lanes: std::ops::Range<usize>,
@@ -823,7 +823,7 @@ pub(super) unsafe fn shade_narrow_eight(
 ///
 /// # Safety
 /// The CPU must support AVX-512 F and VL.
-#[target_feature(enable = "avx512f,avx512vl")]
+#[target_feature(enable = "avx512f,avx512vl,popcnt,bmi1,bmi2")]
 pub(super) unsafe fn shade_span(job: &mut SpanJob<'_>) {
     // SAFETY: the CPU supports AVX-512 F and VL (this function's contract).
     with_rgba!(*job.target.color, __m512d, _mm256_set1_epi32, smooth, rgba => unsafe {
@@ -836,7 +836,7 @@ pub(super) unsafe fn shade_span(job: &mut SpanJob<'_>) {
 /// # Safety
 /// The CPU must support AVX-512 F and VL.
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl")]
+#[target_feature(enable = "avx512f,avx512vl,popcnt,bmi1,bmi2")]
 unsafe fn span_groups(job: &mut SpanJob<'_>, rgba: impl Fn(__m512d, __m512d) -> __m256i) {
     let n = job.target.checked_len();
     // The numerators at pixel `lane`, then stepped by eight pixels: exact integers as
@@ -872,7 +872,7 @@ unsafe fn span_groups(job: &mut SpanJob<'_>, rgba: impl Fn(__m512d, __m512d) -> 
 ///
 /// # Safety
 /// The CPU must support AVX-512 F and VL.
-#[target_feature(enable = "avx512f,avx512vl")]
+#[target_feature(enable = "avx512f,avx512vl,popcnt,bmi1,bmi2")]
 pub(super) unsafe fn shade_samples(job: &mut SampleSpanJob<'_>) {
     // SAFETY: the CPU supports AVX-512 F and VL (this function's contract).
     with_rgba!(*job.span.target.color, __m512d, _mm256_set1_epi32, smooth, rgba => unsafe {
@@ -885,7 +885,7 @@ pub(super) unsafe fn shade_samples(job: &mut SampleSpanJob<'_>) {
 /// # Safety
 /// The CPU must support AVX-512 F and VL.
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl")]
+#[target_feature(enable = "avx512f,avx512vl,popcnt,bmi1,bmi2")]
 unsafe fn sample_groups(job: &mut SampleSpanJob<'_>, rgba: impl Fn(__m512d, __m512d) -> __m256i) {
     let n = job.check();
     let samples = job.samples;
@@ -928,7 +928,7 @@ unsafe fn sample_groups(job: &mut SampleSpanJob<'_>, rgba: impl Fn(__m512d, __m5
 ///
 /// # Safety
 /// The CPU must support AVX-512 F, VL and DQ.
-#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,popcnt,bmi1,bmi2")]
 pub(super) unsafe fn shade_narrow_samples(job: &mut NarrowSamplesJob<'_>) -> u64 {
     // A partly covered pixel's centre may lie outside the triangle, where a `SmoothRgb`'s
     // planes may leave [0, 255]: clamped, as the scalar `SpanColor::at` does.
@@ -944,7 +944,7 @@ pub(super) unsafe fn shade_narrow_samples(job: &mut NarrowSamplesJob<'_>) -> u64
 /// # Safety
 /// The CPU must support AVX-512 F, VL and DQ.
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,popcnt,bmi1,bmi2")]
 unsafe fn narrow_sample_groups(
     job: &mut NarrowSamplesJob<'_>,
     rgba: impl Fn(__m512d, __m512d) -> __m256i,
@@ -1012,7 +1012,7 @@ unsafe fn narrow_sample_groups(
 
 /// Eight lanes of one `f32` field of each triangle.
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl")]
+#[target_feature(enable = "avx512f,avx512vl,popcnt,bmi1,bmi2")]
 fn each_f32(tris: &[[Vertex; 3]; 8], f: impl Fn(&[Vertex; 3]) -> f32) -> __m256 {
     let [t0, t1, t2, t3, t4, t5, t6, t7] = tris;
     _mm256_setr_ps(f(t0), f(t1), f(t2), f(t3), f(t4), f(t5), f(t6), f(t7))
@@ -1026,7 +1026,7 @@ fn each_f32(tris: &[[Vertex; 3]; 8], f: impl Fn(&[Vertex; 3]) -> f32) -> __m256 
 ///
 /// # Safety
 /// The CPU must support AVX-512 F, VL and DQ.
-#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,popcnt,bmi1,bmi2")]
 pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: &mut WindowGroup) {
     let zero = _mm512_setzero_si512();
     let mut finite: __mmask8 = 0xFF;
@@ -1104,7 +1104,7 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
 ///
 /// # Safety
 /// The CPU must support AVX-512 F, VL, DQ and CD.
-#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512cd,avx2")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512cd,avx2,popcnt,bmi1,bmi2")]
 pub(super) unsafe fn shade_small_eight(
     eight: &SmallEight,
     s: &SmallShading,
@@ -1248,7 +1248,7 @@ pub(super) unsafe fn shade_small_eight(
 /// `i` of triangle `tri[i]`, as [`perspective`] computes one triangle's (the lanes of `pass`
 /// matter; the others compute from leftovers).
 #[inline]
-#[target_feature(enable = "avx512f,avx512vl,avx2")]
+#[target_feature(enable = "avx512f,avx512vl,avx2,popcnt,bmi1,bmi2")]
 fn small_colors(
     s: &SmallShading,
     (table, columns): (&[u32; ENCODE_BUCKETS], &[__m256; 16]),
@@ -1317,7 +1317,7 @@ fn small_colors(
 /// Pairs of rows interleaved, then pairs of pairs, each 128-bit lane then holding four rows of
 /// one column, which the last shuffles put side by side (as `narrow_eight` transposes words).
 #[inline]
-#[target_feature(enable = "avx512f,avx512dq")]
+#[target_feature(enable = "avx512f,avx512dq,popcnt,bmi1,bmi2")]
 fn columns_of(rows: &[[f32; 16]; 8]) -> [__m256; 16] {
     // SAFETY: each load reads one row, sixteen `f32`s (64 bytes); it needs no alignment.
     let r: [__m512; 8] = std::array::from_fn(|l| unsafe { _mm512_loadu_ps(rows[l].as_ptr()) });

@@ -39,7 +39,7 @@ pub enum SimdLevel {
     /// virtual machine, that reports one without the other runs the scalar code): four
     /// pixels per step.
     Avx2,
-    /// AVX-512 (F, VL, DQ, CD): eight pixels per step with mask registers for the shading
+    /// AVX-512 (F, VL, DQ, CD, with POPCNT, BMI1 and BMI2): eight pixels per step with mask registers for the shading
     /// kernels; the front end's corner kernels and the index ranges run their AVX2
     /// versions.
     Avx512,
@@ -106,6 +106,10 @@ impl SimdLevel {
                     && std::arch::is_x86_feature_detected!("avx512vl")
                     && std::arch::is_x86_feature_detected!("avx512dq")
                     && std::arch::is_x86_feature_detected!("avx512cd")
+                    // Every AVX-512 CPU has them; the kernels count and find bits with them.
+                    && std::arch::is_x86_feature_detected!("popcnt")
+                    && std::arch::is_x86_feature_detected!("bmi1")
+                    && std::arch::is_x86_feature_detected!("bmi2")
             }
             #[cfg(not(target_arch = "x86_64"))]
             Self::Avx2 | Self::Avx512 => false,
@@ -1205,7 +1209,7 @@ pub fn shade_small_eight(
 ) -> u64 {
     #[cfg(target_arch = "x86_64")]
     if level == SimdLevel::Avx512 && level.is_available() {
-        // SAFETY: AVX-512 support (F, VL, DQ, CD) was just checked at run time.
+        // SAFETY: AVX-512 support (F, VL, DQ, CD, with POPCNT and BMI) was just checked at run time.
         return unsafe { avx512::shade_small_eight(eight, shading, lanes, target, depth_test) };
     }
     shade_small_eight_scalar(eight, shading, lanes, target, depth_test)
