@@ -286,16 +286,16 @@ fn front_end(c: &mut Criterion) {
         g.bench_function(name, |b| {
             b.iter(|| {
                 let mut kept = 0u32;
+                let mut rows = simd::CornerGroup::default();
                 for eight in tris.chunks_exact(8) {
                     let eight: &[[u32; 3]; 8] = eight.try_into().expect("eight");
                     let t = simd::corner_tests_indexed(
                         level,
-                        black_box(eight),
-                        &window,
-                        0,
+                        (black_box(eight), &window, 0),
                         CullMode::Clockwise,
                         &clip,
                         samples,
+                        &mut rows,
                     );
                     kept += (t.inside & !(t.degenerate | t.culled | t.empty)).count_ones();
                 }

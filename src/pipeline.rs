@@ -927,18 +927,13 @@ impl FrontEnd {
         C: Fn([&V; 3], u32) -> Option<InterpolatedColor>,
     {
         let vertices = |k: usize| batch[k].map(&vertex);
+        // A whole group's corners, as the corner tests leave them.
+        let mut rows = CornerGroup::default();
         for start in range.clone().step_by(8) {
             let len = (range.end - start).min(8);
             let t = if let Ok(eight) = <&[[u32; 3]; 8]>::try_from(&batch[start..start + len]) {
-                simd::corner_tests_indexed(
-                    level,
-                    eight,
-                    corners,
-                    base,
-                    self.cull,
-                    &self.coverage.clip,
-                    self.samples,
-                )
+                let (clip, group) = (&self.coverage.clip, (eight, corners, base));
+                simd::corner_tests_indexed(level, group, self.cull, clip, self.samples, &mut rows)
             } else {
                 let mut group = CornerGroup::default();
                 for j in 0..len {
@@ -962,8 +957,8 @@ impl FrontEnd {
                 && let Ok(eight) = <&[[u32; 3]; 8]>::try_from(&batch[start..start + len])
                 && let Some(mut run) = sink.small_run()
             {
-                let (source, lanes) = ((corners, base, &vertex), (start, rest, first_id));
-                if self.small_run(eight, lanes, source, (colors, level), &mut run) {
+                let (source, lanes) = ((eight, &rows, &vertex), (start, rest, first_id));
+                if self.small_run(source, lanes, (colors, level), &mut run) {
                     run.finish(level, rest.count_ones() as usize);
                     continue;
                 }
@@ -993,9 +988,10 @@ impl FrontEnd {
         }
     }
 
-    /// Sets up triangles `start + j` of `batch` for each bit `j` of `rest` (the group of eight
-    /// from `start`, the first of `batch` with id `first_id`; their corners inside the clip
-    /// volume, past the corner tests) as the lanes of `run`, with the colours `colors` gives:
+    /// Sets up triangles `start + j` for each bit `j` of `rest` (the group of eight `eight`
+    /// from `start`, whose corners the tests left in `rows`, the batch's first with id
+    /// `first_id`; their corners inside the clip volume, past the corner tests) as the lanes
+    /// of `run`, with the colours `colors` gives:
     /// what [`FrontEnd::prepare_range`] and the band loop's small lanes compute for them,
     /// without setups or records (the boxes, `1 / area2` and coverage eight at a time,
     /// [`simd::small_run_geometry`]). False, with `run` to be dropped, when one has a box over
@@ -1003,16 +999,14 @@ impl FrontEnd {
     #[inline]
     fn small_run<V: Varyings, R: Borrow<ShadedVertex<V>>>(
         &self,
-        eight: &[[u32; 3]; 8],
+        (eight, rows, vertex): (&[[u32; 3]; 8], &CornerGroup, impl Fn(u32) -> R),
         (start, rest, first_id): (usize, u8, usize),
-        (corners, base, vertex): (&[Corner], u32, impl Fn(u32) -> R),
         (colors, level): (impl Fn([&V; 3], u32) -> Option<InterpolatedColor>, SimdLevel),
         run: &mut bin::SmallRunSetter<'_>,
     ) -> bool {
         let (coverage, shading) = run.parts();
         let clip = &self.coverage.clip;
-        let group = (eight, corners, base);
-        if simd::small_run_geometry(level, group, rest, clip, coverage, shading).is_none() {
+        if simd::small_run_geometry(level, rows, rest, clip, coverage, shading).is_none() {
             return false;
         }
         let mut bits = rest;

@@ -50,11 +50,17 @@ pub(super) unsafe fn corner_tests_indexed(
     tris: &[[u32; 3]; 8],
     window: &[Corner],
     base: u32,
-    cull: CullMode,
-    clip: &PixelRect,
-    samples: SampleCount,
+    (cull, clip, samples): (CullMode, &PixelRect, SampleCount),
+    rows: &mut CornerGroup,
 ) -> CornerTests {
     let (x, y) = corner_rows(tris, window, base);
+    for v in 0..3 {
+        // SAFETY: eight `i32`s, 32 bytes, each; the stores need no alignment.
+        unsafe {
+            _mm256_storeu_si256(rows.x[v].as_mut_ptr().cast(), x[v]);
+            _mm256_storeu_si256(rows.y[v].as_mut_ptr().cast(), y[v]);
+        }
+    }
     tests(x, y, cull, clip, samples)
 }
 
@@ -94,25 +100,23 @@ fn corner_rows(tris: &[[u32; 3]; 8], window: &[Corner], base: u32) -> ([__m256i;
     (x, y)
 }
 
-/// [`super::small_run_geometry`]: the corners read as the corner tests read them, the
-/// setup's integers in `i32` lanes (the areas of boxes of at most 8 x 8 pixels stay below
+/// [`super::small_run_geometry`]: the corners' rows loaded whole, the setup's integers in `i32` lanes (the areas of boxes of at most 8 x 8 pixels stay below
 /// 2^23; lanes outside `mask` may wrap, and are dropped), `1 / area2` in two `f64` halves,
 /// and the coverage as [`small_eight`] computes it.
 ///
 /// # Safety
 /// The CPU must support AVX2.
-///
-/// # Panics
-/// If an index minus `base` falls outside the window.
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn small_run_geometry(
-    (tris, window, base): (&[[u32; 3]; 8], &[Corner], u32),
+    rows: &CornerGroup,
     mask: u8,
     clip: &PixelRect,
     eight: &mut SmallEight,
     shading: &mut SmallShading,
 ) -> Option<[usize; 2]> {
-    let (x, y) = corner_rows(tris, window, base);
+    // SAFETY: eight `i32`s, 32 bytes, each; the loads need no alignment.
+    let row = |r: &[i32; 8]| unsafe { _mm256_loadu_si256(r.as_ptr().cast()) };
+    let (x, y) = (rows.x.each_ref().map(row), rows.y.each_ref().map(row));
     let lanes = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
     let mask =
         _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(i32::from(mask)), lanes), lanes);

@@ -1121,19 +1121,16 @@ impl SmallShading {
 
 /// Sets up eight small triangles' coverage (`eight`, as [`small_eight`] computes it) and boxes
 /// and `1 / area2` (in `shading`, as [`SmallShading::set`] sets them) straight from their
-/// corners (`window[i - base]` for each index `i` of `tris`), for the lanes of `mask`, whose
+/// corners (`rows`, as [`corner_tests_indexed`] leaves them), for the lanes of `mask`, whose
 /// corners must be inside the clip volume, with nonzero area: the front end's small runs
 /// (`bin::SmallRun`), set up without a `TriangleSetup` or a record. The other lanes get no
 /// pixels (their `cells` are 0). Returns the span of the boxes within `clip` (the largest's
 /// columns and rows), or `None`, with nothing meaningful set, when a lane of `mask` has a box
 /// over [`SMALL_BOX`] pixels a side, or none within `clip` (or, in the scalar version, zero
 /// area).
-///
-/// # Panics
-/// If an index minus `base` falls outside the window.
 pub fn small_run_geometry(
     level: SimdLevel,
-    corners: (&[[u32; 3]; 8], &[Corner], u32),
+    rows: &CornerGroup,
     mask: u8,
     clip: &PixelRect,
     eight: &mut SmallEight,
@@ -1142,17 +1139,14 @@ pub fn small_run_geometry(
     #[cfg(target_arch = "x86_64")]
     if level.has_avx2() {
         // SAFETY: AVX2 support was just checked at run time.
-        return unsafe { avx2::small_run_geometry(corners, mask, clip, eight, shading) };
+        return unsafe { avx2::small_run_geometry(rows, mask, clip, eight, shading) };
     }
-    small_run_geometry_scalar(corners, mask, clip, eight, shading)
+    small_run_geometry_scalar(rows, mask, clip, eight, shading)
 }
 
 /// [`small_run_geometry`] lane by lane, through setup's functions and [`small_eight_scalar`].
-///
-/// # Panics
-/// As [`small_run_geometry`].
 pub fn small_run_geometry_scalar(
-    (tris, window, base): (&[[u32; 3]; 8], &[Corner], u32),
+    rows: &CornerGroup,
     mask: u8,
     clip: &PixelRect,
     eight: &mut SmallEight,
@@ -1160,8 +1154,8 @@ pub fn small_run_geometry_scalar(
 ) -> Option<[usize; 2]> {
     let mut lanes = [SmallLane::default(); 8];
     let mut span = [1, 1];
-    for (l, tri) in tris.iter().enumerate() {
-        let xy = tri.map(|i| window[i.wrapping_sub(base) as usize]);
+    for (l, lane) in lanes.iter_mut().enumerate() {
+        let xy = rows.get(l);
         if mask & (1 << l) == 0 {
             shading.cells[l] = 0;
             continue;
@@ -1173,7 +1167,7 @@ pub fn small_run_geometry_scalar(
             return None;
         }
         let rect = b.intersect(clip)?;
-        lanes[l] = SmallLane { xy, clockwise: setup.clockwise, first: [rect.x0, rect.y0] };
+        *lane = SmallLane { xy, clockwise: setup.clockwise, first: [rect.x0, rect.y0] };
         shading.set_box(l, &rect);
         shading.inv_area2[l] = 1.0 / setup.area2 as f64;
         let (columns, rows) = ((rect.x1 - rect.x0 + 1) as usize, (rect.y1 - rect.y0 + 1) as usize);
@@ -1712,7 +1706,8 @@ pub fn corner_tests(
 }
 
 /// [`corner_tests`] for eight consecutive triangles of an index buffer whose corners are
-/// `window[i - base]` for index `i`. AVX2 reads each corner straight into a vector: filling a
+/// `window[i - base]` for index `i`, which it also leaves in `rows` (for
+/// [`small_run_geometry`]). AVX2 reads each corner straight into a vector: filling a
 /// [`CornerGroup`] first and loading its rows would read memory just written.
 ///
 /// # Panics
@@ -1720,23 +1715,23 @@ pub fn corner_tests(
 #[must_use]
 pub fn corner_tests_indexed(
     level: SimdLevel,
-    tris: &[[u32; 3]; 8],
-    window: &[Corner],
-    base: u32,
+    (tris, window, base): (&[[u32; 3]; 8], &[Corner], u32),
     cull: CullMode,
     clip: &PixelRect,
     samples: SampleCount,
+    rows: &mut CornerGroup,
 ) -> CornerTests {
     #[cfg(target_arch = "x86_64")]
     if level.has_avx2() {
         // SAFETY: AVX2 and FMA support was just checked at run time.
-        return unsafe { avx2::corner_tests_indexed(tris, window, base, cull, clip, samples) };
+        return unsafe {
+            avx2::corner_tests_indexed(tris, window, base, (cull, clip, samples), rows)
+        };
     }
-    let mut group = CornerGroup::default();
     for (k, tri) in tris.iter().enumerate() {
-        group.set(k, tri.map(|i| window[i.wrapping_sub(base) as usize]));
+        rows.set(k, tri.map(|i| window[i.wrapping_sub(base) as usize]));
     }
-    corner_tests(level, &group, cull, clip, samples)
+    corner_tests(level, rows, cull, clip, samples)
 }
 
 /// [`corner_tests`] lane by lane, through the front end's own functions.
@@ -1964,25 +1959,23 @@ mod tests {
             let samples = [SampleCount::X1, SampleCount::X4, SampleCount::X8][(round / 3) % 3];
             let expect = corner_tests_scalar(&group, cull, &clip, samples);
             for level in SimdLevel::available() {
-                let got = corner_tests_indexed(level, &tris, &window, base, cull, &clip, samples);
+                let mut rows = CornerGroup::default();
+                let group_of = (&tris, &window[..], base);
+                let got = corner_tests_indexed(level, group_of, cull, &clip, samples, &mut rows);
                 assert_eq!(got, expect, "{level:?}, {samples:?}, round {round}");
+                assert_eq!(rows, group, "{level:?}, {samples:?}, round {round}");
             }
         }
-        let window = vec![[0, 0]; 5];
+        let window = [[0, 0]; 5];
         let mut tris = [[0u32, 1, 2]; 8];
         tris[6][1] = 5;
         for level in SimdLevel::available() {
             let r = std::panic::catch_unwind(|| {
                 let clip = PixelRect::EMPTY;
-                corner_tests_indexed(
-                    level,
-                    &tris,
-                    &window,
-                    0,
-                    CullMode::None,
-                    &clip,
-                    SampleCount::X1,
-                )
+                let mut rows = CornerGroup::default();
+                let group_of = (&tris, &window[..], 0);
+                let x1 = SampleCount::X1;
+                corner_tests_indexed(level, group_of, CullMode::None, &clip, x1, &mut rows)
             });
             assert!(r.is_err(), "{level:?} read past the window");
         }
@@ -2896,9 +2889,10 @@ mod tests {
         assert!(checked > 30_000, "{checked} lanes with pixels inside");
     }
 
-    /// Small runs set up from their corners ([`small_run_geometry`]) at every level as lane by
-    /// lane ([`small_run_geometry_scalar`]: setup's functions and [`small_eight_scalar`]):
-    /// groups of eight from a window of corners (indices offset by a base), random masks of
+    /// Small runs set up from their corners ([`small_run_geometry`], from the rows
+    /// [`corner_tests_indexed`] leaves) at every level as lane by lane
+    /// ([`small_run_geometry_scalar`]: setup's functions and [`small_eight_scalar`]): groups
+    /// of eight from a window of corners (indices offset by a base), random masks of
     /// lanes (the others with `OUTSIDE` corners, zero areas or large boxes, which must change
     /// nothing), boxes of up to 8 or 10 pixels a side (refused past 8 by both), both windings,
     /// vertices on a coarse grid some rounds (fill-rule ties), near the ends of the fixed-point
@@ -2966,11 +2960,18 @@ mod tests {
                 y1: c[1] + end(-4..20, 30),
             };
             let mut want = (SmallEight::default(), SmallShading::default());
-            let group = (&tris, &window[..], base);
-            let verdict = small_run_geometry_scalar(group, mask, &clip, &mut want.0, &mut want.1);
+            let mut group = CornerGroup::default();
+            for (k, t) in tris.iter().enumerate() {
+                group.set(k, t.map(|i| window[(i - base) as usize]));
+            }
+            let verdict = small_run_geometry_scalar(&group, mask, &clip, &mut want.0, &mut want.1);
             for level in SimdLevel::available() {
+                // The rows as the corner tests leave them at this level.
+                let mut rows = CornerGroup::default();
+                let (tested, x1) = ((&tris, &window[..], base), SampleCount::X1);
+                let _ = corner_tests_indexed(level, tested, CullMode::None, &clip, x1, &mut rows);
                 let mut got = (SmallEight::default(), SmallShading::default());
-                let v = small_run_geometry(level, group, mask, &clip, &mut got.0, &mut got.1);
+                let v = small_run_geometry(level, &rows, mask, &clip, &mut got.0, &mut got.1);
                 let what = format!("{level:?}: round {round}, mask {mask:#b}, {clip:?}");
                 assert_eq!(v, verdict, "{what}");
                 if verdict.is_none() {
