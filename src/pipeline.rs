@@ -988,14 +988,14 @@ impl FrontEnd {
         }
     }
 
-    /// Sets up triangles `start + j` for each bit `j` of `rest` (the group of eight `eight`
-    /// from `start`, whose corners the tests left in `rows`, the batch's first with id
-    /// `first_id`; their corners inside the clip volume, past the corner tests) as the lanes
-    /// of `run`, with the colours `colors` gives:
-    /// what [`FrontEnd::prepare_range`] and the band loop's small lanes compute for them,
-    /// without setups or records (the boxes, `1 / area2` and coverage eight at a time,
-    /// [`simd::small_run_geometry`]). False, with `run` to be dropped, when one has a box over
-    /// [`simd::SMALL_BOX`] pixels a side or no such colour.
+    /// Sets up triangles `start + j` for each bit `j` of `rest` as the lanes of `run`, with
+    /// the colours `colors` gives: what [`FrontEnd::prepare_range`] and the band loop's small
+    /// lanes would compute for them, without setups or records (the boxes, `1 / area2` and
+    /// coverage eight at a time, [`simd::small_run_geometry`]). `eight` is the group of
+    /// eight from `start` (the batch's first has id `first_id`), whose corners the tests left
+    /// in `rows`; those of `rest` passed them, inside the clip volume. False, with `run` to
+    /// be dropped, when one has a box over [`simd::SMALL_BOX`] pixels a side or no such
+    /// colour.
     #[inline]
     fn small_run<V: Varyings, R: Borrow<ShadedVertex<V>>>(
         &self,

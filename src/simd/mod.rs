@@ -2846,15 +2846,7 @@ mod tests {
         for round in 0..20_000 {
             let lanes: [SmallLane; 8] = std::array::from_fn(|_| {
                 loop {
-                    // Within 2^23 (the snapped range) with the box's 9 * 256 units beyond.
-                    let coordinate = |rng: &mut SmallRng| {
-                        if round % 4 == 0 {
-                            let sign = if rng.random() { 1 } else { -1 };
-                            sign * ((1 << 23) - rng.random_range(2560..4096))
-                        } else {
-                            rng.random_range(-20_000..20_000) * 256
-                        }
-                    };
+                    let coordinate = |rng: &mut SmallRng| small_origin(rng, round, 20_000);
                     let origin = [coordinate(&mut rng), coordinate(&mut rng)];
                     // Snapped positions on a coarse grid some rounds, for exact ties; boxes
                     // up to 4 or 8 pixels a side.
@@ -2889,6 +2881,18 @@ mod tests {
         assert!(checked > 30_000, "{checked} lanes with pixels inside");
     }
 
+    /// A snapped coordinate where the small-triangle tests put a box: every fourth round
+    /// near either end of the snapped range (within 2^23, with a box's 9 * 256 units
+    /// beyond), else a whole pixel within `spread` pixels of 0.
+    fn small_origin(rng: &mut SmallRng, round: usize, spread: i32) -> i32 {
+        if round % 4 == 0 {
+            let sign = if rng.random() { 1 } else { -1 };
+            sign * ((1 << 23) - rng.random_range(2560..4096))
+        } else {
+            rng.random_range(-spread..spread) * 256
+        }
+    }
+
     /// Small runs set up from their corners ([`small_run_geometry`], from the rows
     /// [`corner_tests_indexed`] leaves) at every level as lane by lane
     /// ([`small_run_geometry_scalar`]: setup's functions and [`small_eight_scalar`]): groups
@@ -2908,14 +2912,7 @@ mod tests {
             let mut window = Vec::new();
             let mut tris = [[0u32; 3]; 8];
             let mut mask = 0u8;
-            let origin = |rng: &mut SmallRng| {
-                if round % 4 == 0 {
-                    let sign = if rng.random() { 1 } else { -1 };
-                    sign * ((1 << 23) - rng.random_range(2560..4096))
-                } else {
-                    rng.random_range(-200..200) * 256
-                }
-            };
+            let origin = |rng: &mut SmallRng| small_origin(rng, round, 200);
             let start = [origin(&mut rng), origin(&mut rng)];
             for (l, tri) in tris.iter_mut().enumerate() {
                 let step = if round % 3 == 0 { 128 } else { 1 };
