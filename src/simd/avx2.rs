@@ -100,9 +100,11 @@ fn corner_rows(tris: &[[u32; 3]; 8], window: &[Corner], base: u32) -> ([__m256i;
     (x, y)
 }
 
-/// [`super::small_run_geometry`]: the corners' rows loaded whole, the setup's integers in `i32` lanes (the areas of boxes of at most 8 x 8 pixels stay below
-/// 2^23; lanes outside `mask` may wrap, and are dropped), `1 / area2` in two `f64` halves,
-/// and the coverage as [`small_eight`] computes it.
+/// [`super::small_run_geometry`]: the corners' rows loaded whole, the setup's integers in
+/// `i32` lanes (twice the area of a triangle whose box is at most 8 x 8 pixels, its vertices
+/// within 9 * 256 units of each other, stays below 2^23; lanes outside `mask` may wrap, and
+/// are dropped, as are lanes refused before their areas are used), `1 / area2` in two `f64`
+/// halves, and the coverage as [`small_eight`] computes it.
 ///
 /// # Safety
 /// The CPU must support AVX2.
