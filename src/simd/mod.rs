@@ -2885,7 +2885,7 @@ mod tests {
     /// near either end of the snapped range (within 2^23, with a box's 9 * 256 units
     /// beyond), else a whole pixel within `spread` pixels of 0.
     fn small_origin(rng: &mut SmallRng, round: usize, spread: i32) -> i32 {
-        if round % 4 == 0 {
+        if round.is_multiple_of(4) {
             let sign = if rng.random() { 1 } else { -1 };
             sign * ((1 << 23) - rng.random_range(2560..4096))
         } else {
