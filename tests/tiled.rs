@@ -1265,8 +1265,8 @@ fn tiny_vertex_coloured_triangles_match_the_reference() {
     // front end's groups of eight (a pair's first in a group the shader declines, its second
     // set up straight into kernel lanes).
     let lone = positions.len() as u32;
-    positions.extend([Vec4::new(0.0, 0.0, 0.5, 1.0), Vec4::new(0.05, 0.0, 0.5, 1.0)]);
-    positions.push(Vec4::new(0.0, 0.05, 0.5, 1.0));
+    positions
+        .extend([(0.0, 0.0), (0.05, 0.0), (0.0, 0.05)].map(|(x, y)| Vec4::new(x, y, 0.5, 1.0)));
     colors.extend((0..3).map(|_| color(&mut rng)));
     triangles.push([lone, lone + 1, lone + 2]);
     for k in 0..2000 {
