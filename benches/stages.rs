@@ -241,9 +241,22 @@ fn small(c: &mut Criterion) {
     }
     let mut g = c.benchmark_group("small kernel");
     g.throughput(Throughput::Elements(8));
+    // The same triangles' corners as the corner tests leave them, for a small run's setup.
+    let mut rows = simd::CornerGroup::default();
+    for (l, lane) in lanes.iter().enumerate() {
+        rows.set(l, lane.xy);
+    }
+    let clip = PixelRect::of_target(16, 8);
     for level in SimdLevel::available() {
         let mut eight = SmallEight::default();
         simd::small_eight(level, &lanes, span, &mut eight);
+        g.bench_function(format!("{level:?}, run geometry of eight two-pixel triangles"), |b| {
+            let (mut coverage, mut run) = (SmallEight::default(), SmallShading::default());
+            b.iter(|| {
+                let rows = black_box(&rows);
+                simd::small_run_geometry(level, rows, 0xFF, &clip, &mut coverage, &mut run)
+            })
+        });
         g.bench_function(format!("{level:?}, eight two-pixel triangles"), |b| {
             b.iter(|| {
                 let mut band = target.band();
