@@ -931,7 +931,9 @@ impl FrontEnd {
         let mut rows = CornerGroup::default();
         for start in range.clone().step_by(8) {
             let len = (range.end - start).min(8);
-            let t = if let Ok(eight) = <&[[u32; 3]; 8]>::try_from(&batch[start..start + len]) {
+            // A whole group: its corner tests leave `rows`, and it may be a small run.
+            let whole = <&[[u32; 3]; 8]>::try_from(&batch[start..start + len]).ok();
+            let t = if let Some(eight) = whole {
                 let (clip, group) = (&self.coverage.clip, (eight, corners, base));
                 simd::corner_tests_indexed(level, group, self.cull, clip, self.samples, &mut rows)
             } else {
@@ -954,7 +956,7 @@ impl FrontEnd {
             if let Some(colors) = colors
                 && rest != 0
                 && rest & !t.inside == 0
-                && let Ok(eight) = <&[[u32; 3]; 8]>::try_from(&batch[start..start + len])
+                && let Some(eight) = whole
                 && let Some(mut run) = sink.small_run()
             {
                 let (source, lanes) = ((eight, &rows, &vertex), (start, rest, first_id));

@@ -1058,6 +1058,7 @@ impl SmallShading {
         id: i32,
     ) {
         self.set_box(l, rect);
+        self.inv_area2[l] = color.inv_area2;
         self.set_shading(l, depth, color, id);
     }
 
@@ -1081,8 +1082,9 @@ impl SmallShading {
         (self.x0[l], self.y0[l]) = (rect.x0, rect.y0);
     }
 
-    /// Lane `l`'s depth plane, colour and id (see [`SmallShading::set`]); after
-    /// [`small_run_geometry`], which set its box.
+    /// Lane `l`'s depth plane, `1 / w`, colour and id (see [`SmallShading::set`]); after
+    /// [`small_run_geometry`], which set its box and `1 / area2` (`color.inv_area2` is not
+    /// stored again).
     #[inline(always)]
     pub fn set_shading(
         &mut self,
@@ -1094,7 +1096,6 @@ impl SmallShading {
         let [a0, g1, g2] = depth.coefficients();
         (self.depth[0][l], self.depth[1][l], self.depth[2][l]) = (a0, g1, g2);
         let (q, affine) = color.inv_w();
-        self.inv_area2[l] = color.inv_area2;
         (self.inv_w[0][l], self.inv_w[1][l], self.inv_w[2][l]) = (q[0], q[1], q[2]);
         self.affine[l] = -i32::from(affine);
         let [[r0, g0, b0, a0], [r1, g1, b1, a1], [r2, g2, b2, a2]] = color.colors;
