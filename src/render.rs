@@ -842,28 +842,12 @@ mod tests {
             let depth_test = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always][round % 3];
             let mut want =
                 Target::random_depths(width as u32, height as u32, round % 2 == 0, &mut rng);
-            let before = want.clone();
-            let n = {
-                let mut bands = want.bands_from(&band_rows);
-                simd::shade_narrow_eight(
-                    SimdLevel::Scalar,
-                    &eight,
-                    run.clone(),
-                    &mut bands[1],
-                    depth_test,
-                )
+            let mut got = want.clone();
+            let shade = |level, target: &mut Target| {
+                let mut bands = target.bands_from(&band_rows);
+                simd::shade_narrow_eight(level, &eight, run.clone(), &mut bands[1], depth_test)
             };
-            let mut got = before.clone();
-            let m = {
-                let mut bands = got.bands_from(&band_rows);
-                simd::shade_narrow_eight(
-                    SimdLevel::Avx512,
-                    &eight,
-                    run.clone(),
-                    &mut bands[1],
-                    depth_test,
-                )
-            };
+            let (n, m) = (shade(SimdLevel::Scalar, &mut want), shade(SimdLevel::Avx512, &mut got));
             let what = format!("round {round}, lanes {run:?}");
             assert_eq!(m, n, "{what}");
             let bits = |t: &Target| t.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
