@@ -844,7 +844,10 @@ struct FrontEnd {
 /// window position snapped to the fixed-point grid.
 #[derive(Clone, Copy, Debug)]
 struct ShadedVertex<V> {
-    clip: ClipVertex<V>,
+    /// The vertex shader's output, as a [`ClipVertex`] holds it (not one: its tail padding
+    /// could not hold the fields below, and a grid mesh's bands wait on these vertices' loads).
+    position: Vec4,
+    varyings: V,
     outcode: u8,
     /// Snapped window `x`, `y` (valid when `outcode == 0` and `snapped`).
     xy: [i32; 2],
@@ -856,7 +859,12 @@ struct ShadedVertex<V> {
     snapped: bool,
 }
 
-impl<V> ShadedVertex<V> {
+impl<V: Copy> ShadedVertex<V> {
+    /// The vertex shader's output.
+    fn clip(&self) -> ClipVertex<V> {
+        ClipVertex { position: self.position, varyings: self.varyings }
+    }
+
     /// The vertex as the corner tests see it ([`simd::window_corner`]).
     fn corner(&self) -> Corner {
         if self.outcode == 0 && self.snapped { self.xy } else { OUTSIDE }
@@ -880,11 +888,11 @@ impl FrontEnd {
         for ((p, s), v) in positions.iter_mut().zip(out.iter_mut()).zip(input) {
             let (position, varyings) = shade(v);
             *p = position;
-            s.clip = ClipVertex { position, varyings };
+            (s.position, s.varyings) = (position, varyings);
         }
         let Some(w) = simd::window_vertices(level, &positions, &self.volume, &self.viewport) else {
             for (s, c) in out.iter_mut().zip(corners) {
-                *s = self.vertex(s.clip);
+                *s = self.vertex(s.clip());
                 *c = s.corner();
             }
             return;
@@ -899,7 +907,16 @@ impl FrontEnd {
     /// Outcode, viewport and snap of one shaded vertex.
     fn vertex<V: Varyings>(&self, clip: ClipVertex<V>) -> ShadedVertex<V> {
         let outcode = self.volume.outcode(clip.position);
-        let mut v = ShadedVertex { clip, outcode, xy: [0; 2], z: 0.0, inv_w: 0.0, snapped: false };
+        let ClipVertex { position, varyings } = clip;
+        let mut v = ShadedVertex {
+            position,
+            varyings,
+            outcode,
+            xy: [0; 2],
+            z: 0.0,
+            inv_w: 0.0,
+            snapped: false,
+        };
         if outcode == 0
             && let Some((xy, z, inv_w)) = self.viewport.map_snapped(clip.position)
         {
@@ -1018,7 +1035,7 @@ impl FrontEnd {
             let owned = eight[j].map(&vertex);
             let [a, b, c] = each_ref(&owned);
             let id = first_id + start + j;
-            let varyings = [&a.clip.varyings, &b.clip.varyings, &c.clip.varyings];
+            let varyings = [&a.varyings, &b.varyings, &c.varyings];
             let Some(color) = colors(varyings, id as u32) else { return false };
             let inv_area2 = shading.inv_area2(j);
             let z = [a.z, b.z, c.z].map(f64::from);
@@ -1049,11 +1066,11 @@ impl FrontEnd {
         }
         // Rejected before clipping so that a triangle with a NaN or infinite coordinate is
         // counted once, as non-finite: clipped, it could make a fan of pieces, each counted.
-        if !input.iter().all(|v| v.clip.position.is_finite()) {
+        if !input.iter().all(|v| v.position.is_finite()) {
             emit(Err(Skipped::Rejected(Rejection::NonFinite)));
             return;
         }
-        let polygon = self.volume.clip(input.map(|v| v.clip));
+        let polygon = self.volume.clip(input.map(ShadedVertex::clip));
         if polygon.is_empty() {
             // Entirely outside the view volume: counted with the culled.
             emit(Err(Skipped::Rejected(Rejection::Culled)));
@@ -1114,7 +1131,7 @@ impl FrontEnd {
         id: usize,
     ) -> Prepared<TriangleData<V>> {
         let [a, b, c] = tri;
-        let varyings = [&a.clip.varyings, &b.clip.varyings, &c.clip.varyings];
+        let varyings = [&a.varyings, &b.varyings, &c.varyings];
         self.finish(setup, varyings, [[a.z, a.inv_w], [b.z, b.inv_w], [c.z, c.inv_w]], id)
     }
 
@@ -1330,6 +1347,13 @@ mod tests {
     use super::*;
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
+
+    /// A shaded vertex with a colour takes 48 bytes, not the 64 a nested `ClipVertex` (and
+    /// its tail padding) made it: the band loops read one per corner from memory.
+    #[test]
+    fn shaded_vertices_are_packed() {
+        assert_eq!(std::mem::size_of::<ShadedVertex<Vec3>>(), 48);
+    }
 
     /// `chunk_rows` bounds the rows of every pixel any sample of a chunk's triangles may
     /// cover (`bin::coverage_bounds`, multisampled: the widest reach), is `None` when a
