@@ -54,7 +54,9 @@ use crate::target::Target;
 use crate::varyings::Varyings;
 
 /// Computes a vertex's clip-space position and varyings. Closures
-/// `Fn(&I) -> (Vec4, V)` are vertex shaders.
+/// `Fn(&I) -> (Vec4, V)` are vertex shaders. A shader must give the same output each time
+/// it shades a vertex: the pipeline shades the vertices of triangles that need clipping
+/// again, for their positions, rather than keep every vertex's.
 pub trait VertexShader<I>: Sync {
     /// What the vertex passes on.
     type Varyings: Varyings;
@@ -315,6 +317,8 @@ impl Pipeline {
             let (position, varyings) = vertex_shader.shade(v);
             front.vertex(ClipVertex { position, varyings })
         };
+        // A vertex's clip-space position again, for the few triangles that are clipped.
+        let position = |i: u32| vertex_shader.shade(&vertices[i as usize]).0;
         // Buffers a previous draw call on this target left: refilled, not reallocated (fresh
         // vectors had their pages faulted in and zeroed by the kernel every frame).
         let mut scratch: Scratch<VS::Varyings> = target.take_scratch();
@@ -386,23 +390,28 @@ impl Pipeline {
                         Some(v) => v.each_ref(),
                         None => tri.map(|i| &shaded[i as usize]),
                     };
-                    front.prepare(input, id, |r| {
-                        count(&mut stats, &r);
-                        let Ok(p) = r else { return };
-                        stats.fragments += shade::shade_triangle(
-                            &mut target.band(),
-                            &p.setup,
-                            self.algorithm,
-                            &front.coverage.clip,
-                            &p.depth,
-                            self.depth_test,
-                            p.id,
-                            None,
-                            // One fragment at a time: the definition the tiled backend's
-                            // lanes are held to.
-                            |x, y, e1, e2, z| shade.fragment(&p.payload, x, y, e1, e2, z),
-                        );
-                    });
+                    front.prepare(
+                        input,
+                        || tri.map(position),
+                        id,
+                        |r| {
+                            count(&mut stats, &r);
+                            let Ok(p) = r else { return };
+                            stats.fragments += shade::shade_triangle(
+                                &mut target.band(),
+                                &p.setup,
+                                self.algorithm,
+                                &front.coverage.clip,
+                                &p.depth,
+                                self.depth_test,
+                                p.id,
+                                None,
+                                // One fragment at a time: the definition the tiled backend's
+                                // lanes are held to.
+                                |x, y, e1, e2, z| shade.fragment(&p.payload, x, y, e1, e2, z),
+                            );
+                        },
+                    );
                 }
             }
             Backend::Tiled => {
@@ -453,7 +462,8 @@ impl Pipeline {
                         |range, sink| {
                             // The band's rows are the clip rectangle.
                             let front = FrontEnd { coverage: sink.coverage(), ..front };
-                            let source = (window.as_slice(), 0, |i: u32| &shaded[i as usize]);
+                            let vertex = |i: u32| &shaded[i as usize];
+                            let source = (window.as_slice(), 0, vertex, position);
                             let out = (sink, colors);
                             front.prepare_range(triangles, range, 0, source, level, out);
                         },
@@ -506,19 +516,21 @@ impl Pipeline {
                             if whole {
                                 // Vertices by reference: a triangle reads its corners in place.
                                 let vertex = |i: u32| &shaded[i as usize];
-                                let source = (window.as_slice(), 0, vertex);
+                                let source = (window.as_slice(), 0, vertex, position);
                                 let out = (sink, None::<&fn([&_; 3], u32) -> _>);
                                 front.prepare_range(batch, range, first, source, level, out);
                             } else if let Some((lo, _)) = windowed {
                                 let vertex = |i: u32| shade_vertex(&vertices[i as usize]);
-                                let source = (window.as_slice(), lo, vertex);
+                                let source = (window.as_slice(), lo, vertex, position);
                                 let out = (sink, None::<&fn([&_; 3], u32) -> _>);
                                 front.prepare_range(batch, range, first, source, level, out);
                             } else {
                                 for k in range {
                                     let owned =
                                         batch[k].map(|i| shade_vertex(&vertices[i as usize]));
-                                    front.prepare(owned.each_ref(), first + k, |p| sink.take(p));
+                                    let positions = || batch[k].map(position);
+                                    let out = |p| sink.take(p);
+                                    front.prepare(owned.each_ref(), positions, first + k, out);
                                 }
                             }
                         });
@@ -844,9 +856,10 @@ struct FrontEnd {
 /// window position snapped to the fixed-point grid.
 #[derive(Clone, Copy, Debug)]
 struct ShadedVertex<V> {
-    /// The vertex shader's output, as a [`ClipVertex`] holds it (not one: its tail padding
-    /// could not hold the fields below, and a grid mesh's bands wait on these vertices' loads).
-    position: Vec4,
+    /// The vertex shader's varyings. Not its position, which only clipping reads (the
+    /// vertices of a triangle to clip are shaded again): the vertex pass writes these and
+    /// the bands read them back from memory: 32 bytes with an RGB colour (48 with RGBA),
+    /// where a position and a nested `ClipVertex` had made 64.
     varyings: V,
     outcode: u8,
     /// Snapped window `x`, `y` (valid when `outcode == 0` and `snapped`).
@@ -859,12 +872,7 @@ struct ShadedVertex<V> {
     snapped: bool,
 }
 
-impl<V: Copy> ShadedVertex<V> {
-    /// The vertex shader's output.
-    fn clip(&self) -> ClipVertex<V> {
-        ClipVertex { position: self.position, varyings: self.varyings }
-    }
-
+impl<V> ShadedVertex<V> {
     /// The vertex as the corner tests see it ([`simd::window_corner`]).
     fn corner(&self) -> Corner {
         if self.outcode == 0 && self.snapped { self.xy } else { OUTSIDE }
@@ -888,11 +896,11 @@ impl FrontEnd {
         for ((p, s), v) in positions.iter_mut().zip(out.iter_mut()).zip(input) {
             let (position, varyings) = shade(v);
             *p = position;
-            (s.position, s.varyings) = (position, varyings);
+            s.varyings = varyings;
         }
         let Some(w) = simd::window_vertices(level, &positions, &self.volume, &self.viewport) else {
-            for (s, c) in out.iter_mut().zip(corners) {
-                *s = self.vertex(s.clip());
+            for ((s, c), &position) in out.iter_mut().zip(corners).zip(&positions) {
+                *s = self.vertex(ClipVertex { position, varyings: s.varyings });
                 *c = s.corner();
             }
             return;
@@ -907,10 +915,8 @@ impl FrontEnd {
     /// Outcode, viewport and snap of one shaded vertex.
     fn vertex<V: Varyings>(&self, clip: ClipVertex<V>) -> ShadedVertex<V> {
         let outcode = self.volume.outcode(clip.position);
-        let ClipVertex { position, varyings } = clip;
         let mut v = ShadedVertex {
-            position,
-            varyings,
+            varyings: clip.varyings,
             outcode,
             xy: [0; 2],
             z: 0.0,
@@ -937,7 +943,12 @@ impl FrontEnd {
         batch: &[[u32; 3]],
         range: std::ops::Range<usize>,
         first_id: usize,
-        (corners, base, vertex): (&[Corner], u32, impl Fn(u32) -> R),
+        (corners, base, vertex, position): (
+            &[Corner],
+            u32,
+            impl Fn(u32) -> R,
+            impl Fn(u32) -> Vec4,
+        ),
         level: SimdLevel,
         (sink, colors): (&mut Sink<'_, Prepared<TriangleData<V>>>, Option<&C>),
     ) where
@@ -1001,7 +1012,8 @@ impl FrontEnd {
                         Err(why) => sink.skip_many(why.into(), 1),
                     }
                 } else {
-                    self.prepare(each_ref(&vertices(k)), first_id + k, |p| sink.take(p));
+                    let positions = || batch[k].map(&position);
+                    self.prepare(each_ref(&vertices(k)), positions, first_id + k, |p| sink.take(p));
                 }
             }
         }
@@ -1053,10 +1065,12 @@ impl FrontEnd {
     }
 
     /// Clip, viewport and setup of triangle `id`: each piece (the triangle, nothing, or a
-    /// clipped fan) goes to `emit`; `Err` pieces count as rejected.
+    /// clipped fan) goes to `emit`; `Err` pieces count as rejected. `positions` gives the
+    /// vertices' clip-space positions, asked for only when the triangle is clipped.
     fn prepare<V: Varyings>(
         &self,
         input: [&ShadedVertex<V>; 3],
+        positions: impl FnOnce() -> [Vec4; 3],
         id: usize,
         mut emit: impl FnMut(Result<Prepared<TriangleData<V>>, Skipped>),
     ) {
@@ -1066,11 +1080,15 @@ impl FrontEnd {
         }
         // Rejected before clipping so that a triangle with a NaN or infinite coordinate is
         // counted once, as non-finite: clipped, it could make a fan of pieces, each counted.
-        if !input.iter().all(|v| v.position.is_finite()) {
+        let positions = positions();
+        if !positions.iter().all(|p| p.is_finite()) {
             emit(Err(Skipped::Rejected(Rejection::NonFinite)));
             return;
         }
-        let polygon = self.volume.clip(input.map(ShadedVertex::clip));
+        let polygon = self.volume.clip(std::array::from_fn(|k| ClipVertex {
+            position: positions[k],
+            varyings: input[k].varyings,
+        }));
         if polygon.is_empty() {
             // Entirely outside the view volume: counted with the culled.
             emit(Err(Skipped::Rejected(Rejection::Culled)));
@@ -1348,11 +1366,13 @@ mod tests {
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
 
-    /// A shaded vertex with a colour takes 48 bytes, not the 64 a nested `ClipVertex` (and
-    /// its tail padding) made it: the band loops read one per corner from memory.
+    /// A shaded vertex with an RGB colour takes 32 bytes (48 with RGBA), not the 64 its
+    /// position and a nested `ClipVertex` made it: the band loops read one per corner from
+    /// memory.
     #[test]
     fn shaded_vertices_are_packed() {
-        assert_eq!(std::mem::size_of::<ShadedVertex<Vec3>>(), 48);
+        assert_eq!(std::mem::size_of::<ShadedVertex<Vec3>>(), 32);
+        assert_eq!(std::mem::size_of::<ShadedVertex<Vec4>>(), 48);
     }
 
     /// `chunk_rows` bounds the rows of every pixel any sample of a chunk's triangles may
