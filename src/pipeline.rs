@@ -526,11 +526,15 @@ impl Pipeline {
                                 front.prepare_range(batch, range, first, source, level, out);
                             } else {
                                 for k in range {
-                                    let owned =
-                                        batch[k].map(|i| shade_vertex(&vertices[i as usize]));
-                                    let positions = || batch[k].map(position);
-                                    let out = |p| sink.take(p);
-                                    front.prepare(owned.each_ref(), positions, first + k, out);
+                                    // Shaded once: the positions are at hand for clipping.
+                                    let out = batch[k]
+                                        .map(|i| vertex_shader.shade(&vertices[i as usize]));
+                                    let owned = out.map(|(position, varyings)| {
+                                        front.vertex(ClipVertex { position, varyings })
+                                    });
+                                    let positions = || out.map(|(position, _)| position);
+                                    let take = |p| sink.take(p);
+                                    front.prepare(owned.each_ref(), positions, first + k, take);
                                 }
                             }
                         });
