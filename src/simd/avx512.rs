@@ -957,32 +957,33 @@ unsafe fn narrow_sample_groups(
     });
     // The numerators at each lane's pixel centre less the group's first one's.
     let centre = [1, 2].map(|k| _mm512_mul_pd(pixel, _mm512_set1_pd(job.step_x[k] as f64)));
-    let group_step = job.step_x.map(|s| (pixels_per_group as i64 * s) as f64);
-    let bias = job.bias.map(|b| b as f64);
-    let mut row = job.edges.map(|e| e as f64);
+    // Each lane's edge values and the numerators at its pixel's centre, stepped a group
+    // right and a row down in their registers (as `NarrowBox::groups`; integers below 2^53,
+    // exact in any order).
+    let group_step = job.step_x.map(|s| _mm512_set1_pd((pixels_per_group as i64 * s) as f64));
+    let row_step = job.step_y.map(|s| _mm512_set1_pd(s as f64));
+    let bias = job.bias.map(|b| _mm512_set1_pd(b as f64));
+    let edges = job.edges.map(|e| _mm512_set1_pd(e as f64));
+    let mut row: [__m512d; 3] = std::array::from_fn(|k| _mm512_add_pd(edges[k], at_lane[k]));
+    let mut row_centre =
+        [1, 2].map(|k| _mm512_add_pd(_mm512_sub_pd(edges[k], bias[k - 1]), centre[k - 1]));
     let mut covered = 0u64;
     for r in 0..job.rows {
-        let mut first = row;
+        let (mut e, mut f) = (row, row_centre);
         for c in (0..job.columns).step_by(pixels_per_group) {
             let lanes = if c + pixels_per_group <= job.columns {
                 0xFF
             } else {
                 ((1u32 << ((job.columns - c) * n)) - 1) as __mmask8
             };
-            let e: [__m512d; 3] =
-                std::array::from_fn(|k| _mm512_add_pd(_mm512_set1_pd(first[k]), at_lane[k]));
             let any = _mm512_or_si512(
                 _mm512_or_si512(_mm512_castpd_si512(e[0]), _mm512_castpd_si512(e[1])),
                 _mm512_castpd_si512(e[2]),
             );
             let cover = !_mm512_movepi64_mask(any) & lanes;
             covered += u64::from(cover.count_ones());
-            let z = [
-                _mm512_sub_pd(e[1], _mm512_set1_pd(bias[0])),
-                _mm512_sub_pd(e[2], _mm512_set1_pd(bias[1])),
-            ];
-            let f1 = _mm512_add_pd(_mm512_set1_pd(first[1] - bias[0]), centre[0]);
-            let f2 = _mm512_add_pd(_mm512_set1_pd(first[2] - bias[1]), centre[1]);
+            let z = [_mm512_sub_pd(e[1], bias[0]), _mm512_sub_pd(e[2], bias[1])];
+            let [f1, f2] = f;
             let at = n * (job.first + r * job.stride + c);
             // SAFETY: the group's first sample is in the box, so in the buffers, and so
             // are its `lanes` (the box's pixels), a superset of `cover` (checked above).
@@ -997,9 +998,11 @@ unsafe fn narrow_sample_groups(
                     &rgba,
                 )
             };
-            first = std::array::from_fn(|k| first[k] + group_step[k]);
+            e = std::array::from_fn(|k| _mm512_add_pd(e[k], group_step[k]));
+            f = [1, 2].map(|k| _mm512_add_pd(f[k - 1], group_step[k]));
         }
-        row = std::array::from_fn(|k| row[k] + job.step_y[k] as f64);
+        row = std::array::from_fn(|k| _mm512_add_pd(row[k], row_step[k]));
+        row_centre = [1, 2].map(|k| _mm512_add_pd(row_centre[k - 1], row_step[k]));
     }
     covered
 }
