@@ -930,13 +930,17 @@ unsafe fn narrow_groups(
     // The box's columns among each group's lanes.
     let column_bits = [(1u32 << job.columns.min(4)) - 1, (1u32 << (job.columns.max(4) - 4)) - 1];
     let bias = job.bias.map(|b| _mm256_set1_pd(b as f64));
-    let mut row = job.edges.map(|e| e as f64);
-    let step_y = job.step_y.map(|s| s as f64);
+    // Each group's edge values, stepped a row down in their registers (as the AVX-512
+    // kernel's `NarrowBox::groups`; integers below 2^53, exact in any order).
+    let mut row: [[__m256d; 2]; 3] = std::array::from_fn(|k| {
+        let edge = _mm256_set1_pd(job.edges[k] as f64);
+        offsets[k].map(|o| _mm256_add_pd(edge, o))
+    });
+    let step_y = job.step_y.map(|s| _mm256_set1_pd(s as f64));
     let mut covered = 0u64;
     for r in 0..job.rows {
         for g in 0..groups {
-            let e: [__m256d; 3] =
-                std::array::from_fn(|k| _mm256_add_pd(_mm256_set1_pd(row[k]), offsets[k][g]));
+            let e: [__m256d; 3] = std::array::from_fn(|k| row[k][g]);
             let out = _mm256_movemask_pd(_mm256_or_pd(_mm256_or_pd(e[0], e[1]), e[2]));
             let bits = !(out as u32) & column_bits[g];
             covered += u64::from(bits.count_ones());
@@ -945,7 +949,7 @@ unsafe fn narrow_groups(
             // SAFETY: `at + 4 <= group_end() <= n` (asserted above).
             unsafe { group::<false>(&mut job.target, at, f1, f2, lane_mask(bits), None, &rgba) };
         }
-        row = std::array::from_fn(|k| row[k] + step_y[k]);
+        row = std::array::from_fn(|k| row[k].map(|e| _mm256_add_pd(e, step_y[k])));
     }
     covered
 }
