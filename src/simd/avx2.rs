@@ -122,32 +122,22 @@ pub(super) unsafe fn small_run_geometry(
     let lanes = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
     let mask =
         _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(i32::from(mask)), lanes), lanes);
-    let min3 = |a, b, c| _mm256_min_epi32(_mm256_min_epi32(a, b), c);
-    let max3 = |a, b, c| _mm256_max_epi32(_mm256_max_epi32(a, b), c);
-    // `setup::sample_bounds` at the centre: first centres at or after, last at or before.
-    let first = |v| _mm256_srai_epi32::<8>(_mm256_add_epi32(v, _mm256_set1_epi32(127)));
-    let last = |v| _mm256_srai_epi32::<8>(_mm256_sub_epi32(v, _mm256_set1_epi32(128)));
-    let (bx0, bx1) = (first(min3(x[0], x[1], x[2])), last(max3(x[0], x[1], x[2])));
-    let (by0, by1) = (first(min3(y[0], y[1], y[2])), last(max3(y[0], y[1], y[2])));
+    // The boxes, and within the clip rectangle.
+    let b = eight_boxes([x[0], y[0], x[1], y[1], x[2], y[2]], clip);
     let most = _mm256_set1_epi32(super::SMALL_BOX - 1);
-    let large = _mm256_or_si256(
-        _mm256_cmpgt_epi32(_mm256_sub_epi32(bx1, bx0), most),
-        _mm256_cmpgt_epi32(_mm256_sub_epi32(by1, by0), most),
-    );
-    // Within the clip rectangle.
-    let rx0 = _mm256_max_epi32(bx0, _mm256_set1_epi32(clip.x0));
-    let ry0 = _mm256_max_epi32(by0, _mm256_set1_epi32(clip.y0));
-    let rx1 = _mm256_min_epi32(bx1, _mm256_set1_epi32(clip.x1));
-    let ry1 = _mm256_min_epi32(by1, _mm256_set1_epi32(clip.y1));
-    let empty = _mm256_or_si256(_mm256_cmpgt_epi32(rx0, rx1), _mm256_cmpgt_epi32(ry0, ry1));
+    let large =
+        _mm256_or_si256(_mm256_cmpgt_epi32(b.width, most), _mm256_cmpgt_epi32(b.height, most));
+    let one = _mm256_set1_epi32(1);
+    let empty =
+        _mm256_or_si256(_mm256_cmpgt_epi32(one, b.columns), _mm256_cmpgt_epi32(one, b.rows));
     let refused = _mm256_and_si256(_mm256_or_si256(large, empty), mask);
     if _mm256_movemask_ps(_mm256_castsi256_ps(refused)) != 0 {
         return None;
     }
+    let (rx0, ry0) = (b.px0, b.py0);
     // Columns and rows of each box (1 outside `mask`), and the largest of each.
-    let one = _mm256_set1_epi32(1);
-    let columns = _mm256_blendv_epi8(one, _mm256_add_epi32(_mm256_sub_epi32(rx1, rx0), one), mask);
-    let rows = _mm256_blendv_epi8(one, _mm256_add_epi32(_mm256_sub_epi32(ry1, ry0), one), mask);
+    let columns = _mm256_blendv_epi8(one, b.columns, mask);
+    let rows = _mm256_blendv_epi8(one, b.rows, mask);
     let largest = |v: __m256i| {
         let v = _mm256_max_epi32(v, _mm256_permute2x128_si256::<0x01>(v, v));
         let v = _mm256_max_epi32(v, _mm256_shuffle_epi32::<0b01_00_11_10>(v));
@@ -1416,7 +1406,8 @@ pub(super) unsafe fn narrow_eight(
         _mm256_castsi256_pd(_mm256_permute2x128_si256::<0x31>(ia, ib)),
     ];
     let half = _mm256_set1_epi32(fixed::HALF);
-    let EightBoxes { width, px0, py0, columns, rows } = eight_boxes([x0, y0, x1, y1, x2, y2], tile);
+    let EightBoxes { width, px0, py0, columns, rows, .. } =
+        eight_boxes([x0, y0, x1, y1, x2, y2], tile);
     let zero = _mm256_setzero_si256();
     // Narrow before clipping, as `bin::coverage_algorithm` asks of the kernel's triangles.
     let narrow = bits_of(_mm256_cmpgt_epi32(_mm256_set1_epi32(crate::raster::edge::NARROW), width));
@@ -1503,6 +1494,8 @@ pub(super) unsafe fn narrow_eight(
 pub(super) struct EightBoxes {
     /// The box's last column less its first, before clipping.
     pub width: __m256i,
+    /// The box's last row less its first, before clipping.
+    pub height: __m256i,
     /// The first column within the tile.
     pub px0: __m256i,
     /// The first row within the tile.
@@ -1537,6 +1530,7 @@ pub(super) fn eight_boxes(v: [__m256i; 6], tile: &PixelRect) -> EightBoxes {
     let one = _mm256_set1_epi32(1);
     EightBoxes {
         width: _mm256_sub_epi32(bx1, bx0),
+        height: _mm256_sub_epi32(by1, by0),
         px0,
         py0,
         columns: _mm256_add_epi32(_mm256_sub_epi32(px1, px0), one),

@@ -708,7 +708,7 @@ pub(super) unsafe fn narrow_eight(
         _mm512_slli_epi64::<32>(_mm512_cvtepu32_epi64(word[13])),
     ));
     let half = _mm256_set1_epi32(fixed::HALF);
-    let super::avx2::EightBoxes { width, px0, py0, columns, rows } =
+    let super::avx2::EightBoxes { width, px0, py0, columns, rows, .. } =
         super::avx2::eight_boxes([x0, y0, x1, y1, x2, y2], tile);
     // Narrow before clipping, as `bin::coverage_algorithm` asks of the kernel's triangles.
     let narrow = _mm256_cmpgt_epi32_mask(_mm256_set1_epi32(crate::raster::edge::NARROW), width);
