@@ -46,9 +46,7 @@ use crate::raster::Algorithm;
 use crate::render::{Backend, DrawStats, Schedule};
 use crate::sample::SampleCount;
 use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
-use crate::shade::{
-    self, DepthTest, FragmentOutput, LANES, PassedLanes, PlaneEquation, TriangleFragments,
-};
+use crate::shade::{self, DepthTest, FragmentOutput, LANES, PassedLanes, TriangleFragments};
 use crate::simd::{self, Corner, CornerGroup, OUTSIDE, PerspectiveColor, SimdLevel, SpanColor};
 use crate::target::Target;
 use crate::varyings::Varyings;
@@ -138,6 +136,21 @@ pub struct InterpolatedColor {
     pub scale: Vec4,
     /// Every fragment's alpha, when it is not interpolated.
     pub alpha: Option<f32>,
+}
+
+impl InterpolatedColor {
+    /// The colour as the kernels take it, for a triangle with the vertices' `1/w` `inv_w`
+    /// and `1 / area2` `inv_area2`.
+    #[inline(always)]
+    fn perspective(&self, inv_w: [f32; 3], inv_area2: f64) -> PerspectiveColor {
+        PerspectiveColor {
+            colors: self.colors.map(|c| c.to_array()),
+            scale: self.scale.to_array(),
+            alpha: self.alpha,
+            inv_w,
+            inv_area2,
+        }
+    }
 }
 
 /// The fragment shader that outputs the interpolated vertex colour: linear RGBA (`Vec4`
@@ -755,14 +768,7 @@ where
         let level = self.kernel?;
         let varyings = [&t.varyings0, &t.varyings1, &t.varyings2];
         let c = self.shader.interpolated_color(varyings, t.primitive)?;
-        let color = PerspectiveColor {
-            colors: c.colors.map(|c| c.to_array()),
-            scale: c.scale.to_array(),
-            alpha: c.alpha,
-            inv_w: t.inv_w,
-            inv_area2: t.inv_area2,
-        };
-        Some((level, SpanColor::Perspective(color)))
+        Some((level, SpanColor::Perspective(c.perspective(t.inv_w, t.inv_area2))))
     }
 
     #[inline(always)]
@@ -1054,15 +1060,8 @@ impl FrontEnd {
             let varyings = [&a.varyings, &b.varyings, &c.varyings];
             let Some(color) = colors(varyings, id as u32) else { return false };
             let inv_area2 = shading.inv_area2(j);
-            let z = [a.z, b.z, c.z].map(f64::from);
-            let depth = PlaneEquation::with_inv_area2(z, inv_area2);
-            let color = PerspectiveColor {
-                colors: color.colors.map(|c| c.to_array()),
-                scale: color.scale.to_array(),
-                alpha: color.alpha,
-                inv_w: [a.inv_w, b.inv_w, c.inv_w],
-                inv_area2,
-            };
+            let depth = shade::depth_plane([a.z, b.z, c.z], inv_area2);
+            let color = color.perspective([a.inv_w, b.inv_w, c.inv_w], inv_area2);
             shading.set_shading(j, &depth, &color, id as i32);
         }
         true
@@ -1182,10 +1181,7 @@ impl FrontEnd {
     ) -> Prepared<TriangleData<V>> {
         let inv_area2 = 1.0 / setup.area2 as f64;
         let [a, b, c] = z_inv_w;
-        let depth = PlaneEquation::with_inv_area2(
-            [f64::from(a[0]), f64::from(b[0]), f64::from(c[0])],
-            inv_area2,
-        );
+        let depth = shade::depth_plane([a[0], b[0], c[0]], inv_area2);
         let payload = TriangleData {
             varyings0: *v0,
             varyings1: *v1,

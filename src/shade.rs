@@ -167,7 +167,7 @@ pub struct TriangleColor(ColorSource);
 /// The depth plane of a triangle with vertex depths `z` (`inv_area2` is `1 / area2` of its
 /// setup).
 #[inline(always)]
-fn depth_plane(z: [f32; 3], inv_area2: f64) -> PlaneEquation {
+pub(crate) fn depth_plane(z: [f32; 3], inv_area2: f64) -> PlaneEquation {
     PlaneEquation::with_inv_area2([f64::from(z[0]), f64::from(z[1]), f64::from(z[2])], inv_area2)
 }
 
