@@ -39,9 +39,9 @@ pub enum SimdLevel {
     /// virtual machine, that reports one without the other runs the scalar code): four
     /// pixels per step.
     Avx2,
-    /// AVX-512 (F, VL, DQ, CD, with POPCNT, BMI1 and BMI2): eight pixels per step with mask registers for the shading
-    /// kernels; the front end's corner kernels and the index ranges run their AVX2
-    /// versions.
+    /// AVX-512 (F, VL, DQ, CD, with POPCNT, BMI1 and BMI2): eight pixels per step with mask
+    /// registers for the shading kernels; the front end's corner kernels and the index ranges
+    /// run their AVX2 versions.
     Avx512,
 }
 
@@ -1204,7 +1204,8 @@ pub fn shade_small_eight(
 ) -> u64 {
     #[cfg(target_arch = "x86_64")]
     if level == SimdLevel::Avx512 && level.is_available() {
-        // SAFETY: AVX-512 support (F, VL, DQ, CD, with POPCNT and BMI) was just checked at run time.
+        // SAFETY: AVX-512 support (F, VL, DQ, CD, with POPCNT and BMI) was just checked at run
+        // time.
         return unsafe { avx512::shade_small_eight(eight, shading, lanes, target, depth_test) };
     }
     shade_small_eight_scalar(eight, shading, lanes, target, depth_test)
