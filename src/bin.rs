@@ -940,7 +940,7 @@ where
 {
     debug_assert!(records.len() <= 8, "eight records at most");
     let mut boxes = [PixelRect::EMPTY; 8];
-    let kernels = fragments.span_colors();
+    let kernels = fragments.small_colors();
     let (mut lanes, queue_lanes) = match (kind, <&[&S; 8]>::try_from(records)) {
         (Eight::Narrow(level), Ok(eight)) => {
             (S::narrow_eight(eight, clip, level, &mut setup.narrow), 0)
@@ -1021,7 +1021,7 @@ fn shade_small_run<'a, S: Record, F: TriangleFragments<S::Payload>>(
     let (mut level, mut end) = (None, run.start);
     while end < run.end {
         let Some(p) = records[end].kept() else { break };
-        let Some((l, SpanColor::Perspective(c))) = fragments.span_color(&p.payload) else {
+        let Some((l, SpanColor::Perspective(c))) = fragments.small_color(&p.payload) else {
             break;
         };
         setup.shading.set(end, &boxes[end], &p.depth, &c, p.id);
@@ -1051,8 +1051,8 @@ pub(crate) fn shade_small_run_lanes<'a, T, F: TriangleFragments<T>>(
 /// triangles, and of those the ones that share the lane queue: kept whole, without a span
 /// kernel, `shared`, with a box of at most [`crate::simd::SMALL_BOX`] pixels a side that
 /// reaches `clip`, and either small enough for the queue ([`queued`]'s test) or, when
-/// `kernels` (the fragment stage may give kernel colours,
-/// [`TriangleFragments::span_colors`]), larger. Their coverage is set up in `setup` and
+/// `kernels` (the fragment stage may give the small kernel colours,
+/// [`TriangleFragments::small_colors`]), larger. Their coverage is set up in `setup` and
 /// their boxes within `clip` in `boxes`; none where fewer than [`SMALL_EIGHT_MIN`] are.
 #[inline(always)]
 fn small_lanes<S: Record, K>(

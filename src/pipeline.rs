@@ -384,12 +384,16 @@ impl Pipeline {
         let bin_target = bin::BinTarget::of(target, self.depth_test);
         // Kernels write no normals. Multisampled, they compute a pixel's colour once per
         // sample lane, where the fragment stage computes it once per pixel: the Gouraud
-        // bunny at 4x was 10-15% slower with them. Four lanes a step (AVX2) pay more for
-        // their gathers and divisions than the fragment stage does (the bunny on one thread:
-        // 11.3 ms through the stage, 14.2 ms through the AVX2 kernels), so AVX-512 only.
+        // bunny at 4x was 10-15% slower with them. The span and narrow kernels' four lanes
+        // a step (AVX2) pay more for their gathers and divisions than the fragment stage
+        // does (the bunny on one thread: 11.3 ms through the stage, 14.2 ms through the AVX2
+        // kernels), so AVX-512 only; the small kernel packs eight pixels of any triangles
+        // per step at AVX2 too.
+        let plain = !want_normal && target.samples().count() == 1;
         let wide = level == SimdLevel::Avx512 && level.is_available();
-        let kernel = (wide && !want_normal && target.samples().count() == 1).then_some(level);
-        let shade = ShaderStage { shader: fragment_shader, want_normal, kernel, level };
+        let kernel = (wide && plain).then_some(level);
+        let small = (plain && level >= SimdLevel::Avx2 && level.is_available()).then_some(level);
+        let shade = ShaderStage { shader: fragment_shader, want_normal, kernel, small, level };
         let mut stats = DrawStats { submitted: triangles.len(), ..DrawStats::default() };
         let count = |stats: &mut DrawStats, r: &Result<_, Skipped>| match r {
             Ok(_) => stats.rasterized += 1,
@@ -465,7 +469,7 @@ impl Pipeline {
                     // Small triangles' kernel colours, where the stage shades in kernels.
                     let colors =
                         |v: [&_; 3], primitive| fragment_shader.interpolated_color(v, primitive);
-                    let colors = kernel.map(|_| &colors);
+                    let colors = small.map(|_| &colors);
                     let (counts, covered) = bands.draw(
                         target,
                         front.coverage,
@@ -671,6 +675,9 @@ struct ShaderStage<'a, FS> {
     /// The level the kernels shade at, where the shader's colours allow it
     /// ([`FragmentShader::interpolated_color`]); `None`: never.
     kernel: Option<SimdLevel>,
+    /// The level the small kernel ([`simd::shade_small_eight`]) shades at, on the same
+    /// condition; `None`: never.
+    small: Option<SimdLevel>,
     /// The level lanes of fragments are encoded at ([`simd::srgb8_lanes`]).
     level: SimdLevel,
 }
@@ -725,6 +732,22 @@ impl<FS> ShaderStage<'_, FS> {
         Some(FragmentOutput { color: [0; 4], normal: self.normal(&fragment) })
     }
 
+    /// `t`'s colour as the kernels at `level` take it, where the shader gives one
+    /// ([`FragmentShader::interpolated_color`]).
+    #[inline(always)]
+    fn kernel_color<V: Varyings>(
+        &self,
+        level: SimdLevel,
+        t: &TriangleData<V>,
+    ) -> Option<(SimdLevel, SpanColor)>
+    where
+        FS: FragmentShader<V>,
+    {
+        let varyings = [&t.varyings0, &t.varyings1, &t.varyings2];
+        let c = self.shader.interpolated_color(varyings, t.primitive)?;
+        Some((level, SpanColor::Perspective(c.perspective(t.inv_w, t.inv_area2))))
+    }
+
     /// The colours of lanes `out` shaded (by [`ShaderStage::shade_lane`]) from their linear
     /// colours `linear`, all eight encoded at once ([`simd::srgb8_lanes`]; lanes past those
     /// in use encode leftovers, and are not read).
@@ -765,15 +788,22 @@ where
 
     #[inline(always)]
     fn span_color(&self, t: &TriangleData<V>) -> Option<(SimdLevel, SpanColor)> {
-        let level = self.kernel?;
-        let varyings = [&t.varyings0, &t.varyings1, &t.varyings2];
-        let c = self.shader.interpolated_color(varyings, t.primitive)?;
-        Some((level, SpanColor::Perspective(c.perspective(t.inv_w, t.inv_area2))))
+        self.kernel_color(self.kernel?, t)
     }
 
     #[inline(always)]
     fn span_colors(&self) -> bool {
         self.kernel.is_some()
+    }
+
+    #[inline(always)]
+    fn small_color(&self, t: &TriangleData<V>) -> Option<(SimdLevel, SpanColor)> {
+        self.kernel_color(self.small?, t)
+    }
+
+    #[inline(always)]
+    fn small_colors(&self) -> bool {
+        self.small.is_some()
     }
 
     /// [`TriangleFragments::fragment`] of each lane. With perspective, the weights of all
@@ -1520,7 +1550,13 @@ mod tests {
                 passed.z[l] = rng.random();
             }
             for want_normal in [false, true] {
-                let stage = ShaderStage { shader: &Everything, want_normal, kernel: None, level };
+                let stage = ShaderStage {
+                    shader: &Everything,
+                    want_normal,
+                    kernel: None,
+                    small: None,
+                    level,
+                };
                 let mut lanes = [None; LANES];
                 stage.lanes(&triangle, &passed, &mut lanes);
                 for (l, got) in lanes.iter().enumerate().take(passed.len) {

@@ -545,6 +545,18 @@ pub trait TriangleFragments<T>: Sync {
     fn span_colors(&self) -> bool {
         false
     }
+
+    /// [`TriangleFragments::span_color`] for the small kernel
+    /// ([`crate::simd::shade_small_eight`]), which may shade at levels where the others do
+    /// not. The same by default.
+    fn small_color(&self, t: &T) -> Option<(SimdLevel, SpanColor)> {
+        self.span_color(t)
+    }
+
+    /// Whether [`TriangleFragments::small_color`] may give any triangle a colour.
+    fn small_colors(&self) -> bool {
+        self.span_colors()
+    }
 }
 
 impl<T, F> TriangleFragments<T> for F

@@ -16,6 +16,7 @@ use crate::render::WindowRecord;
 use crate::sample::{MAX_SAMPLES, SampleCount};
 use crate::setup::{CullMode, PixelRect, Vertex};
 use crate::shade::DepthTest;
+use crate::target::TargetBand;
 
 /// [`super::corner_tests`] for eight triangles at once: areas in two halves of four
 /// `i64` lanes (corner differences are below 2^24, so products are exact), boxes and
@@ -604,6 +605,300 @@ fn small_eight_rows(
         _mm256_storeu_si256(out.inside.as_mut_ptr().cast(), first);
         _mm256_storeu_si256(out.inside.as_mut_ptr().add(4).cast(), last);
     }
+}
+
+/// [`super::shade_small_eight`] in AVX2. The covered pixels of the lanes are listed in drawing
+/// order (lane by lane, each box row by row, left to right) as `l << 6 | bit`, `bit` the
+/// pixel's [`super::SmallEight::inside`] bit; each group of eight listed pixels then takes its
+/// triangles' values from registers of all eight lanes (`vpermd`, `vpermps`; an `f64` value
+/// as its two words), and computes numerators, depth and colour side by side. Without
+/// scatters or conflict detection, the depth test and the writes go lane by lane in listed
+/// order, which is the reference's: a pixel two triangles of a group share is tested against
+/// the earlier one's write.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma,popcnt,bmi1,bmi2")]
+pub(super) unsafe fn shade_small_eight(
+    eight: &SmallEight,
+    s: &SmallShading,
+    lanes: std::ops::Range<usize>,
+    target: &mut TargetBand<'_>,
+    depth_test: DepthTest,
+) -> u64 {
+    let stride = target.stride();
+    // 64 entries a lane at most, and a group's worth after the last, zeroed. Left
+    // uninitialized (to zero it was a twentieth of the grid's frame at AVX-512): only the
+    // entries listed and those eight are read.
+    let mut entries = [std::mem::MaybeUninit::<i32>::uninit(); 8 * 64 + 8];
+    let mut listed = 0;
+    for l in lanes {
+        assert!(l < 8, "eight lanes");
+        let mut cells = eight.inside[l] & s.cells[l];
+        while cells != 0 {
+            entries[listed].write((l as i32) << 6 | cells.trailing_zeros() as i32);
+            listed += 1;
+            cells &= cells - 1;
+        }
+    }
+    // SAFETY: `listed <= 8 * 64`: eight entries from it are within `entries`.
+    unsafe { _mm256_storeu_si256(entries.as_mut_ptr().add(listed).cast(), _mm256_setzero_si256()) };
+    let load = |v: &[i32; 8]| {
+        // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
+        unsafe { _mm256_loadu_si256(v.as_ptr().cast()) }
+    };
+    // Each box's first pixel, `target.index` in `i32` lanes (wrapping: whatever a lane
+    // holds, each pixel's index is checked before it is read or written).
+    let top = _mm256_set1_epi32(target.rect().y0);
+    let first = _mm256_add_epi32(
+        _mm256_mullo_epi32(_mm256_sub_epi32(load(&s.y0), top), _mm256_set1_epi32(stride as i32)),
+        load(&s.x0),
+    );
+    let edges = [load(&eight.edges[1]), load(&eight.edges[2])];
+    let step_x = [load(&eight.step_x[1]), load(&eight.step_x[2])];
+    let step_y = [load(&eight.step_y[1]), load(&eight.step_y[2])];
+    let bias = [load(&eight.bias[0]), load(&eight.bias[1])];
+    let ids_v = load(&s.id);
+    let depth = s.depth.each_ref().map(|v| WordPairs::of(v));
+    let table = crate::color::srgb8_table();
+    let columns = columns_of(&s.color_rows);
+    let stride_v = _mm256_set1_epi32(stride as i32);
+    let mut g = 0;
+    while g < listed {
+        let count = (listed - g).min(8);
+        // SAFETY: `g < listed <= 8 * 64`: eight entries from `g` are within `entries`, and
+        // initialized (listed, or the zeros after them).
+        let e = unsafe { _mm256_loadu_si256(entries.as_ptr().add(g).cast()) };
+        g += count;
+        let tri = _mm256_srli_epi32::<6>(e);
+        let column = _mm256_and_si256(e, _mm256_set1_epi32(7));
+        let row = _mm256_and_si256(_mm256_srli_epi32::<3>(e), _mm256_set1_epi32(7));
+        let at = _mm256_add_epi32(
+            _mm256_add_epi32(_mm256_permutevar8x32_epi32(first, tri), column),
+            _mm256_mullo_epi32(row, stride_v),
+        );
+        // `E_k + r step_y + c step_x - bias` in `i32` (below 2^25 within the box, as
+        // `SmallEight` says), exact in `f64`.
+        let numerator = |k: usize| {
+            let pick = |v: __m256i| _mm256_permutevar8x32_epi32(v, tri);
+            let v = _mm256_add_epi32(pick(edges[k]), _mm256_mullo_epi32(row, pick(step_y[k])));
+            let v = _mm256_add_epi32(v, _mm256_mullo_epi32(column, pick(step_x[k])));
+            let v = _mm256_sub_epi32(v, pick(bias[k]));
+            [
+                _mm256_cvtepi32_pd(_mm256_castsi256_si128(v)),
+                _mm256_cvtepi32_pd(_mm256_extracti128_si256::<1>(v)),
+            ]
+        };
+        let (f1, f2) = (numerator(0), numerator(1));
+        let picks = [WordPick::of(tri, 0), WordPick::of(tri, 1)];
+        let half_z = |h: usize| {
+            let c = |k: usize| depth[k].pick(&picks[h]);
+            let z = _mm256_add_pd(
+                _mm256_add_pd(c(0), _mm256_mul_pd(f1[h], c(1))),
+                _mm256_mul_pd(f2[h], c(2)),
+            );
+            _mm256_cvtpd_ps(z)
+        };
+        let z = _mm256_set_m128(half_z(1), half_z(0));
+        let z = _mm256_min_ps(_mm256_set1_ps(1.0), _mm256_max_ps(_mm256_setzero_ps(), z));
+        let (mut at_lanes, mut z_lanes, mut id_lanes) = ([0i32; 8], [0f32; 8], [0i32; 8]);
+        // SAFETY: each array holds eight four-byte lanes, 32 bytes; the stores need no
+        // alignment.
+        unsafe {
+            _mm256_storeu_si256(at_lanes.as_mut_ptr().cast(), at);
+            _mm256_storeu_ps(z_lanes.as_mut_ptr(), z);
+            _mm256_storeu_si256(
+                id_lanes.as_mut_ptr().cast(),
+                _mm256_permutevar8x32_epi32(ids_v, tri),
+            );
+        }
+        // The reference loop's writes, pixel by pixel in listed order (indexing checks that
+        // each pixel lies in the buffers: a negative index wraps to one that does not).
+        let mut pass = 0u32;
+        for i in 0..count {
+            let p = at_lanes[i] as u32 as usize;
+            if let Some(o) = target.overdraw.as_deref_mut() {
+                o[p] += 1;
+            }
+            if depth_test.passes(z_lanes[i], target.depth[p]) {
+                target.depth[p] = z_lanes[i];
+                if let Some(ids) = target.ids.as_deref_mut() {
+                    ids[p] = id_lanes[i];
+                }
+                pass |= 1 << i;
+            }
+        }
+        if pass == 0 {
+            continue;
+        }
+        let rgba = small_colors(s, (table, &columns), tri, &picks, (f1, f2), pass);
+        let mut rgba_lanes = [0u32; 8];
+        // SAFETY: eight `u32`s, 32 bytes; the store needs no alignment.
+        unsafe { _mm256_storeu_si256(rgba_lanes.as_mut_ptr().cast(), rgba) };
+        while pass != 0 {
+            let i = pass.trailing_zeros() as usize;
+            pass &= pass - 1;
+            target.color[at_lanes[i] as u32 as usize] = rgba_lanes[i].to_le_bytes();
+        }
+    }
+    listed as u64
+}
+
+/// Eight `f64` lanes kept as their sixteen words in two registers, lanes 0-3 and 4-7, for
+/// [`WordPairs::pick`]: AVX2 permutes words across a register, not `f64`s across two.
+#[derive(Clone, Copy)]
+struct WordPairs([__m256i; 2]);
+
+/// Which lanes of [`WordPairs`] four `f64` lanes take: each lane's word indices within its
+/// register, and whether it is in the upper one.
+#[derive(Clone, Copy)]
+struct WordPick {
+    words: __m256i,
+    upper: __m256d,
+}
+
+impl WordPairs {
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn of(v: &[f64; 8]) -> Self {
+        // SAFETY: eight `f64`s, 64 bytes, in two loads of 32; they need no alignment.
+        unsafe {
+            let p = v.as_ptr();
+            Self([_mm256_loadu_si256(p.cast()), _mm256_loadu_si256(p.add(4).cast())])
+        }
+    }
+
+    /// The four `f64` lanes `pick` names.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn pick(&self, pick: &WordPick) -> __m256d {
+        let lo = _mm256_castsi256_pd(_mm256_permutevar8x32_epi32(self.0[0], pick.words));
+        let hi = _mm256_castsi256_pd(_mm256_permutevar8x32_epi32(self.0[1], pick.words));
+        _mm256_blendv_pd(lo, hi, pick.upper)
+    }
+}
+
+impl WordPick {
+    /// Lanes `4 h..4 h + 4` of `tri` (each below 8).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn of(tri: __m256i, h: usize) -> Self {
+        let spread = if h == 0 {
+            _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3)
+        } else {
+            _mm256_setr_epi32(4, 4, 5, 5, 6, 6, 7, 7)
+        };
+        let t = _mm256_permutevar8x32_epi32(tri, spread);
+        let words = _mm256_or_si256(
+            _mm256_and_si256(_mm256_slli_epi32::<1>(t), _mm256_set1_epi32(7)),
+            _mm256_setr_epi32(0, 1, 0, 1, 0, 1, 0, 1),
+        );
+        let upper = _mm256_castsi256_pd(_mm256_cmpgt_epi32(t, _mm256_set1_epi32(3)));
+        Self { words, upper }
+    }
+}
+
+/// The colours of a group of [`shade_small_eight`] at barycentric numerators `f1`, `f2` (two
+/// halves of four), lane `i` of triangle `tri[i]`, as [`perspective`] computes one
+/// triangle's (the lanes of `pass` matter; the others compute from leftovers).
+#[inline]
+#[target_feature(enable = "avx2,fma")]
+fn small_colors(
+    s: &SmallShading,
+    (table, columns): (&[u32; ENCODE_BUCKETS], &[__m256; 16]),
+    tri: __m256i,
+    picks: &[WordPick; 2],
+    (f1, f2): ([__m256d; 2], [__m256d; 2]),
+    pass: u32,
+) -> __m256i {
+    let load = |v: &[i32; 8]| {
+        // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
+        _mm256_permutevar8x32_epi32(unsafe { _mm256_loadu_si256(v.as_ptr().cast()) }, tri)
+    };
+    let lanes_ps = |column: usize| _mm256_permutevar8x32_ps(columns[column], tri);
+    let both = |h: [__m128; 2]| _mm256_set_m128(h[1], h[0]);
+    // `crate::pipeline::perspective_weights`, lane by lane affine or divided.
+    let inv_area2 = WordPairs::of(&s.inv_area2);
+    let l: [[__m256d; 3]; 2] = std::array::from_fn(|h| {
+        let a = inv_area2.pick(&picks[h]);
+        let (l1, l2) = (_mm256_mul_pd(f1[h], a), _mm256_mul_pd(f2[h], a));
+        [_mm256_sub_pd(_mm256_sub_pd(_mm256_set1_pd(1.0), l1), l2), l1, l2]
+    });
+    let mut w: [__m256; 3] =
+        std::array::from_fn(|k| both([_mm256_cvtpd_ps(l[0][k]), _mm256_cvtpd_ps(l[1][k])]));
+    let affine = load(&s.affine);
+    if pass & !(_mm256_movemask_ps(_mm256_castsi256_ps(affine)) as u32) != 0 {
+        let inv_w = s.inv_w.each_ref().map(|v| WordPairs::of(v));
+        // `sum > 0`, false for NaN: thirds elsewhere.
+        let third = _mm256_set1_pd(f64::from(1.0f32 / 3.0));
+        let divided: [[__m128; 3]; 2] = std::array::from_fn(|h| {
+            let q: [__m256d; 3] =
+                std::array::from_fn(|k| _mm256_mul_pd(l[h][k], inv_w[k].pick(&picks[h])));
+            let sum = _mm256_add_pd(_mm256_add_pd(q[0], q[1]), q[2]);
+            let positive = _mm256_cmp_pd::<_CMP_GT_OQ>(sum, _mm256_setzero_pd());
+            q.map(|v| _mm256_cvtpd_ps(_mm256_blendv_pd(third, _mm256_div_pd(v, sum), positive)))
+        });
+        let affine = _mm256_castsi256_ps(affine);
+        w = std::array::from_fn(|k| {
+            _mm256_blendv_ps(both([divided[0][k], divided[1][k]]), w[k], affine)
+        });
+    }
+    // Channel `ch`: `(c0 w0 + c1 w1 + c2 w2) scale`, left to right.
+    let channel = |ch: usize| {
+        let c = |k: usize| lanes_ps(4 * k + ch);
+        let t = _mm256_add_ps(_mm256_mul_ps(c(0), w[0]), _mm256_mul_ps(c(1), w[1]));
+        let t = _mm256_add_ps(t, _mm256_mul_ps(c(2), w[2]));
+        _mm256_mul_ps(t, lanes_ps(12 + ch))
+    };
+    let r = srgb8(channel(0), table);
+    let g = srgb8(channel(1), table);
+    let b = srgb8(channel(2), table);
+    let fixed = load(&s.alpha);
+    let weighted = _mm256_cmpgt_epi32(_mm256_setzero_si256(), fixed);
+    let alpha = if pass & _mm256_movemask_ps(_mm256_castsi256_ps(weighted)) as u32 == 0 {
+        fixed
+    } else {
+        _mm256_blendv_epi8(fixed, unorm8(channel(3)), weighted)
+    };
+    _mm256_or_si256(
+        _mm256_or_si256(r, _mm256_slli_epi32::<8>(g)),
+        _mm256_or_si256(_mm256_slli_epi32::<16>(b), _mm256_slli_epi32::<24>(alpha)),
+    )
+}
+
+/// The sixteen columns of eight rows of sixteen `f32`: lane `l` of column `c` is `rows[l][c]`.
+/// Two 8 x 8 transposes: pairs of rows interleaved, then pairs of pairs, each 128-bit half
+/// then holding four rows of one column, which the last permutes put side by side.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn columns_of(rows: &[[f32; 16]; 8]) -> [__m256; 16] {
+    let mut out = [_mm256_setzero_ps(); 16];
+    for half in 0..2 {
+        // SAFETY: each load reads eight `f32`s (32 bytes) of one row; it needs no alignment.
+        let r: [__m256; 8] =
+            std::array::from_fn(|l| unsafe { _mm256_loadu_ps(rows[l].as_ptr().add(8 * half)) });
+        // `t[2p]`, `t[2p + 1]`: rows `2p` and `2p + 1` interleaved, low and high words of
+        // each half.
+        let t: [__m256; 8] = std::array::from_fn(|k| {
+            let (a, b) = (r[k & !1], r[k | 1]);
+            if k % 2 == 0 { _mm256_unpacklo_ps(a, b) } else { _mm256_unpackhi_ps(a, b) }
+        });
+        // `u[4h + i]`: rows `4h..4h + 4` of column `i` in the lower half, `4 + i` in the upper.
+        let u: [__m256; 8] = std::array::from_fn(|k| {
+            let (h, i) = (k / 4, k % 4);
+            let (a, b) = (t[4 * h + i / 2], t[4 * h + 2 + i / 2]);
+            if i % 2 == 0 {
+                _mm256_shuffle_ps::<0x44>(a, b)
+            } else {
+                _mm256_shuffle_ps::<0xEE>(a, b)
+            }
+        });
+        for i in 0..4 {
+            out[8 * half + i] = _mm256_permute2f128_ps::<0x20>(u[i], u[4 + i]);
+            out[8 * half + 4 + i] = _mm256_permute2f128_ps::<0x31>(u[i], u[4 + i]);
+        }
+    }
+    out
 }
 
 /// [`super::srgb8_lanes`]: the eight colours transposed into a register per channel (each

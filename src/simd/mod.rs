@@ -1185,11 +1185,12 @@ pub fn small_run_geometry_scalar(
 /// pipeline's small triangles (boxes of at most 8 x 8 pixels: the grid's two-pixel ones, most
 /// of the bunny's) take in place of the fragment stage (its lanes, or the narrow kernel).
 ///
-/// At AVX-512 the covered pixels of all the lanes are packed eight to a group, whatever
-/// triangle each belongs to, and a group is shaded at once, its buffers gathered and
-/// scattered. The pixels of one triangle are distinct; where two triangles of a group share
-/// a pixel the group ends before the later one's (`vpconflictd`), so each depth test sees
-/// every earlier write, as in the reference order.
+/// From AVX2 on, the covered pixels of all the lanes are packed eight to a group, whatever
+/// triangle each belongs to, and a group's arithmetic is done at once. At AVX-512 its
+/// buffers are gathered and scattered: the pixels of one triangle are distinct, and where two
+/// triangles of a group share a pixel the group ends before the later one's (`vpconflictd`),
+/// so each depth test sees every earlier write, as in the reference order. AVX2, without
+/// scatters, tests depth and writes lane by lane in that order.
 ///
 /// # Panics
 /// If a covered pixel of a box does not lie in the buffers.
@@ -1208,11 +1209,16 @@ pub fn shade_small_eight(
         // time.
         return unsafe { avx512::shade_small_eight(eight, shading, lanes, target, depth_test) };
     }
+    #[cfg(target_arch = "x86_64")]
+    if level.has_avx2() {
+        // SAFETY: AVX2 and FMA support was just checked at run time.
+        return unsafe { avx2::shade_small_eight(eight, shading, lanes, target, depth_test) };
+    }
     shade_small_eight_scalar(eight, shading, lanes, target, depth_test)
 }
 
 /// [`shade_small_eight`] one pixel at a time, through `KernelTarget::pixel`: the
-/// definition the AVX-512 kernel is tested against.
+/// definition the AVX2 and AVX-512 kernels are tested against.
 #[inline(never)]
 pub fn shade_small_eight_scalar(
     eight: &SmallEight,
@@ -3005,9 +3011,9 @@ mod tests {
         assert!(runs > 3000 && refused > 3000, "{runs} runs set up, {refused} refused");
     }
 
-    /// Eight small triangles shaded together at AVX-512 are shaded as one pixel at a time
-    /// (`shade_small_eight_scalar`: `KernelTarget::pixel` of each covered pixel, in order):
-    /// runs of random lanes whose boxes (up to 4 or 8 pixels a side) crowd a few pixels (so
+    /// Eight small triangles shaded together at AVX2 and AVX-512 are shaded as one pixel at
+    /// a time (`shade_small_eight_scalar`: `KernelTarget::pixel` of each covered pixel, in
+    /// order): runs of random lanes whose boxes (up to 4 or 8 pixels a side) crowd a few pixels (so
     /// the triangles of a group share pixels, which ends groups early), random colours
     /// ([`random_perspective`]: affine and divided weights, thirds, constant and weighted
     /// alpha, NaN and infinities), depth planes reaching outside [0, 1], every depth test,
