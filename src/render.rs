@@ -807,18 +807,25 @@ mod tests {
         assert!(kinds.iter().all(|&k| k > 1_000), "flat, smooth, smooth, one alpha: {kinds:?}");
     }
 
-    /// Eight window records shaded together at AVX-512 (`simd::shade_narrow_eight`, lane by
-    /// lane from registers of all eight) write what the scalar level writes, each lane the
-    /// `NarrowJob` it stands for, in order: triangles crowding a few pixels, boxes of one
+    /// Eight window records shaded together (`simd::shade_narrow_eight`: at AVX-512 lane by
+    /// lane from registers of all eight, at AVX2 each lane's box read in place, or its job
+    /// where the box's last groups would reach past the buffers) write what the scalar level
+    /// writes, each lane the `NarrowJob` it stands for, in order: triangles crowding a few pixels, boxes of one
     /// pixel to more than eight rows, one to eight columns, clipped by a band that does not
     /// start at row 0, flat and Gouraud colours with one alpha and three, depths in and out
     /// of [0, 1], every depth test, with and without ids and overdraw, runs of lanes starting
     /// anywhere.
     #[test]
     fn eight_records_shade_as_each_alone() {
-        if !SimdLevel::Avx512.is_available() {
-            return;
+        for level in [SimdLevel::Avx2, SimdLevel::Avx512] {
+            if level.is_available() {
+                eight_records_shade_at(level);
+            }
         }
+    }
+
+    /// [`eight_records_shade_as_each_alone`] at `level`.
+    fn eight_records_shade_at(level: SimdLevel) {
         let mut rng = SmallRng::seed_from_u64(23);
         let (mut covered, mut wide) = (0, 0);
         let (width, height) = (24, 20);
@@ -832,7 +839,7 @@ mod tests {
             let Some(records) = random_records(&mut rng, round, around, depth) else { continue };
             let mut eight = simd::NarrowEight::default();
             let refs = std::array::from_fn(|l| &records[l]);
-            let lanes = simd::narrow_eight(SimdLevel::Avx512, &refs, &clip, &mut eight);
+            let lanes = simd::narrow_eight(level, &refs, &clip, &mut eight);
             // The longest run of lanes set up from a random start.
             let start = rng.random_range(0..8);
             let run = start..start + (lanes >> start).trailing_ones() as usize;
@@ -847,8 +854,8 @@ mod tests {
                 let mut bands = target.bands_from(&band_rows);
                 simd::shade_narrow_eight(level, &eight, run.clone(), &mut bands[1], depth_test)
             };
-            let (n, m) = (shade(SimdLevel::Scalar, &mut want), shade(SimdLevel::Avx512, &mut got));
-            let what = format!("round {round}, lanes {run:?}");
+            let (n, m) = (shade(SimdLevel::Scalar, &mut want), shade(level, &mut got));
+            let what = format!("{level:?}, round {round}, lanes {run:?}");
             assert_eq!(m, n, "{what}");
             let bits = |t: &Target| t.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
             assert!(bits(&want) == bits(&got) && want.color == got.color, "{what}");

@@ -5,9 +5,9 @@ use std::arch::x86_64::*;
 use glam::Vec4;
 
 use super::{
-    Corner, CornerGroup, CornerTests, KernelTarget, NarrowEight, NarrowJob, NarrowSamplesJob,
-    PerspectiveColor, SampleSpanJob, SmallEight, SmallLane, SmallShading, SpanColor, SpanJob,
-    WindowGroup,
+    Corner, CornerGroup, CornerTests, KernelTarget, NarrowBox, NarrowEight, NarrowJob,
+    NarrowSamplesJob, PerspectiveColor, SampleSpanJob, SmallEight, SmallLane, SmallShading,
+    SpanColor, SpanJob, WindowGroup,
 };
 use crate::clip::MIN_W;
 use crate::color::ENCODE_BUCKETS;
@@ -1185,9 +1185,20 @@ fn lane_mask(bits: u32) -> __m128i {
 /// The CPU must support AVX2 and FMA.
 #[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
+    job.assert_narrow();
     // SAFETY: the CPU supports AVX2 and FMA (this function's contract).
-    with_rgba!(*job.target.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
-        narrow_groups(job, rgba)
+    unsafe { shade_narrow_box(&NarrowBox::of(job), &mut job.target) }
+}
+
+/// [`shade_narrow`] of box `b` into `t`.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn shade_narrow_box(b: &NarrowBox, t: &mut KernelTarget<'_>) -> u64 {
+    // SAFETY: the CPU supports AVX2 and FMA (this function's contract).
+    with_rgba!(*t.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
+        narrow_groups(b, t, rgba)
     })
 }
 
@@ -1198,30 +1209,31 @@ pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
 #[inline]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn narrow_groups(
-    job: &mut NarrowJob<'_>,
+    job: &NarrowBox,
+    target: &mut KernelTarget<'_>,
     rgba: impl Fn(__m256d, __m256d) -> __m128i,
 ) -> u64 {
-    let n = job.target.checked_len();
-    job.assert_narrow();
+    let n = target.checked_len();
+    assert!((1..=super::NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "narrow");
     assert!(job.group_end() <= n, "the box's groups must lie in the buffers");
     let groups = job.columns.div_ceil(4);
     let lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
     // Edge k's offsets from the row's first pixel, for the lanes of groups 0 and 1.
     let offsets = |k: usize, g: usize| {
-        let step = _mm256_set1_pd(job.step_x[k] as f64);
+        let step = _mm256_set1_pd(job.step_x[k]);
         _mm256_mul_pd(_mm256_add_pd(lanes, _mm256_set1_pd(4.0 * g as f64)), step)
     };
     let offsets: [[__m256d; 2]; 3] = std::array::from_fn(|k| [offsets(k, 0), offsets(k, 1)]);
     // The box's columns among each group's lanes.
     let column_bits = [(1u32 << job.columns.min(4)) - 1, (1u32 << (job.columns.max(4) - 4)) - 1];
-    let bias = job.bias.map(|b| _mm256_set1_pd(b as f64));
+    let bias = job.bias.map(|b| _mm256_set1_pd(b));
     // Each group's edge values, stepped a row down in their registers (as the AVX-512
     // kernel's `NarrowBox::groups`; integers below 2^53, exact in any order).
     let mut row: [[__m256d; 2]; 3] = std::array::from_fn(|k| {
-        let edge = _mm256_set1_pd(job.edges[k] as f64);
+        let edge = _mm256_set1_pd(job.edges[k]);
         offsets[k].map(|o| _mm256_add_pd(edge, o))
     });
-    let step_y = job.step_y.map(|s| _mm256_set1_pd(s as f64));
+    let step_y = job.step_y.map(|s| _mm256_set1_pd(s));
     let mut covered = 0u64;
     for r in 0..job.rows {
         for g in 0..groups {
@@ -1232,7 +1244,7 @@ unsafe fn narrow_groups(
             let (f1, f2) = (_mm256_sub_pd(e[1], bias[0]), _mm256_sub_pd(e[2], bias[1]));
             let at = job.first + r * job.stride + 4 * g;
             // SAFETY: `at + 4 <= group_end() <= n` (asserted above).
-            unsafe { group::<false>(&mut job.target, at, f1, f2, lane_mask(bits), None, &rgba) };
+            unsafe { group::<false>(target, at, f1, f2, lane_mask(bits), None, &rgba) };
         }
         row = std::array::from_fn(|k| row[k].map(|e| _mm256_add_pd(e, step_y[k])));
     }

@@ -13,8 +13,8 @@
 use std::arch::x86_64::*;
 
 use super::{
-    KernelTarget, NarrowEight, NarrowJob, NarrowSamplesJob, PerspectiveColor, SampleSpanJob,
-    SmallEight, SmallShading, SpanColor, SpanJob, WindowGroup,
+    KernelTarget, NarrowBox, NarrowEight, NarrowJob, NarrowSamplesJob, PerspectiveColor,
+    SampleSpanJob, SmallEight, SmallShading, SpanColor, SpanJob, WindowGroup,
 };
 use crate::color::ENCODE_BUCKETS;
 use crate::fixed;
@@ -496,35 +496,7 @@ unsafe fn packed_colors(
     unsafe { _mm256_mask_i32scatter_epi32::<4>(out.cast(), m, at, rgba) };
 }
 
-/// A narrow kernel's box and edges, as [`NarrowJob`] holds them, in `f64` (integers below
-/// 2^53: exact).
-struct NarrowBox {
-    edges: [f64; 3],
-    step_x: [f64; 3],
-    step_y: [f64; 3],
-    bias: [f64; 2],
-    columns: usize,
-    rows: usize,
-    first: usize,
-    stride: usize,
-}
-
 impl NarrowBox {
-    /// `job`'s box.
-    #[inline(always)]
-    fn of(job: &NarrowJob<'_>) -> Self {
-        Self {
-            edges: job.edges.map(|e| e as f64),
-            step_x: job.step_x.map(|s| s as f64),
-            step_y: job.step_y.map(|s| s as f64),
-            bias: job.bias.map(|b| b as f64),
-            columns: job.columns,
-            rows: job.rows,
-            first: job.first,
-            stride: job.stride,
-        }
-    }
-
     /// How groups of eight lanes cover the box: edge `k` at each lane of the first group and
     /// its step from one group to the next, the lanes within the box's columns, and the rows
     /// a group takes (boxes up to four pixels wide, most small triangles, two: lanes 0-3 the
@@ -789,18 +761,7 @@ pub(super) unsafe fn shade_narrow_eight(
     for l in lanes {
         let (columns, rows) = (eight.columns[l], eight.rows[l]);
         assert!((1..=8).contains(&columns) && rows > 0, "not a narrow box");
-        // Lane `l` of each row, read in place (`map` would copy the rows first).
-        let lane3 = |rows: &[[f64; 8]; 3]| [rows[0][l], rows[1][l], rows[2][l]];
-        let box_ = NarrowBox {
-            edges: lane3(&eight.edges),
-            step_x: lane3(&eight.step_x),
-            step_y: lane3(&eight.step_y),
-            bias: [eight.bias[0][l], eight.bias[1][l]],
-            columns: columns as usize,
-            rows: rows as usize,
-            first: target.index(eight.x0[l], eight.y0[l]),
-            stride: target.stride(),
-        };
+        let box_ = NarrowBox::of_lane(eight, l, target);
         let color = eight.color(l);
         let mut t = eight.kernel_target(l, &color, depth_test, target);
         // SAFETY: the CPU supports AVX-512 F, VL and DQ (this function's contract); the box

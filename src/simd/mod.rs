@@ -721,17 +721,22 @@ pub struct NarrowJob<'a> {
     pub target: KernelTarget<'a>,
 }
 
+/// One past the last buffer element of a box of `rows` rows from `first`, `stride` apart,
+/// when each row is `width` elements from its first pixel; `usize::MAX` when that overflows
+/// (no buffer holds it): the kernels' bounds checks rest on this, and a job is public, safe
+/// to build with any values.
+fn box_end(rows: usize, stride: usize, first: usize, width: usize) -> usize {
+    rows.saturating_sub(1)
+        .checked_mul(stride)
+        .and_then(|o| o.checked_add(first))
+        .and_then(|o| o.checked_add(width))
+        .unwrap_or(usize::MAX)
+}
+
 impl NarrowJob<'_> {
-    /// One past the last buffer element of the box when each row is `width` elements from its
-    /// first pixel; `usize::MAX` when that overflows (no buffer holds it): the kernels' bounds
-    /// checks rest on this, and a job is public, safe to build with any values.
+    /// [`box_end`] of the job's box.
     fn end(&self, width: usize) -> usize {
-        self.rows
-            .saturating_sub(1)
-            .checked_mul(self.stride)
-            .and_then(|o| o.checked_add(self.first))
-            .and_then(|o| o.checked_add(width))
-            .unwrap_or(usize::MAX)
+        box_end(self.rows, self.stride, self.first, width)
     }
 
     /// Panics unless the box is one the narrow kernels take: 1 to [`NARROW_COLUMNS`] columns,
@@ -743,6 +748,63 @@ impl NarrowJob<'_> {
     /// One past the last buffer element a kernel reads in four-pixel groups.
     fn group_end(&self) -> usize {
         self.end(4 * self.columns.div_ceil(4))
+    }
+}
+
+/// A narrow kernel's box and edges, as [`NarrowJob`] holds them, in `f64` (integers below
+/// 2^53: exact).
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+struct NarrowBox {
+    edges: [f64; 3],
+    step_x: [f64; 3],
+    step_y: [f64; 3],
+    bias: [f64; 2],
+    columns: usize,
+    rows: usize,
+    first: usize,
+    stride: usize,
+}
+
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+impl NarrowBox {
+    /// `job`'s box.
+    #[inline(always)]
+    fn of(job: &NarrowJob<'_>) -> Self {
+        Self {
+            edges: job.edges.map(|e| e as f64),
+            step_x: job.step_x.map(|s| s as f64),
+            step_y: job.step_y.map(|s| s as f64),
+            bias: job.bias.map(|b| b as f64),
+            columns: job.columns,
+            rows: job.rows,
+            first: job.first,
+            stride: job.stride,
+        }
+    }
+
+    /// Lane `l`'s box of `eight`, in `target`, read in place (without a [`NarrowJob`], whose
+    /// `i64` values would be converted from these and back). Panics unless it is narrow.
+    #[inline(always)]
+    fn of_lane(eight: &NarrowEight, l: usize, target: &crate::target::TargetBand<'_>) -> Self {
+        let (columns, rows) = (eight.columns[l], eight.rows[l]);
+        assert!((1..=NARROW_COLUMNS as i32).contains(&columns) && rows > 0, "not a narrow box");
+        // Lane `l` of each row, read in place (`map` would copy the rows first).
+        let lane3 = |rows: &[[f64; 8]; 3]| [rows[0][l], rows[1][l], rows[2][l]];
+        Self {
+            edges: lane3(&eight.edges),
+            step_x: lane3(&eight.step_x),
+            step_y: lane3(&eight.step_y),
+            bias: [eight.bias[0][l], eight.bias[1][l]],
+            columns: columns as usize,
+            rows: rows as usize,
+            first: target.index(eight.x0[l], eight.y0[l]),
+            stride: target.stride(),
+        }
+    }
+
+    /// One past the last buffer element a kernel reads in four-pixel groups.
+    fn group_end(&self) -> usize {
+        box_end(self.rows, self.stride, self.first, 4 * self.columns.div_ceil(4))
     }
 }
 
@@ -891,8 +953,9 @@ pub fn shade_narrow_eight(
     narrow_eight_jobs(level, eight, lanes, target, depth_test)
 }
 
-/// [`shade_narrow_eight`] below AVX-512, through [`shade_narrow`] at `level`. Out of line,
-/// as [`narrow_eight_below`].
+/// [`shade_narrow_eight`] below AVX-512: at AVX2 each lane's box read in place into its
+/// kernel, else (or where its last groups would reach past the buffers) the [`NarrowJob`] it
+/// stands for through [`shade_narrow`] at `level`. Out of line, as [`narrow_eight_below`].
 #[inline(never)]
 fn narrow_eight_jobs(
     level: SimdLevel,
@@ -903,6 +966,17 @@ fn narrow_eight_jobs(
 ) -> u64 {
     let mut covered = 0;
     for l in lanes {
+        #[cfg(target_arch = "x86_64")]
+        if level.has_avx2() {
+            let b = NarrowBox::of_lane(eight, l, target);
+            if b.group_end() <= target.depth.len() {
+                let color = eight.color(l);
+                let mut t = eight.kernel_target(l, &color, depth_test, target);
+                // SAFETY: AVX2 and FMA support was just checked at run time.
+                covered += unsafe { avx2::shade_narrow_box(&b, &mut t) };
+                continue;
+            }
+        }
         let (columns, rows) = (eight.columns[l], eight.rows[l]);
         assert!((1..=NARROW_COLUMNS as i32).contains(&columns) && rows > 0, "not a narrow box");
         // Integers below 2^53 in `f64`: the conversions back are exact.
