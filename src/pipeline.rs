@@ -109,9 +109,9 @@ pub trait FragmentShader<V>: Sync {
     /// [`FragmentShader::shade`] gives every fragment of it the colour `InterpolatedColor`
     /// describes, and never discards there. The tiled backend may then shade the triangle in
     /// SIMD kernels, which compute that colour as the pipeline's own arithmetic does, bit for
-    /// bit, without calling `shade` (it does with AVX-512, at 1x, on targets without a normal
-    /// buffer). `None` by default; a shader that says `Some` and then computes something else
-    /// draws wrong pictures.
+    /// bit, without calling `shade` (it does at 1x, on targets without a normal buffer: small
+    /// triangles from AVX2 on, larger ones with AVX-512). `None` by default; a shader that
+    /// says `Some` and then computes something else draws wrong pictures.
     fn interpolated_color(&self, _varyings: [&V; 3], _primitive: u32) -> Option<InterpolatedColor> {
         None
     }

@@ -810,11 +810,11 @@ mod tests {
     /// Eight window records shaded together (`simd::shade_narrow_eight`: at AVX-512 lane by
     /// lane from registers of all eight, at AVX2 each lane's box read in place, or its job
     /// where the box's last groups would reach past the buffers) write what the scalar level
-    /// writes, each lane the `NarrowJob` it stands for, in order: triangles crowding a few pixels, boxes of one
-    /// pixel to more than eight rows, one to eight columns, clipped by a band that does not
-    /// start at row 0, flat and Gouraud colours with one alpha and three, depths in and out
-    /// of [0, 1], every depth test, with and without ids and overdraw, runs of lanes starting
-    /// anywhere.
+    /// writes, each lane the `NarrowJob` it stands for, in order: triangles crowding a few
+    /// pixels, boxes of one pixel to more than eight rows, one to eight columns, clipped by a
+    /// band that does not start at row 0, flat and Gouraud colours with one alpha and three,
+    /// depths in and out of [0, 1], every depth test, with and without ids and overdraw, runs
+    /// of lanes starting anywhere.
     #[test]
     fn eight_records_shade_as_each_alone() {
         for level in [SimdLevel::Avx2, SimdLevel::Avx512] {
@@ -827,7 +827,7 @@ mod tests {
     /// [`eight_records_shade_as_each_alone`] at `level`.
     fn eight_records_shade_at(level: SimdLevel) {
         let mut rng = SmallRng::seed_from_u64(23);
-        let (mut covered, mut wide) = (0, 0);
+        let (mut covered, mut wide, mut past) = (0, 0, 0);
         let (width, height) = (24, 20);
         let band_rows = [0, 3];
         let clip = PixelRect { x0: 0, y0: 3, x1: width - 1, y1: height - 1 };
@@ -861,9 +861,17 @@ mod tests {
             assert!(bits(&want) == bits(&got) && want.color == got.color, "{what}");
             assert!(want.ids == got.ids && want.overdraw == got.overdraw, "{what}");
             covered += n;
+            // Boxes whose last four-pixel group would reach past the buffers' end (the last
+            // row's right edge): AVX2 takes those lanes' jobs, whose scalar fallback applies.
+            let groups_past = |l: usize| {
+                let right = eight.x0[l] + 4 * ((eight.columns[l] + 3) / 4);
+                eight.y0[l] + eight.rows[l] == height && right > width
+            };
+            past += run.clone().filter(|&l| groups_past(l)).count();
             wide += run.filter(|&l| eight.columns[l] > 4).count();
         }
         assert!(covered > 200_000 && wide > 10_000, "{covered} covered, {wide} lanes over 4 wide");
+        assert!(past > 100, "{past} lanes reaching past the buffers");
     }
 
     /// The boxes `band::plan` samples from window triangles: a grid of two-pixel triangles is

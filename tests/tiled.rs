@@ -1179,8 +1179,7 @@ fn vertex_colours_match_the_reference() {
 /// reference's buffers and counts at every SIMD level, on 1, 2 and 7 threads, binned and
 /// banded. At the levels `kernels` (where the SIMD kernels take these shaders and triangles),
 /// the tinted shader is called for under a quarter of the fragments the reference shaded.
-/// Returns the
-/// reference's counts, shader by shader.
+/// Returns the reference's counts, shader by shader.
 fn assert_vertex_colours_match(
     (positions, colors, triangles): (&[Vec4], &[Vec4], &[[u32; 3]]),
     pipeline: Pipeline,

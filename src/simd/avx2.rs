@@ -612,12 +612,13 @@ fn small_eight_rows(
 /// pixel's [`super::SmallEight::inside`] bit; each group of eight listed pixels then takes its
 /// triangles' values from registers of all eight lanes (`vpermd`, `vpermps`; an `f64` value
 /// as its two words), and computes numerators, depth and colour side by side. Without
-/// scatters or conflict detection, the depth test and the writes go lane by lane in listed
-/// order, which is the reference's: a pixel two triangles of a group share is tested against
-/// the earlier one's write.
+/// scatters or conflict detection, the depth test and the depth, id and overdraw writes go
+/// lane by lane in listed order, which is the reference's: a pixel two triangles of a group
+/// share is tested against the earlier one's write. The colours of the lanes that passed are
+/// written after, in the same order, so the later one's stays.
 ///
 /// # Safety
-/// The CPU must support AVX2 and FMA.
+/// The CPU must support AVX2, FMA, POPCNT, BMI1 and BMI2 (the AVX2 level's features).
 #[target_feature(enable = "avx2,fma,popcnt,bmi1,bmi2")]
 pub(super) unsafe fn shade_small_eight(
     eight: &SmallEight,
@@ -632,9 +633,11 @@ pub(super) unsafe fn shade_small_eight(
     // entries listed and those eight are read.
     let mut entries = [std::mem::MaybeUninit::<i32>::uninit(); 8 * 64 + 8];
     let mut listed = 0;
+    let mut drawn = 0;
     for l in lanes {
         assert!(l < 8, "eight lanes");
         let mut cells = eight.inside[l] & s.cells[l];
+        drawn |= i32::from(cells != 0) << l;
         while cells != 0 {
             entries[listed].write((l as i32) << 6 | cells.trailing_zeros() as i32);
             listed += 1;
@@ -647,13 +650,9 @@ pub(super) unsafe fn shade_small_eight(
         // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
         unsafe { _mm256_loadu_si256(v.as_ptr().cast()) }
     };
-    // Each box's first pixel, `target.index` in `i32` lanes (wrapping: whatever a lane
-    // holds, each pixel's index is checked before it is read or written).
-    let top = _mm256_set1_epi32(target.rect().y0);
-    let first = _mm256_add_epi32(
-        _mm256_mullo_epi32(_mm256_sub_epi32(load(&s.y0), top), _mm256_set1_epi32(stride as i32)),
-        load(&s.x0),
-    );
+    // Each box's first pixel, `target.index` in `i32` lanes (each pixel's index is checked
+    // before it is read or written, too).
+    let first = box_starts(s, target, drawn);
     let edges = [load(&eight.edges[1]), load(&eight.edges[2])];
     let step_x = [load(&eight.step_x[1]), load(&eight.step_x[2])];
     let step_y = [load(&eight.step_y[1]), load(&eight.step_y[2])];
@@ -663,6 +662,7 @@ pub(super) unsafe fn shade_small_eight(
     let table = crate::color::srgb8_table();
     let columns = columns_of(&s.color_rows);
     let stride_v = _mm256_set1_epi32(stride as i32);
+    assert!(target.depth.len() <= i32::MAX as usize, "buffers indexed in `i32`");
     let mut g = 0;
     while g < listed {
         let count = (listed - g).min(8);
@@ -742,6 +742,35 @@ pub(super) unsafe fn shade_small_eight(
         }
     }
     listed as u64
+}
+
+/// Each box's first pixel, `target.index` in `i32` lanes, for the small kernels at AVX2 and
+/// AVX-512.
+///
+/// # Panics
+/// If the first pixel of a box of `drawn` (a bit per lane) lies outside the band: its pixels'
+/// indices, computed in `i32`, could then wrap back into the buffers (the kernels check
+/// every index against them, but such a one would pass).
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(super) fn box_starts(s: &SmallShading, target: &TargetBand<'_>, drawn: i32) -> __m256i {
+    let load = |v: &[i32; 8]| {
+        // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
+        unsafe { _mm256_loadu_si256(v.as_ptr().cast()) }
+    };
+    let rect = target.rect();
+    let (row, column) = (
+        _mm256_sub_epi32(load(&s.y0), _mm256_set1_epi32(rect.y0)),
+        _mm256_sub_epi32(load(&s.x0), _mm256_set1_epi32(rect.x0)),
+    );
+    // Unsigned `v <= last` as `min(v, last) == v`.
+    let within =
+        |v: __m256i, last: i32| _mm256_cmpeq_epi32(_mm256_min_epu32(v, _mm256_set1_epi32(last)), v);
+    let band = _mm256_and_si256(within(row, rect.y1 - rect.y0), within(column, rect.x1 - rect.x0));
+    let band = _mm256_movemask_ps(_mm256_castsi256_ps(band));
+    assert!(band & drawn == drawn, "the boxes must lie in the band");
+    let stride = _mm256_set1_epi32(target.stride() as i32);
+    _mm256_add_epi32(_mm256_mullo_epi32(row, stride), load(&s.x0))
 }
 
 /// Eight `f64` lanes kept as their sixteen words in two registers, lanes 0-3 and 4-7, for
@@ -829,8 +858,8 @@ fn small_colors(
     let affine = load(&s.affine);
     if pass & !(_mm256_movemask_ps(_mm256_castsi256_ps(affine)) as u32) != 0 {
         let inv_w = s.inv_w.each_ref().map(|v| WordPairs::of(v));
-        // `sum > 0`, false for NaN: thirds elsewhere.
-        let third = _mm256_set1_pd(f64::from(1.0f32 / 3.0));
+        // `sum > 0`, false for NaN: thirds elsewhere (as `perspective_weights`).
+        let third = _mm256_set1_pd(1.0 / 3.0);
         let divided: [[__m128; 3]; 2] = std::array::from_fn(|h| {
             let q: [__m256d; 3] =
                 std::array::from_fn(|k| _mm256_mul_pd(l[h][k], inv_w[k].pick(&picks[h])));
@@ -1185,7 +1214,6 @@ fn lane_mask(bits: u32) -> __m128i {
 /// The CPU must support AVX2 and FMA.
 #[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn shade_narrow(job: &mut NarrowJob<'_>) -> u64 {
-    job.assert_narrow();
     // SAFETY: the CPU supports AVX2 and FMA (this function's contract).
     unsafe { shade_narrow_box(&NarrowBox::of(job), &mut job.target) }
 }

@@ -759,13 +759,11 @@ pub(super) unsafe fn shade_narrow_eight(
 ) -> u64 {
     let mut covered = 0;
     for l in lanes {
-        let (columns, rows) = (eight.columns[l], eight.rows[l]);
-        assert!((1..=8).contains(&columns) && rows > 0, "not a narrow box");
         let box_ = NarrowBox::of_lane(eight, l, target);
         let color = eight.color(l);
         let mut t = eight.kernel_target(l, &color, depth_test, target);
         // SAFETY: the CPU supports AVX-512 F, VL and DQ (this function's contract); the box
-        // is narrow (asserted above).
+        // is narrow (`of_lane` asserts it).
         covered += with_rgba!(color, __m512d, _mm256_set1_epi32, smooth, rgba => unsafe {
             narrow_box(&box_, &mut t, rgba)
         });
@@ -1081,9 +1079,11 @@ pub(super) unsafe fn shade_small_eight(
     let mut entries = [std::mem::MaybeUninit::<i32>::uninit(); 8 * 64 + 16];
     let mut listed = 0;
     let bits = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    let mut drawn = 0;
     for l in lanes {
         assert!(l < 8, "eight lanes");
         let mut cells = eight.inside[l] & s.cells[l];
+        drawn |= i32::from(cells != 0) << l;
         while cells != 0 {
             // The two rows of the first pixel left.
             let pair = cells.trailing_zeros() & !15;
@@ -1107,13 +1107,9 @@ pub(super) unsafe fn shade_small_eight(
         // SAFETY: eight `f64`s, 64 bytes; the load needs no alignment.
         unsafe { _mm512_loadu_pd(v.as_ptr()) }
     };
-    // Each box's first pixel, `target.index` in `i32` lanes (wrapping: whatever a lane
-    // holds, each pixel's index is checked before it is read or written).
-    let top = _mm256_set1_epi32(target.rect().y0);
-    let first = _mm256_add_epi32(
-        _mm256_mullo_epi32(_mm256_sub_epi32(load(&s.y0), top), _mm256_set1_epi32(stride as i32)),
-        load(&s.x0),
-    );
+    // Each box's first pixel, `target.index` in `i32` lanes (each pixel's index is checked
+    // before it is read or written, too).
+    let first = super::avx2::box_starts(s, target, drawn);
     let edges = [load(&eight.edges[1]), load(&eight.edges[2])];
     let step_x = [load(&eight.step_x[1]), load(&eight.step_x[2])];
     let step_y = [load(&eight.step_y[1]), load(&eight.step_y[2])];

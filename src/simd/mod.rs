@@ -35,9 +35,10 @@ use crate::shade::{DepthTest, PlaneEquation, quantize_channel};
 pub enum SimdLevel {
     /// Plain Rust, one pixel at a time.
     Scalar,
-    /// AVX2 and FMA (separate CPU features, found together on AVX2 processors; a CPU, or a
-    /// virtual machine, that reports one without the other runs the scalar code): four
-    /// pixels per step.
+    /// AVX2 and FMA, with POPCNT, BMI1 and BMI2 (separate CPU features, found together on
+    /// AVX2 processors; a CPU, or a virtual machine, that reports some without the others runs
+    /// the scalar code): four pixels per step in `f64` lanes (eight in the small kernel's
+    /// `f32` and `i32` ones).
     Avx2,
     /// AVX-512 (F, VL, DQ, CD, with POPCNT, BMI1 and BMI2): eight pixels per step with mask
     /// registers for the shading kernels; the front end's corner kernels and the index ranges
@@ -98,6 +99,11 @@ impl SimdLevel {
             Self::Avx2 => {
                 std::arch::is_x86_feature_detected!("avx2")
                     && std::arch::is_x86_feature_detected!("fma")
+                    // Every AVX2 CPU has them; the small kernel finds and clears bits with
+                    // them (grid 4.5% slower without, on one thread).
+                    && std::arch::is_x86_feature_detected!("popcnt")
+                    && std::arch::is_x86_feature_detected!("bmi1")
+                    && std::arch::is_x86_feature_detected!("bmi2")
             }
             #[cfg(target_arch = "x86_64")]
             Self::Avx512 => {
@@ -106,10 +112,6 @@ impl SimdLevel {
                     && std::arch::is_x86_feature_detected!("avx512vl")
                     && std::arch::is_x86_feature_detected!("avx512dq")
                     && std::arch::is_x86_feature_detected!("avx512cd")
-                    // Every AVX-512 CPU has them; the kernels count and find bits with them.
-                    && std::arch::is_x86_feature_detected!("popcnt")
-                    && std::arch::is_x86_feature_detected!("bmi1")
-                    && std::arch::is_x86_feature_detected!("bmi2")
             }
             #[cfg(not(target_arch = "x86_64"))]
             Self::Avx2 | Self::Avx512 => false,
@@ -932,8 +934,9 @@ fn narrow_eight_below(
 
 /// Shades lanes `lanes` of `eight` (set up by [`narrow_eight`] at `level`, in that order)
 /// into `target` with `depth_test`, as [`shade_narrow`] shades each; returns the number of
-/// covered pixels. At AVX-512 the lanes go through its narrow kernel's loop as they are; at
-/// the other levels each becomes the [`NarrowJob`] it stands for.
+/// covered pixels. At AVX-512 the lanes go through its narrow kernel's loop as they are, at
+/// AVX2 each lane's box is read in place into its kernel, and otherwise each becomes the
+/// [`NarrowJob`] it stands for.
 ///
 /// # Panics
 /// If `lanes` reaches past 8, a lane's box is not narrow, or the buffers do not hold it.
@@ -966,31 +969,25 @@ fn narrow_eight_jobs(
 ) -> u64 {
     let mut covered = 0;
     for l in lanes {
-        #[cfg(target_arch = "x86_64")]
-        if level.has_avx2() {
-            let b = NarrowBox::of_lane(eight, l, target);
-            if b.group_end() <= target.depth.len() {
-                let color = eight.color(l);
-                let mut t = eight.kernel_target(l, &color, depth_test, target);
-                // SAFETY: AVX2 and FMA support was just checked at run time.
-                covered += unsafe { avx2::shade_narrow_box(&b, &mut t) };
-                continue;
-            }
-        }
-        let (columns, rows) = (eight.columns[l], eight.rows[l]);
-        assert!((1..=NARROW_COLUMNS as i32).contains(&columns) && rows > 0, "not a narrow box");
-        // Integers below 2^53 in `f64`: the conversions back are exact.
-        let lane3 = |v: &[[f64; 8]; 3]| [v[0][l], v[1][l], v[2][l]];
+        let b = NarrowBox::of_lane(eight, l, target);
         let color = eight.color(l);
+        #[cfg(target_arch = "x86_64")]
+        if level.has_avx2() && b.group_end() <= target.depth.len() {
+            let mut t = eight.kernel_target(l, &color, depth_test, target);
+            // SAFETY: AVX2 and FMA support was just checked at run time.
+            covered += unsafe { avx2::shade_narrow_box(&b, &mut t) };
+            continue;
+        }
+        // Integers below 2^53 in `f64`: the conversions back are exact.
         let job = NarrowJob {
-            edges: lane3(&eight.edges).map(|e| e as i64),
-            step_x: lane3(&eight.step_x).map(|e| e as i64),
-            step_y: lane3(&eight.step_y).map(|e| e as i64),
-            bias: [eight.bias[0][l] as i64, eight.bias[1][l] as i64],
-            columns: columns as usize,
-            rows: rows as usize,
-            first: target.index(eight.x0[l], eight.y0[l]),
-            stride: target.stride(),
+            edges: b.edges.map(|e| e as i64),
+            step_x: b.step_x.map(|e| e as i64),
+            step_y: b.step_y.map(|e| e as i64),
+            bias: b.bias.map(|e| e as i64),
+            columns: b.columns,
+            rows: b.rows,
+            first: b.first,
+            stride: b.stride,
             target: eight.kernel_target(l, &color, depth_test, target),
         };
         covered += shade_narrow(level, job);
@@ -1264,7 +1261,8 @@ pub fn small_run_geometry_scalar(
 /// buffers are gathered and scattered: the pixels of one triangle are distinct, and where two
 /// triangles of a group share a pixel the group ends before the later one's (`vpconflictd`),
 /// so each depth test sees every earlier write, as in the reference order. AVX2, without
-/// scatters, tests depth and writes lane by lane in that order.
+/// scatters, tests depth and writes depth, ids and overdraw lane by lane in that order, then
+/// the colours of the lanes that passed, in the same order.
 ///
 /// # Panics
 /// If a covered pixel of a box does not lie in the buffers.
@@ -1285,7 +1283,8 @@ pub fn shade_small_eight(
     }
     #[cfg(target_arch = "x86_64")]
     if level.has_avx2() {
-        // SAFETY: AVX2 and FMA support was just checked at run time.
+        // SAFETY: the AVX2 level's features (AVX2, FMA, POPCNT, BMI1, BMI2) were just checked
+        // at run time.
         return unsafe { avx2::shade_small_eight(eight, shading, lanes, target, depth_test) };
     }
     shade_small_eight_scalar(eight, shading, lanes, target, depth_test)
@@ -3087,8 +3086,9 @@ mod tests {
 
     /// Eight small triangles shaded together at AVX2 and AVX-512 are shaded as one pixel at
     /// a time (`shade_small_eight_scalar`: `KernelTarget::pixel` of each covered pixel, in
-    /// order): runs of random lanes whose boxes (up to 4 or 8 pixels a side) crowd a few pixels (so
-    /// the triangles of a group share pixels, which ends groups early), random colours
+    /// order): runs of random lanes whose boxes (up to 4 or 8 pixels a side) crowd a few
+    /// pixels (so the triangles of a group share pixels, which ends AVX-512's groups early and
+    /// has AVX2's later lane tested against the earlier one's write), random colours
     /// ([`random_perspective`]: affine and divided weights, thirds, constant and weighted
     /// alpha, NaN and infinities), depth planes reaching outside [0, 1], every depth test,
     /// stored depths in [0, 1], with and without id and overdraw buffers, in a band that does
@@ -3181,10 +3181,12 @@ mod tests {
         assert!(covered > 30_000 && shared > 3_000, "{covered} covered, {shared} shared");
     }
 
-    /// A small triangle's box reaching outside the band, above it or below (a caller's
-    /// error: boxes are clipped to it), panics at every level rather than reading or writing
-    /// past the buffers: the AVX-512 kernel checks each group's indices, whatever the box's
-    /// first pixel computes to, before it gathers or scatters (so here nothing is written;
+    /// A small triangle's box reaching outside the band, above it or below, or so far below
+    /// that its pixels' `i32` indices would wrap back into the buffers (a caller's error:
+    /// boxes are clipped to it), panics at every level rather than reading or writing past
+    /// the buffers or elsewhere in them: the SIMD kernels check each box's first pixel
+    /// against the band, the AVX-512 one each group's indices before it gathers or scatters,
+    /// the AVX2 one each pixel as it writes it, colours last (so here no colour is written;
     /// the scalar loop writes the pixels before the first outside).
     #[test]
     fn small_eights_outside_the_buffers_panic() {
@@ -3194,9 +3196,14 @@ mod tests {
         let mut shading = SmallShading::default();
         let depth = PlaneEquation::from_coefficients([0.5, 0.0, 0.0]);
         let color = random_perspective(&mut SmallRng::seed_from_u64(67), 1);
-        for rect in
-            [PixelRect { x0: 0, y0: 3, x1: 0, y1: 4 }, PixelRect { x0: 0, y0: 9, x1: 0, y1: 10 }]
-        {
+        // The third's first pixel lies 2^30 rows below the band: 2^32 pixels, so its index,
+        // computed in `i32`, would wrap back to the band's first pixel.
+        let far = 4 + (1 << 30);
+        for rect in [
+            PixelRect { x0: 0, y0: 3, x1: 0, y1: 4 },
+            PixelRect { x0: 0, y0: 9, x1: 0, y1: 10 },
+            PixelRect { x0: 0, y0: far, x1: 0, y1: far + 1 },
+        ] {
             shading.set(0, &rect, &depth, &color, 1);
             for level in SimdLevel::available() {
                 let mut target = crate::target::Target::new(4, 10).unwrap();
@@ -3206,7 +3213,7 @@ mod tests {
                     shade_small_eight(level, &eight, &shading, 0..1, &mut bands[1], DepthTest::Less)
                 }));
                 assert!(drawn.is_err(), "{level:?}, {rect:?}: drawn");
-                if level == SimdLevel::Avx512 {
+                if level != SimdLevel::Scalar {
                     assert!(target.color == before.color, "{level:?}, {rect:?}: written");
                 }
             }
