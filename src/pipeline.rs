@@ -390,9 +390,8 @@ impl Pipeline {
         // kernels), so AVX-512 only; the small kernel packs eight pixels of any triangles
         // per step at AVX2 too.
         let plain = !want_normal && target.samples().count() == 1;
-        let wide = level == SimdLevel::Avx512 && level.is_available();
-        let kernel = (wide && plain).then_some(level);
         let small = (plain && level >= SimdLevel::Avx2 && level.is_available()).then_some(level);
+        let kernel = small.filter(|&l| l == SimdLevel::Avx512);
         let shade = ShaderStage { shader: fragment_shader, want_normal, kernel, small, level };
         let mut stats = DrawStats { submitted: triangles.len(), ..DrawStats::default() };
         let count = |stats: &mut DrawStats, r: &Result<_, Skipped>| match r {
