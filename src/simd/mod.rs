@@ -974,7 +974,7 @@ fn narrow_eight_jobs(
         #[cfg(target_arch = "x86_64")]
         if level.has_avx2() && b.group_end() <= target.depth.len() {
             let mut t = eight.kernel_target(l, &color, depth_test, target);
-            // SAFETY: AVX2 and FMA support was just checked at run time.
+            // SAFETY: the AVX2 level's features were just checked at run time.
             covered += unsafe { avx2::shade_narrow_box(&b, &mut t) };
             continue;
         }
@@ -1354,7 +1354,7 @@ pub fn shade_narrow(level: SimdLevel, mut job: NarrowJob<'_>) -> u64 {
         SimdLevel::Avx2
             if SimdLevel::Avx2.is_available() && job.group_end() <= job.target.depth.len() =>
         {
-            // SAFETY: AVX2 and FMA support was just checked at run time.
+            // SAFETY: the AVX2 level's features were just checked at run time.
             unsafe { avx2::shade_narrow(&mut job) }
         }
         _ => shade_narrow_scalar(job),
