@@ -934,9 +934,9 @@ fn narrow_eight_below(
 
 /// Shades lanes `lanes` of `eight` (set up by [`narrow_eight`] at `level`, in that order)
 /// into `target` with `depth_test`, as [`shade_narrow`] shades each; returns the number of
-/// covered pixels. At AVX-512 the lanes go through its narrow kernel's loop as they are, at
-/// AVX2 each lane's box is read in place into its kernel, and otherwise each becomes the
-/// [`NarrowJob`] it stands for.
+/// covered pixels. At AVX-512 and AVX2 the lanes go through the level's narrow kernel loop,
+/// read in place (at AVX2, a lane whose last groups would reach past the buffers as below);
+/// below, each becomes the [`NarrowJob`] it stands for.
 ///
 /// # Panics
 /// If `lanes` reaches past 8, a lane's box is not narrow, or the buffers do not hold it.
@@ -953,46 +953,41 @@ pub fn shade_narrow_eight(
         // SAFETY: AVX-512 support was just checked at run time.
         return unsafe { avx512::shade_narrow_eight(eight, lanes, target, depth_test) };
     }
-    narrow_eight_jobs(level, eight, lanes, target, depth_test)
+    #[cfg(target_arch = "x86_64")]
+    if level.has_avx2() {
+        // SAFETY: the AVX2 level's features were just checked at run time.
+        return unsafe { avx2::shade_narrow_eight(eight, lanes, target, depth_test) };
+    }
+    lanes.map(|l| narrow_lane_job(level, eight, l, target, depth_test)).sum()
 }
 
-/// [`shade_narrow_eight`] below AVX-512: at AVX2 each lane's box read in place into its
-/// kernel, else (or where its last groups would reach past the buffers) the [`NarrowJob`] it
-/// stands for through [`shade_narrow`] at `level`. Out of line, as [`narrow_eight_below`].
+/// Lane `l` of `eight` as the [`NarrowJob`] it stands for, through [`shade_narrow`] at
+/// `level`: below AVX2, and at AVX2 where the lane's last groups would reach past the
+/// buffers. Out of line and cold: the AVX2 loop takes it for few lanes.
+#[cold]
 #[inline(never)]
-fn narrow_eight_jobs(
+fn narrow_lane_job(
     level: SimdLevel,
     eight: &NarrowEight,
-    lanes: std::ops::Range<usize>,
+    l: usize,
     target: &mut crate::target::TargetBand<'_>,
     depth_test: DepthTest,
 ) -> u64 {
-    let mut covered = 0;
-    for l in lanes {
-        let b = NarrowBox::of_lane(eight, l, target);
-        let color = eight.color(l);
-        #[cfg(target_arch = "x86_64")]
-        if level.has_avx2() && b.group_end() <= target.depth.len() {
-            let mut t = eight.kernel_target(l, &color, depth_test, target);
-            // SAFETY: the AVX2 level's features were just checked at run time.
-            covered += unsafe { avx2::shade_narrow_box(&b, &mut t) };
-            continue;
-        }
-        // Integers below 2^53 in `f64`: the conversions back are exact.
-        let job = NarrowJob {
-            edges: b.edges.map(|e| e as i64),
-            step_x: b.step_x.map(|e| e as i64),
-            step_y: b.step_y.map(|e| e as i64),
-            bias: b.bias.map(|e| e as i64),
-            columns: b.columns,
-            rows: b.rows,
-            first: b.first,
-            stride: b.stride,
-            target: eight.kernel_target(l, &color, depth_test, target),
-        };
-        covered += shade_narrow(level, job);
-    }
-    covered
+    let b = NarrowBox::of_lane(eight, l, target);
+    let color = eight.color(l);
+    // Integers below 2^53 in `f64`: the conversions back are exact.
+    let job = NarrowJob {
+        edges: b.edges.map(|e| e as i64),
+        step_x: b.step_x.map(|e| e as i64),
+        step_y: b.step_y.map(|e| e as i64),
+        bias: b.bias.map(|e| e as i64),
+        columns: b.columns,
+        rows: b.rows,
+        first: b.first,
+        stride: b.stride,
+        target: eight.kernel_target(l, &color, depth_test, target),
+    };
+    shade_narrow(level, job)
 }
 
 /// Eight small triangles' coverage at once ([`small_eight`]), lane `l` for the `l`-th: the
