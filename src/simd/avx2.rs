@@ -1258,7 +1258,7 @@ pub(super) unsafe fn shade_narrow_eight(
 /// # Safety
 /// The CPU must support AVX2, FMA, POPCNT and BMI1 (the AVX2 level's features).
 #[target_feature(enable = "avx2,fma,popcnt,bmi1")]
-pub(super) unsafe fn shade_narrow_box(b: &NarrowBox, t: &mut KernelTarget<'_>) -> u64 {
+unsafe fn shade_narrow_box(b: &NarrowBox, t: &mut KernelTarget<'_>) -> u64 {
     // SAFETY: the CPU has the AVX2 level's features (this function's contract).
     with_rgba!(*t.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
         narrow_groups(b, t, rgba)
@@ -1279,7 +1279,6 @@ unsafe fn narrow_groups(
     let n = target.checked_len();
     assert!((1..=super::NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "narrow");
     assert!(job.group_end() <= n, "the box's groups must lie in the buffers");
-    let groups = job.columns.div_ceil(4);
     let lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
     // Edge k's offsets from the row's first pixel, for the lanes of groups 0 and 1.
     let offsets = |k: usize, g: usize| {
@@ -1287,8 +1286,6 @@ unsafe fn narrow_groups(
         _mm256_mul_pd(_mm256_add_pd(lanes, _mm256_set1_pd(4.0 * g as f64)), step)
     };
     let offsets: [[__m256d; 2]; 3] = std::array::from_fn(|k| [offsets(k, 0), offsets(k, 1)]);
-    // The box's columns among each group's lanes.
-    let column_bits = [(1u32 << job.columns.min(4)) - 1, (1u32 << (job.columns.max(4) - 4)) - 1];
     let bias = job.bias.map(|b| _mm256_set1_pd(b));
     // Each group's edge values, stepped a row down in their registers (as the AVX-512
     // kernel's `NarrowBox::groups`; integers below 2^53, exact in any order).
@@ -1297,23 +1294,23 @@ unsafe fn narrow_groups(
         offsets[k].map(|o| _mm256_add_pd(edge, o))
     });
     let step_y = job.step_y.map(|s| _mm256_set1_pd(s));
-    let mut covered = 0u64;
-    if groups == 2 {
+    if job.columns > 4 {
         // SAFETY: the CPU has the features (this function's contract); the box's groups
         // lie in the buffers (asserted above).
-        return unsafe { wide_rows(job, target, row, step_y, &rgba) };
+        return unsafe { wide_rows(job, target, (row, bias, step_y), &rgba) };
     }
+    // A box up to four wide: one group a row.
+    let columns = (1u32 << job.columns) - 1;
+    let mut covered = 0u64;
     for r in 0..job.rows {
-        for g in 0..groups {
-            let e: [__m256d; 3] = std::array::from_fn(|k| row[k][g]);
-            let out = _mm256_movemask_pd(_mm256_or_pd(_mm256_or_pd(e[0], e[1]), e[2]));
-            let bits = !(out as u32) & column_bits[g];
-            covered += u64::from(bits.count_ones());
-            let (f1, f2) = (_mm256_sub_pd(e[1], bias[0]), _mm256_sub_pd(e[2], bias[1]));
-            let at = job.first + r * job.stride + 4 * g;
-            // SAFETY: `at + 4 <= group_end() <= n` (asserted above).
-            unsafe { group::<false>(target, at, f1, f2, lane_mask(bits), None, &rgba) };
-        }
+        let e: [__m256d; 3] = std::array::from_fn(|k| row[k][0]);
+        let out = _mm256_movemask_pd(_mm256_or_pd(_mm256_or_pd(e[0], e[1]), e[2]));
+        let bits = !(out as u32) & columns;
+        covered += u64::from(bits.count_ones());
+        let (f1, f2) = (_mm256_sub_pd(e[1], bias[0]), _mm256_sub_pd(e[2], bias[1]));
+        let at = job.first + r * job.stride;
+        // SAFETY: `at + 4 <= group_end() <= n` (asserted above).
+        unsafe { group::<false>(target, at, f1, f2, lane_mask(bits), None, &rgba) };
         row = std::array::from_fn(|k| row[k].map(|e| _mm256_add_pd(e, step_y[k])));
     }
     covered
@@ -1330,6 +1327,9 @@ unsafe fn narrow_groups(
 /// first group before the second reads them (where the two groups overlap, the second
 /// writes back what the first wrote).
 ///
+/// `row` holds each edge's values at the first row's columns 0-3 and 4-7, `bias` and `step_y`
+/// the box's, broadcast.
+///
 /// # Safety
 /// The CPU must support AVX2, FMA, POPCNT and BMI1; the box's two groups per row must lie in
 /// the buffers.
@@ -1338,11 +1338,9 @@ unsafe fn narrow_groups(
 unsafe fn wide_rows(
     job: &NarrowBox,
     target: &mut KernelTarget<'_>,
-    mut row: [[__m256d; 2]; 3],
-    step_y: [__m256d; 3],
+    (mut row, bias, step_y): ([[__m256d; 2]; 3], [__m256d; 2], [__m256d; 3]),
     rgba: &impl Fn(__m256d, __m256d) -> __m128i,
 ) -> u64 {
-    let bias = job.bias.map(|b| _mm256_set1_pd(b));
     let step_x = job.step_x.map(|s| _mm256_set1_pd(s));
     let columns = (1u32 << job.columns) - 1;
     let mut covered = 0u64;
