@@ -963,7 +963,8 @@ pub fn shade_narrow_eight(
 
 /// Lane `l` of `eight` as the [`NarrowJob`] it stands for, through [`shade_narrow`] at
 /// `level`: below AVX2, and at AVX2 where the lane's last groups would reach past the
-/// buffers. Out of line and cold: the AVX2 loop takes it for few lanes.
+/// buffers. Out of line and cold: at AVX2 few lanes take it (below AVX2 every lane does,
+/// on the reference path, which is not timed).
 #[cold]
 #[inline(never)]
 fn narrow_lane_job(
