@@ -1277,7 +1277,7 @@ unsafe fn narrow_groups(
     rgba: impl Fn(__m256d, __m256d) -> __m128i,
 ) -> u64 {
     let n = target.checked_len();
-    assert!((1..=super::NARROW_COLUMNS).contains(&job.columns) && job.rows > 0, "narrow");
+    job.assert_narrow();
     assert!(job.group_end() <= n, "the box's groups must lie in the buffers");
     let lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
     // Edge k's offsets from the row's first pixel, for the lanes of groups 0 and 1.

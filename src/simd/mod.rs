@@ -741,16 +741,21 @@ impl NarrowJob<'_> {
         box_end(self.rows, self.stride, self.first, width)
     }
 
-    /// Panics unless the box is one the narrow kernels take: 1 to [`NARROW_COLUMNS`] columns,
-    /// at least one row.
+    /// Panics unless the box is one the narrow kernels take ([`assert_narrow`]).
     fn assert_narrow(&self) {
-        assert!((1..=NARROW_COLUMNS).contains(&self.columns) && self.rows > 0, "not a narrow box");
+        assert_narrow(self.columns, self.rows);
     }
 
     /// One past the last buffer element a kernel reads in four-pixel groups.
     fn group_end(&self) -> usize {
         self.end(4 * self.columns.div_ceil(4))
     }
+}
+
+/// Panics unless a box of `columns` x `rows` pixels is one the narrow kernels take: 1 to
+/// [`NARROW_COLUMNS`] columns, at least one row.
+fn assert_narrow(columns: usize, rows: usize) {
+    assert!((1..=NARROW_COLUMNS).contains(&columns) && rows > 0, "not a narrow box");
 }
 
 /// A narrow kernel's box and edges, as [`NarrowJob`] holds them, in `f64` (integers below
@@ -802,6 +807,11 @@ impl NarrowBox {
             first: target.index(eight.x0[l], eight.y0[l]),
             stride: target.stride(),
         }
+    }
+
+    /// Panics unless the box is one the narrow kernels take ([`assert_narrow`]).
+    fn assert_narrow(&self) {
+        assert_narrow(self.columns, self.rows);
     }
 
     /// One past the last buffer element a kernel reads in four-pixel groups.
