@@ -397,6 +397,15 @@ impl<'a, S> Sink<'a, S> {
         }
     }
 
+    /// Takes one piece, as `record`, whose coverage rectangle (`self.coverage().of` its
+    /// setup, not empty) the caller computed.
+    #[inline]
+    pub fn push_covered(&mut self, record: S, cover: PixelRect) {
+        self.stats.rasterized += 1;
+        self.covers.push(cover);
+        self.out.push(record);
+    }
+
     /// What the batch is prepared for.
     #[must_use]
     pub fn coverage(&self) -> Coverage {

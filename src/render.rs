@@ -385,11 +385,17 @@ fn set_up_window<C: WindowColor>(
     // Flat and smooth colours eight triangles at a time where there is a kernel for it
     // (the same records; the rest, and perspective colours, one at a time).
     let mut group = simd::WindowGroup::default();
+    let mut records = simd::WindowRecords::default();
     while k + 8 <= range.end && options.shading != Shading::Perspective {
         let Ok(tris) = <&[[Vertex; 3]; 8]>::try_from(&batch[k..k + 8]) else { break };
         sink.prefetch(8, 8);
         if !simd::window_group(level, tris, options.cull, &mut group) {
             break;
+        }
+        let id = (first + k) as i32;
+        if C::push_eight((tris, &group, id), (options.shading, level), &mut records, sink) {
+            k += 8;
+            continue;
         }
         for (l, tri) in tris.iter().enumerate() {
             let (setup, inv_area2) = match group.lane(l) {
@@ -447,6 +453,21 @@ trait WindowColor: Copy + Send + Sync + 'static {
         id: i32,
     ) -> Self::Record;
 
+    /// Pushes the records of window group `group` (triangles `tris`, the first with id
+    /// `first_id`) into `sink`, eight built at once in `scratch`, where a kernel builds them
+    /// at `level` for this colour and the sink's target; false, with nothing pushed, where
+    /// none does.
+    #[inline(always)]
+    fn push_eight(
+        (tris, group, first_id): (&[[Vertex; 3]; 8], &simd::WindowGroup, i32),
+        (shading, level): (Shading, SimdLevel),
+        scratch: &mut simd::WindowRecords,
+        sink: &mut bin::Sink<'_, Self::Record>,
+    ) -> bool {
+        let _ = (tris, group, first_id, shading, level, scratch, sink);
+        false
+    }
+
     /// The colour as a span kernel takes it, if it has one.
     fn kernel(&self) -> Option<&SpanColor>;
 
@@ -498,6 +519,40 @@ impl WindowColor for SpanColor {
         WindowRecord::new(v, &setup, inv_area2, shading != Shading::Flat, id)
     }
 
+    /// At 1x, [`simd::window_records`]: the same records and coverage as [`Self::record`]
+    /// and [`bin::Sink::push_record`] lane by lane.
+    #[inline(always)]
+    fn push_eight(
+        (tris, group, first_id): (&[[Vertex; 3]; 8], &simd::WindowGroup, i32),
+        (shading, level): (Shading, SimdLevel),
+        scratch: &mut simd::WindowRecords,
+        sink: &mut bin::Sink<'_, WindowRecord>,
+    ) -> bool {
+        let coverage = sink.coverage();
+        let smooth = shading != Shading::Flat;
+        if coverage.multisampled
+            || !simd::window_records(
+                level,
+                tris,
+                group,
+                (&coverage.clip, smooth, first_id),
+                scratch,
+            )
+        {
+            return false;
+        }
+        for l in 0..8 {
+            if scratch.kept >> l & 1 != 0 {
+                sink.push_covered(scratch.records[l], scratch.cover(l));
+            } else if scratch.empty >> l & 1 != 0 {
+                sink.skip_many(Skipped::Empty, 1);
+            } else if let Err(why) = group.lane(l) {
+                sink.skip_many(why.into(), 1);
+            }
+        }
+        true
+    }
+
     #[inline(always)]
     fn kernel(&self) -> Option<&SpanColor> {
         Some(self)
@@ -520,7 +575,7 @@ impl WindowColor for SpanColor {
 /// In C layout, as sixteen 32-bit words in this order (`xy` 0-5, `z` 6-8, `colors` 9-11,
 /// `inv_area2` 12-13, `id` 14, `clockwise` and `smooth` the low two bytes of 15):
 /// `simd::narrow_eight` reads eight records as a 16 x 8 matrix of words.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 #[repr(C, align(64))]
 pub struct WindowRecord {
     pub(crate) xy: [[i32; 2]; 3],
@@ -664,6 +719,82 @@ mod tests {
             }
         }
         assert!(checked > 20_000, "{checked} records checked");
+    }
+
+    /// The records a window group builds eight at a time ([`simd::window_records`], from
+    /// AVX2 on) are, lane by lane, the per-triangle front end's: the same record to the bit
+    /// (`WindowRecord::new` from `TriangleSetup::new`), the same coverage rectangle within the
+    /// clip (`bin::coverage_bounds` at 1x), and the same lanes kept, empty or rejected.
+    /// Random triangles of a few pixels to hundreds, both windings, every cull mode, flat and
+    /// smooth, vertices on pixel centres (degenerate and empty boxes), non-finite and out of
+    /// range coordinates, clip rectangles that cut them or miss them.
+    #[test]
+    fn window_groups_build_each_lanes_record() {
+        let mut rng = SmallRng::seed_from_u64(77);
+        let (mut kept, mut empty, mut rejected) = (0, 0, 0);
+        let fields = |r: &WindowRecord| {
+            let z = r.z.map(f32::to_bits);
+            (r.xy, z, r.colors, r.inv_area2.to_bits(), r.id, r.clockwise, r.smooth, r.pad)
+        };
+        for round in 0..8_000 {
+            let spread = [2.0, 6.0, 40.0, 400.0][round % 4];
+            let centre = [rng.random_range(-50.0..250.0), rng.random_range(-50.0..250.0)];
+            let vertex = |rng: &mut SmallRng| {
+                let mut c = |k: usize| match rng.random_range(0..120) {
+                    0 => f32::NAN,
+                    1 => f32::INFINITY,
+                    2 => 40_000.0,
+                    3..=12 => rng.random_range(0..8) as f32 + 0.5,
+                    _ => centre[k] + rng.random_range(-spread..spread),
+                };
+                let (x, y) = (c(0), c(1));
+                let z = if rng.random_range(0..30) == 0 { f32::NAN } else { rng.random() };
+                Vertex::new(x, y, z, [rng.random(), rng.random(), rng.random(), rng.random()])
+            };
+            let tris: [[Vertex; 3]; 8] =
+                std::array::from_fn(|_| [vertex(&mut rng), vertex(&mut rng), vertex(&mut rng)]);
+            let cull = [CullMode::None, CullMode::Clockwise, CullMode::CounterClockwise][round % 3];
+            let x0 = rng.random_range(-20..120);
+            let y0 = rng.random_range(-20..120);
+            let clip = PixelRect {
+                x0,
+                y0,
+                x1: x0 + rng.random_range(0..200),
+                y1: y0 + rng.random_range(0..200),
+            };
+            let smooth = rng.random();
+            let first_id = rng.random_range(0..1 << 20);
+            for level in [SimdLevel::Avx2, SimdLevel::Avx512] {
+                if !level.is_available() {
+                    continue;
+                }
+                let mut group = simd::WindowGroup::default();
+                assert!(simd::window_group(level, &tris, cull, &mut group));
+                let mut out = simd::WindowRecords::default();
+                let args = (&clip, smooth, first_id);
+                assert!(simd::window_records(level, &tris, &group, args, &mut out));
+                for (l, v) in tris.iter().enumerate() {
+                    let bit = 1u8 << l;
+                    let Ok(setup) = TriangleSetup::new(v, cull) else {
+                        assert_eq!((out.kept | out.empty) & bit, 0, "round {round}, lane {l}");
+                        rejected += 1;
+                        continue;
+                    };
+                    let Some(cover) = bin::coverage_bounds(&setup, false, &clip) else {
+                        assert_eq!((out.kept & bit, out.empty & bit), (0, bit), "lane {l}");
+                        empty += 1;
+                        continue;
+                    };
+                    assert_eq!((out.kept & bit, out.empty & bit), (bit, 0), "lane {l}");
+                    assert_eq!(out.cover(l), cover, "round {round}, lane {l}");
+                    let id = first_id + l as i32;
+                    let want = WindowRecord::new(v, &setup, 1.0 / setup.area2 as f64, smooth, id);
+                    assert_eq!(fields(&out.records[l]), fields(&want), "round {round}, lane {l}");
+                    kept += 1;
+                }
+            }
+        }
+        assert!(kept > 8_000 && empty > 2_000 && rejected > 2_000, "{kept} {empty} {rejected}");
     }
 
     /// Eight window records set up at once for the narrow kernel (AVX-512 and AVX2) are, lane

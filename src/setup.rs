@@ -13,6 +13,7 @@ use crate::sample::SampleCount;
 /// y down), `z` in [0, 1], and `inv_w = 1/w` for perspective-correct varyings (1 when the
 /// vertex did not come through a projection).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Vertex {
     /// Horizontal window coordinate, pixels.
     pub x: f32,
@@ -25,6 +26,14 @@ pub struct Vertex {
     /// Vertex colour, RGBA8.
     pub color: [u8; 4],
 }
+
+// The layout the SIMD front end reads (`simd::window_records`: bytes 4 to 20 as `y`, `z`,
+// `inv_w` and `color`).
+const _: () = {
+    use std::mem::offset_of;
+    assert!(size_of::<Vertex>() == 20 && offset_of!(Vertex, y) == 4 && offset_of!(Vertex, z) == 8);
+    assert!(offset_of!(Vertex, inv_w) == 12 && offset_of!(Vertex, color) == 16);
+};
 
 impl Vertex {
     /// A vertex with `inv_w = 1` (no perspective).

@@ -1747,6 +1747,103 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
     }
 }
 
+/// [`super::window_records`] in AVX2: the record's sixteen words as eight lanes each (the
+/// group's rows loaded in the halves of four they were stored in, so that each load takes one
+/// store's bytes; each vertex's depth and colour from its last sixteen bytes, four triangles'
+/// transposed per half), then transposed into whole records ([`transpose8`], its own
+/// inverse) and stored as two aligned 32-byte halves each.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn window_records(
+    tris: &[[Vertex; 3]; 8],
+    group: &super::WindowGroup,
+    (clip, smooth, first_id): (&PixelRect, bool, i32),
+    out: &mut super::WindowRecords,
+) {
+    // SAFETY: eight `i32`s, stored by `window_group` as two halves of sixteen bytes; the
+    // loads need no alignment.
+    let row =
+        |r: &[i32; 8]| unsafe { _mm256_loadu2_m128i(r.as_ptr().add(4).cast(), r.as_ptr().cast()) };
+    // `[y, z, inv_w, color]` of vertex `v` of triangles `k` and `k + 4`, one per half.
+    let tail = |k: usize, v: usize| {
+        let at = |t: usize| {
+            let p = std::ptr::from_ref(&tris[t][v]).cast::<u8>();
+            // SAFETY: bytes 4 to 20 of a 20-byte `repr(C)` vertex (its layout is asserted
+            // beside it): `y`, `z`, `inv_w` and `color`.
+            unsafe { p.add(4).cast::<__m128i>() }
+        };
+        // SAFETY: two reads of sixteen bytes of a vertex (above); no alignment needed.
+        unsafe { _mm256_loadu2_m128i(at(k + 4), at(k)) }
+    };
+    let zero = _mm256_setzero_si256();
+    let (mut z, mut color) = ([zero; 3], [zero; 3]);
+    for v in 0..3 {
+        let r = [tail(0, v), tail(1, v), tail(2, v), tail(3, v)];
+        // Per half: `[y_a y_b z_a z_b]` and `[w_a w_b c_a c_b]` of two triangles, then the
+        // depths and colours of four side by side.
+        let (yz01, wc01) = (_mm256_unpacklo_epi32(r[0], r[1]), _mm256_unpackhi_epi32(r[0], r[1]));
+        let (yz23, wc23) = (_mm256_unpacklo_epi32(r[2], r[3]), _mm256_unpackhi_epi32(r[2], r[3]));
+        z[v] = _mm256_unpackhi_epi64(yz01, yz23);
+        color[v] = _mm256_unpackhi_epi64(wc01, wc23);
+    }
+    // `1 / area2`: its low and high words, each lane's.
+    let (lo, hi) = {
+        let p = group.inv_area2.as_ptr();
+        // SAFETY: eight `f64`s, 64 bytes, in two loads of 32 (as they were stored); no
+        // alignment needed.
+        let (a, b) = unsafe { (_mm256_loadu_si256(p.cast()), _mm256_loadu_si256(p.add(4).cast())) };
+        let split = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+        let (a, b) = (_mm256_permutevar8x32_epi32(a, split), _mm256_permutevar8x32_epi32(b, split));
+        (_mm256_permute2x128_si256::<0x20>(a, b), _mm256_permute2x128_si256::<0x31>(a, b))
+    };
+    let lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    let id = _mm256_add_epi32(_mm256_set1_epi32(first_id), lanes);
+    // `clockwise` (0 or 1) in the low byte, `smooth` in the next, the padding zero.
+    let bit = _mm256_sllv_epi32(_mm256_set1_epi32(1), lanes);
+    let cw = _mm256_and_si256(_mm256_set1_epi32(i32::from(group.clockwise)), bit);
+    let cw = _mm256_srlv_epi32(cw, lanes);
+    let flags = _mm256_or_si256(cw, _mm256_set1_epi32(i32::from(smooth) << 8));
+    let (x, y) = (group.x.each_ref().map(row), group.y.each_ref().map(row));
+    let words = [
+        [x[0], y[0], x[1], y[1], x[2], y[2], z[0], z[1]],
+        [z[2], color[0], color[1], color[2], lo, hi, id, flags],
+    ];
+    let halves = words.map(|w| transpose8(&w));
+    for (l, record) in out.records.iter_mut().enumerate() {
+        let p = std::ptr::from_mut(record).cast::<__m256i>();
+        // SAFETY: a record is 64 bytes aligned to 64 (`repr(C, align(64))`, its layout
+        // asserted beside it): two aligned 32-byte stores fill it. Every byte written is
+        // valid for its field: the `bool`s are 0 or 1, the padding zero.
+        unsafe {
+            _mm256_store_si256(p, halves[0][l]);
+            _mm256_store_si256(p.add(1), halves[1][l]);
+        }
+    }
+    // Coverage at 1x: the box within the clip (`PixelRect::intersect`).
+    let b = group.bounds.each_ref().map(row);
+    let cover = [
+        _mm256_max_epi32(b[0], _mm256_set1_epi32(clip.x0)),
+        _mm256_max_epi32(b[1], _mm256_set1_epi32(clip.y0)),
+        _mm256_min_epi32(b[2], _mm256_set1_epi32(clip.x1)),
+        _mm256_min_epi32(b[3], _mm256_set1_epi32(clip.y1)),
+    ];
+    for (dst, v) in out.cover.iter_mut().zip(cover) {
+        // SAFETY: eight `i32`s, 32 bytes; the store needs no alignment.
+        unsafe { _mm256_storeu_si256(dst.as_mut_ptr().cast(), v) };
+    }
+    let empty = _mm256_or_si256(
+        _mm256_cmpgt_epi32(cover[0], cover[2]),
+        _mm256_cmpgt_epi32(cover[1], cover[3]),
+    );
+    let empty = bits_of(empty);
+    let set_up =
+        group.rejected.iter().enumerate().fold(0u8, |m, (l, r)| m | u8::from(r.is_none()) << l);
+    out.kept = set_up & !empty;
+    out.empty = set_up & empty;
+}
+
 /// Words `0..8` of eight rows (`r[l]` the row of record `l`) as eight registers, register
 /// `i` word `i` of every row: an 8 x 8 transpose of 32-bit words.
 #[inline]

@@ -26,6 +26,7 @@ use glam::Vec4;
 use crate::clip::ClipVolume;
 use crate::fixed;
 use crate::pipeline::Viewport;
+use crate::render::WindowRecord;
 use crate::sample::{MAX_SAMPLES, SampleCount};
 use crate::setup::{self, CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
 use crate::shade::{DepthTest, PlaneEquation, quantize_channel};
@@ -1547,6 +1548,56 @@ impl WindowGroup {
         };
         Ok((setup, self.inv_area2[k]))
     }
+}
+
+/// Eight window triangles' records and coverage rectangles at 1x, as the per-triangle front
+/// end makes them from a [`WindowGroup`] lane by lane (`WindowRecord`'s constructor and
+/// [`crate::bin::coverage_bounds`]); built by [`window_records`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct WindowRecords {
+    /// Lane `l`'s record (meaningful for the lanes of `kept`).
+    pub records: [WindowRecord; 8],
+    /// The coverage rectangles, `[x0, y0, x1, y1][lane]`.
+    cover: [[i32; 8]; 4],
+    /// Lanes set up whose rectangle holds a pixel centre of the clip.
+    pub kept: u8,
+    /// Lanes set up whose rectangle holds none.
+    pub empty: u8,
+}
+
+impl WindowRecords {
+    /// Lane `l`'s coverage rectangle (meaningful for the lanes of `kept`).
+    #[inline(always)]
+    #[must_use]
+    pub fn cover(&self, l: usize) -> PixelRect {
+        let c = &self.cover;
+        PixelRect { x0: c[0][l], y0: c[1][l], x1: c[2][l], y1: c[3][l] }
+    }
+}
+
+/// The records of window group `group` (triangles `tris`, the first with id `first_id`, drawn
+/// with smooth colour when `smooth`) and their coverage within `clip` on a 1x target, into
+/// `out`: at AVX2 and AVX-512, eight records built in registers (the group's integers and
+/// each vertex's depth and colour transposed into whole records, written as two 32-byte
+/// stores each). False at the scalar level, where the front end builds them one by one.
+/// Why: one by one, each record took sixteen scalar stores into a cache line the buffer had
+/// not yet brought in, and building them was the largest part of the window front end.
+#[inline]
+pub fn window_records(
+    level: SimdLevel,
+    tris: &[[Vertex; 3]; 8],
+    group: &WindowGroup,
+    (clip, smooth, first_id): (&PixelRect, bool, i32),
+    out: &mut WindowRecords,
+) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if level.has_avx2() {
+        // SAFETY: AVX2 support was just checked at run time.
+        unsafe { avx2::window_records(tris, group, (clip, smooth, first_id), out) };
+        return true;
+    }
+    let _ = (level, tris, group, clip, smooth, first_id, out);
+    false
 }
 
 /// Why a triangle was not set up, from the window groups' tests, in the per-triangle front
