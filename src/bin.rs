@@ -709,6 +709,12 @@ impl Bins {
                 let mut lists = vec![Vec::new(); tiles];
                 for (index, r) in group(g) {
                     let Some(r) = r.and_then(|r| r.intersect(&grid.screen)) else { continue };
+                    // Most small triangles lie in one tile.
+                    let (first, last) = grid.first_and_last(&r);
+                    if first == last {
+                        lists[first as usize].push(index);
+                        continue;
+                    }
                     let spans_many = grid.tiles_over(&r) > TRIVIAL_REJECT_TILES;
                     match spans_many.then(|| reject(index)).flatten() {
                         None => grid.each_tile(&r, |t| lists[t as usize].push(index)),
