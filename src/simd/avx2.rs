@@ -1661,20 +1661,28 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
     let mut flags = [[false; 4]; 8];
     for half in 0..2 {
         let four = &tris[4 * half..4 * half + 4];
-        let lanes = |f: &dyn Fn(&[Vertex; 3]) -> f32| {
-            _mm256_cvtps_pd(_mm_setr_ps(f(&four[0]), f(&four[1]), f(&four[2]), f(&four[3])))
-        };
         let zero = _mm256_setzero_pd();
         let mut finite = _mm256_castsi256_pd(_mm256_set1_epi64x(-1));
         let mut in_range = finite;
         let (mut xs, mut ys) = ([zero; 3], [zero; 3]);
         for v in 0..3 {
+            // `[x, y, z, inv_w]` of vertex `v` of each of the four triangles, transposed into
+            // a register per field.
+            let head = |t: usize| {
+                // SAFETY: the first sixteen bytes of a 20-byte `repr(C)` vertex, its four
+                // `f32`s (its layout is asserted beside it); no alignment needed.
+                unsafe { _mm_loadu_ps(std::ptr::from_ref(&four[t][v]).cast::<f32>()) }
+            };
+            let (r0, r1, r2, r3) = (head(0), head(1), head(2), head(3));
+            let (xy01, zw01) = (_mm_unpacklo_ps(r0, r1), _mm_unpackhi_ps(r0, r1));
+            let (xy23, zw23) = (_mm_unpacklo_ps(r2, r3), _mm_unpackhi_ps(r2, r3));
             let [x, y, z, w] = [
-                lanes(&|t| t[v].x),
-                lanes(&|t| t[v].y),
-                lanes(&|t| t[v].z),
-                lanes(&|t| t[v].inv_w),
-            ];
+                _mm_movelh_ps(xy01, xy23),
+                _mm_movehl_ps(xy23, xy01),
+                _mm_movelh_ps(zw01, zw23),
+                _mm_movehl_ps(zw23, zw01),
+            ]
+            .map(|f| _mm256_cvtps_pd(f));
             // Finite iff `v - v` is 0 (NaN for NaN and infinities; exact in `f64`).
             for f in [x, y, z, w] {
                 finite =
