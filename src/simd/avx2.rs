@@ -1658,7 +1658,8 @@ fn exact_i64(v: __m256d) -> __m256i {
 #[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: &mut WindowGroup) {
     let mut clockwise = 0u8;
-    let mut flags = [[false; 4]; 8];
+    // Per test, a bit per lane: finite, in range, degenerate, culled.
+    let mut flags = [0u8; 4];
     for half in 0..2 {
         let four = &tris[4 * half..4 * half + 4];
         let zero = _mm256_setzero_pd();
@@ -1744,14 +1745,20 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
         }
         let bits = |m: __m256d| _mm256_movemask_pd(m) as u8;
         clockwise |= bits(cw) << at;
-        for k in 0..4 {
-            let bit = |m: __m256d| bits(m) >> k & 1 != 0;
-            flags[at + k] = [bit(finite), bit(in_range), bit(degenerate), bit(culled)];
+        for (flag, m) in flags.iter_mut().zip([finite, in_range, degenerate, culled]) {
+            *flag |= bits(m) << at;
         }
     }
     out.clockwise = clockwise;
-    for (rejected, [finite, in_range, degenerate, culled]) in out.rejected.iter_mut().zip(flags) {
-        *rejected = super::rejection(finite, in_range, degenerate, culled);
+    let [finite, in_range, degenerate, culled] = flags;
+    if finite & in_range & !degenerate & !culled == u8::MAX {
+        // Every lane set up (the usual group): no reasons to find.
+        out.rejected = [None; 8];
+        return;
+    }
+    for (l, rejected) in out.rejected.iter_mut().enumerate() {
+        let bit = |m: u8| m >> l & 1 != 0;
+        *rejected = super::rejection(bit(finite), bit(in_range), bit(degenerate), bit(culled));
     }
 }
 
