@@ -388,11 +388,7 @@ impl<'a, S> Sink<'a, S> {
     #[inline]
     pub fn push_record(&mut self, setup: &TriangleSetup, record: S) {
         match self.coverage.of(setup) {
-            Some(r) => {
-                self.stats.rasterized += 1;
-                self.covers.push(r);
-                self.out.push(record);
-            }
+            Some(r) => self.push_covered(record, r),
             None => self.stats.skip(Skipped::Empty),
         }
     }
@@ -400,7 +396,8 @@ impl<'a, S> Sink<'a, S> {
     /// Takes one piece, as `record`, whose coverage rectangle (`self.coverage().of` its
     /// setup, not empty) the caller computed.
     #[inline]
-    pub fn push_covered(&mut self, record: S, cover: PixelRect) {
+    pub(crate) fn push_covered(&mut self, record: S, cover: PixelRect) {
+        debug_assert!(cover.x0 <= cover.x1 && cover.y0 <= cover.y1, "an empty rectangle");
         self.stats.rasterized += 1;
         self.covers.push(cover);
         self.out.push(record);

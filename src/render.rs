@@ -453,10 +453,11 @@ trait WindowColor: Copy + Send + Sync + 'static {
         id: i32,
     ) -> Self::Record;
 
-    /// Pushes the records of window group `group` (triangles `tris`, the first with id
-    /// `first_id`) into `sink`, eight built at once in `scratch`, where a kernel builds them
-    /// at `level` for this colour and the sink's target; false, with nothing pushed, where
-    /// none does.
+    /// Gives window group `group` (triangles `tris`, the first with id `first_id`) to `sink`
+    /// as the lane-by-lane path would, its records built eight at once in `scratch`, where a
+    /// kernel builds them at `level` for this colour and the sink's target: the records of
+    /// the lanes that cover a pixel, and the counts of the others (rejected or empty). False,
+    /// with nothing given, where no kernel does.
     #[inline(always)]
     fn push_eight(
         (tris, group, first_id): (&[[Vertex; 3]; 8], &simd::WindowGroup, i32),
@@ -541,13 +542,11 @@ impl WindowColor for SpanColor {
         {
             return false;
         }
-        for l in 0..8 {
-            if scratch.kept >> l & 1 != 0 {
-                sink.push_covered(scratch.records[l], scratch.cover(l));
-            } else if scratch.empty >> l & 1 != 0 {
-                sink.skip_many(Skipped::Empty, 1);
-            } else if let Err(why) = group.lane(l) {
-                sink.skip_many(why.into(), 1);
+        for (l, rejected) in group.rejected.into_iter().enumerate() {
+            match rejected {
+                Some(why) => sink.skip_many(why.into(), 1),
+                None if scratch.empty >> l & 1 != 0 => sink.skip_many(Skipped::Empty, 1),
+                None => sink.push_covered(scratch.records[l], scratch.cover(l)),
             }
         }
         true
@@ -732,6 +731,9 @@ mod tests {
     fn window_groups_build_each_lanes_record() {
         let mut rng = SmallRng::seed_from_u64(77);
         let (mut kept, mut empty, mut rejected) = (0, 0, 0);
+        // One for every round, as the front end keeps one: a lane left as an earlier round
+        // wrote it would show.
+        let mut out = simd::WindowRecords::default();
         let fields = |r: &WindowRecord| {
             let z = r.z.map(f32::to_bits);
             (r.xy, z, r.colors, r.inv_area2.to_bits(), r.id, r.clockwise, r.smooth, r.pad)
@@ -770,22 +772,22 @@ mod tests {
                 }
                 let mut group = simd::WindowGroup::default();
                 assert!(simd::window_group(level, &tris, cull, &mut group));
-                let mut out = simd::WindowRecords::default();
                 let args = (&clip, smooth, first_id);
                 assert!(simd::window_records(level, &tris, &group, args, &mut out));
                 for (l, v) in tris.iter().enumerate() {
                     let bit = 1u8 << l;
                     let Ok(setup) = TriangleSetup::new(v, cull) else {
-                        assert_eq!((out.kept | out.empty) & bit, 0, "round {round}, lane {l}");
+                        assert!(group.rejected[l].is_some(), "round {round}, lane {l}");
                         rejected += 1;
                         continue;
                     };
+                    assert!(group.rejected[l].is_none(), "round {round}, lane {l}");
                     let Some(cover) = bin::coverage_bounds(&setup, false, &clip) else {
-                        assert_eq!((out.kept & bit, out.empty & bit), (0, bit), "lane {l}");
+                        assert_eq!(out.empty & bit, bit, "round {round}, lane {l}");
                         empty += 1;
                         continue;
                     };
-                    assert_eq!((out.kept & bit, out.empty & bit), (bit, 0), "lane {l}");
+                    assert_eq!(out.empty & bit, 0, "round {round}, lane {l}");
                     assert_eq!(out.cover(l), cover, "round {round}, lane {l}");
                     let id = first_id + l as i32;
                     let want = WindowRecord::new(v, &setup, 1.0 / setup.area2 as f64, smooth, id);
@@ -794,7 +796,9 @@ mod tests {
                 }
             }
         }
-        assert!(kept > 8_000 && empty > 2_000 && rejected > 2_000, "{kept} {empty} {rejected}");
+        if SimdLevel::Avx2.is_available() {
+            assert!(kept > 8_000 && empty > 2_000 && rejected > 2_000, "{kept} {empty} {rejected}");
+        }
     }
 
     /// Eight window records set up at once for the narrow kernel (AVX-512 and AVX2) are, lane

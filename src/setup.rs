@@ -27,8 +27,8 @@ pub struct Vertex {
     pub color: [u8; 4],
 }
 
-// The layout the SIMD front end reads (`simd::window_records`: bytes 4 to 20 as `y`, `z`,
-// `inv_w` and `color`).
+// The layout the SIMD front end reads: `simd::avx2::window_group` bytes 0 to 16 (`x`, `y`,
+// `z`, `inv_w`), `simd::avx2::window_records` bytes 4 to 20 (`y`, `z`, `inv_w`, `color`).
 const _: () = {
     use std::mem::offset_of;
     assert!(size_of::<Vertex>() == 20 && offset_of!(Vertex, y) == 4 && offset_of!(Vertex, z) == 8);

@@ -60,30 +60,42 @@ fn assert_tiled_matches_reference(
 
 /// Random window-space scenes: small and large triangles, some far off screen, overlapping at
 /// random depths (so the depth test and submission order matter), some exactly equal depths,
-/// half of them opaque.
+/// half of them opaque, one in forty with a non-finite coordinate (rejected, and counted).
 fn scene(rng: &mut SmallRng, n: usize, w: f32, h: f32) -> Vec<[Vertex; 3]> {
     (0..n)
         .map(|_| {
-            let size = match rng.random_range(0..10) {
-                0 => 3000.0,
-                1..=3 => 200.0,
-                _ => 12.0,
-            };
-            let (cx, cy) = (rng.random_range(-20.0..w + 20.0), rng.random_range(-20.0..h + 20.0));
-            let flat_z = rng.random_range(0..4) == 0;
-            let z0 = rng.random_range(0.0..1.0);
-            // Half of them opaque: one alpha at every vertex takes the kernels' three-plane
-            // colour without clamps.
-            let alpha = rng.random::<bool>().then_some(255);
-            std::array::from_fn(|_| Vertex {
-                x: cx + rng.random_range(-size..size),
-                y: cy + rng.random_range(-size..size),
-                z: if flat_z { z0 } else { rng.random_range(0.0..1.0) },
-                inv_w: rng.random_range(0.2..3.0),
-                color: [rng.random(), rng.random(), rng.random(), alpha.unwrap_or(rng.random())],
-            })
+            let broken = rng.random_range(0..40) == 0;
+            let mut tri = scene_triangle(rng, w, h);
+            if broken {
+                let bad = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY][rng.random_range(0..3)];
+                let v = &mut tri[rng.random_range(0..3)];
+                *[&mut v.x, &mut v.y, &mut v.z, &mut v.inv_w][rng.random_range(0..4)] = bad;
+            }
+            tri
         })
         .collect()
+}
+
+/// One triangle of [`scene`], finite.
+fn scene_triangle(rng: &mut SmallRng, w: f32, h: f32) -> [Vertex; 3] {
+    let size = match rng.random_range(0..10) {
+        0 => 3000.0,
+        1..=3 => 200.0,
+        _ => 12.0,
+    };
+    let (cx, cy) = (rng.random_range(-20.0..w + 20.0), rng.random_range(-20.0..h + 20.0));
+    let flat_z = rng.random_range(0..4) == 0;
+    let z0 = rng.random_range(0.0..1.0);
+    // Half of them opaque: one alpha at every vertex takes the kernels' three-plane
+    // colour without clamps.
+    let alpha = rng.random::<bool>().then_some(255);
+    std::array::from_fn(|_| Vertex {
+        x: cx + rng.random_range(-size..size),
+        y: cy + rng.random_range(-size..size),
+        z: if flat_z { z0 } else { rng.random_range(0.0..1.0) },
+        inv_w: rng.random_range(0.2..3.0),
+        color: [rng.random(), rng.random(), rng.random(), alpha.unwrap_or(rng.random())],
+    })
 }
 
 #[test]

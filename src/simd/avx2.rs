@@ -1750,16 +1750,7 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
         }
     }
     out.clockwise = clockwise;
-    let [finite, in_range, degenerate, culled] = flags;
-    if finite & in_range & !degenerate & !culled == u8::MAX {
-        // Every lane set up (the usual group): no reasons to find.
-        out.rejected = [None; 8];
-        return;
-    }
-    for (l, rejected) in out.rejected.iter_mut().enumerate() {
-        let bit = |m: u8| m >> l & 1 != 0;
-        *rejected = super::rejection(bit(finite), bit(in_range), bit(degenerate), bit(culled));
-    }
+    out.rejected = super::rejections(flags);
 }
 
 /// [`super::window_records`] in AVX2: the record's sixteen words as eight lanes each (the
@@ -1777,8 +1768,9 @@ pub(super) unsafe fn window_records(
     (clip, smooth, first_id): (&PixelRect, bool, i32),
     out: &mut super::WindowRecords,
 ) {
-    // SAFETY: eight `i32`s, stored by `window_group` as two halves of sixteen bytes; the
-    // loads need no alignment.
+    // Loaded in the halves of four that AVX2's `window_group` stores (a load within one
+    // store takes its bytes from it; AVX-512's stores each row whole, which contains both).
+    // SAFETY: eight `i32`s, two loads of sixteen bytes within them; no alignment needed.
     let row =
         |r: &[i32; 8]| unsafe { _mm256_loadu2_m128i(r.as_ptr().add(4).cast(), r.as_ptr().cast()) };
     // `[y, z, inv_w, color]` of vertex `v` of triangles `k` and `k + 4`, one per half.
@@ -1806,8 +1798,7 @@ pub(super) unsafe fn window_records(
     // `1 / area2`: its low and high words, each lane's.
     let (lo, hi) = {
         let p = group.inv_area2.as_ptr();
-        // SAFETY: eight `f64`s, 64 bytes, in two loads of 32 (as they were stored); no
-        // alignment needed.
+        // SAFETY: eight `f64`s, 64 bytes, in two loads of 32; no alignment needed.
         let (a, b) = unsafe { (_mm256_loadu_si256(p.cast()), _mm256_loadu_si256(p.add(4).cast())) };
         let split = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
         let (a, b) = (_mm256_permutevar8x32_epi32(a, split), _mm256_permutevar8x32_epi32(b, split));
@@ -1816,9 +1807,8 @@ pub(super) unsafe fn window_records(
     let lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     let id = _mm256_add_epi32(_mm256_set1_epi32(first_id), lanes);
     // `clockwise` (0 or 1) in the low byte, `smooth` in the next, the padding zero.
-    let bit = _mm256_sllv_epi32(_mm256_set1_epi32(1), lanes);
-    let cw = _mm256_and_si256(_mm256_set1_epi32(i32::from(group.clockwise)), bit);
-    let cw = _mm256_srlv_epi32(cw, lanes);
+    let cw = _mm256_srlv_epi32(_mm256_set1_epi32(i32::from(group.clockwise)), lanes);
+    let cw = _mm256_and_si256(cw, _mm256_set1_epi32(1));
     let flags = _mm256_or_si256(cw, _mm256_set1_epi32(i32::from(smooth) << 8));
     let (x, y) = (group.x.each_ref().map(row), group.y.each_ref().map(row));
     let words = [
@@ -1852,11 +1842,7 @@ pub(super) unsafe fn window_records(
         _mm256_cmpgt_epi32(cover[0], cover[2]),
         _mm256_cmpgt_epi32(cover[1], cover[3]),
     );
-    let empty = bits_of(empty);
-    let set_up =
-        group.rejected.iter().enumerate().fold(0u8, |m, (l, r)| m | u8::from(r.is_none()) << l);
-    out.kept = set_up & !empty;
-    out.empty = set_up & empty;
+    out.empty = bits_of(empty);
 }
 
 /// Words `0..8` of eight rows (`r[l]` the row of record `l`) as eight registers, register

@@ -1045,10 +1045,7 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
         _mm512_storeu_pd(out.inv_area2.as_mut_ptr(), inv_area2);
     }
     out.clockwise = clockwise;
-    for (k, rejected) in out.rejected.iter_mut().enumerate() {
-        let bit = |m: __mmask8| m >> k & 1 != 0;
-        *rejected = super::rejection(bit(finite), bit(in_range), bit(degenerate), bit(culled));
-    }
+    out.rejected = super::rejections([finite, in_range, degenerate, culled]);
 }
 
 /// [`super::shade_small_eight`] in AVX-512. The covered pixels of the lanes are listed in

@@ -913,7 +913,7 @@ impl NarrowEight {
 #[inline]
 pub fn narrow_eight(
     level: SimdLevel,
-    records: &[&crate::render::WindowRecord; 8],
+    records: &[&WindowRecord; 8],
     tile: &PixelRect,
     out: &mut NarrowEight,
 ) -> u8 {
@@ -930,7 +930,7 @@ pub fn narrow_eight(
 #[inline(never)]
 fn narrow_eight_below(
     level: SimdLevel,
-    records: &[&crate::render::WindowRecord; 8],
+    records: &[&WindowRecord; 8],
     tile: &PixelRect,
     out: &mut NarrowEight,
 ) -> u8 {
@@ -1550,23 +1550,22 @@ impl WindowGroup {
     }
 }
 
-/// Eight window triangles' records and coverage rectangles at 1x, as the per-triangle front
-/// end makes them from a [`WindowGroup`] lane by lane (`WindowRecord`'s constructor and
-/// [`crate::bin::coverage_bounds`]); built by [`window_records`].
+/// Eight window triangles' records and coverage rectangles at 1x, as the lane-by-lane path
+/// makes them from a [`WindowGroup`] (`WindowRecord`'s constructor from
+/// [`WindowGroup::lane`], and [`crate::bin::coverage_bounds`]); built by [`window_records`].
+/// Only the lanes the group set up mean anything.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct WindowRecords {
-    /// Lane `l`'s record (meaningful for the lanes of `kept`).
+    /// Lane `l`'s record.
     pub records: [WindowRecord; 8],
     /// The coverage rectangles, `[x0, y0, x1, y1][lane]`.
     cover: [[i32; 8]; 4],
-    /// Lanes set up whose rectangle holds a pixel centre of the clip.
-    pub kept: u8,
-    /// Lanes set up whose rectangle holds none.
+    /// Lanes whose rectangle holds no pixel of the clip (bit `l` for lane `l`).
     pub empty: u8,
 }
 
 impl WindowRecords {
-    /// Lane `l`'s coverage rectangle (meaningful for the lanes of `kept`).
+    /// Lane `l`'s coverage rectangle (meaningful where it is not `empty`).
     #[inline(always)]
     #[must_use]
     pub fn cover(&self, l: usize) -> PixelRect {
@@ -1577,11 +1576,13 @@ impl WindowRecords {
 
 /// The records of window group `group` (triangles `tris`, the first with id `first_id`, drawn
 /// with smooth colour when `smooth`) and their coverage within `clip` on a 1x target, into
-/// `out`: at AVX2 and AVX-512, eight records built in registers (the group's integers and
-/// each vertex's depth and colour transposed into whole records, written as two 32-byte
-/// stores each). False at the scalar level, where the front end builds them one by one.
-/// Why: one by one, each record took sixteen scalar stores into a cache line the buffer had
-/// not yet brought in, and building them was the largest part of the window front end.
+/// `out`: at AVX2 and AVX-512 (the AVX2 kernel at both; only measured at AVX2), eight
+/// records built in registers (the group's integers and each vertex's depth and colour
+/// transposed into whole records, written as two 32-byte stores each; the caller copies each
+/// kept one into the batch whole). False at the scalar level, where the front end builds them
+/// one by one. Why: one by one, each record had been written field by field, sixteen scalar
+/// stores into a cache line the batch's buffer had not yet brought in, behind a
+/// `TriangleSetup` rebuilt per lane; that was the largest part of the window front end.
 #[inline]
 pub fn window_records(
     level: SimdLevel,
@@ -1598,6 +1599,19 @@ pub fn window_records(
     }
     let _ = (level, tris, group, clip, smooth, first_id, out);
     false
+}
+
+/// Each lane's [`rejection`] from the window groups' four tests as bit masks (bit `l` for
+/// lane `l`): finite, in range, degenerate, culled. A group whose lanes are all set up (the
+/// usual one) skips the per-lane reasons.
+fn rejections([finite, in_range, degenerate, culled]: [u8; 4]) -> [Option<Rejection>; 8] {
+    if finite & in_range & !degenerate & !culled == u8::MAX {
+        return [None; 8];
+    }
+    std::array::from_fn(|l| {
+        let bit = |m: u8| m >> l & 1 != 0;
+        rejection(bit(finite), bit(in_range), bit(degenerate), bit(culled))
+    })
 }
 
 /// Why a triangle was not set up, from the window groups' tests, in the per-triangle front
