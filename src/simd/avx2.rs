@@ -1754,10 +1754,10 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
 }
 
 /// [`super::window_records`] in AVX2: the record's sixteen words as eight lanes each (the
-/// group's rows loaded in the halves of four they were stored in, so that each load takes one
-/// store's bytes; each vertex's depth and colour from its last sixteen bytes, four triangles'
-/// transposed per half), then transposed into whole records ([`transpose8`], its own
-/// inverse) and stored as two aligned 32-byte halves each.
+/// group's rows loaded as halves of four, as AVX2's [`window_group`] stores them, so that each
+/// load takes one store's bytes; each vertex's depth and colour from its last sixteen bytes,
+/// four triangles' transposed per half), then transposed into whole records ([`transpose8`],
+/// its own inverse) and stored as two aligned 32-byte halves each.
 ///
 /// # Safety
 /// The CPU must support AVX2.
