@@ -46,27 +46,33 @@ pub const TILE: u32 = 128;
 /// 65-81). The Intel VM of earlier sessions had favoured 64k at 1x (262 -> 208 ms on one
 /// thread); multisampled targets, whose tiles hold four or eight times the bytes, and meshes
 /// shaded batch by batch (the dense scene 0.62 s against 0.67 with 64k) took 512k there
-/// already.
-pub const BATCH: usize = 1 << 19;
+/// already. A later session, with window records built eight at a time, measured a million
+/// against 512k on the AMD VM: the soup 59.0 -> 56.3 ms on two threads and 111.3 -> 106.7 on
+/// one (fastest of five and three alternated runs), at 4x 252 -> 237 ms (peak 268 -> 296
+/// MB). A million small triangles are then one batch, set up by every thread at once, then
+/// drawn, rather than two whose second one's set-up shares the threads with the first one's
+/// tiles. Larger records keep their bound in bytes ([`BATCH_BYTES`]).
+pub const BATCH: usize = 1 << 20;
 
-/// The most bytes of records a batch holds: [`BATCH`] window records of 64 bytes (32 MiB).
+/// The most bytes of records a batch holds when its records are larger than a cache line
+/// (32 MiB: 512k of 64 bytes, the batches of every record type before [`BATCH`] doubled).
 /// A 3D triangle's record carries its vertices' varyings and takes 100 to 300 bytes, so
 /// batches of [`BATCH`] such records had made two batches in flight take 290 MB for a Phong
 /// mesh of a million triangles, and a single `trirast render` of it had spent a third of
 /// its 2.3 s having the system zero those pages.
-pub const BATCH_BYTES: usize = BATCH * 64;
+pub const BATCH_BYTES: usize = 1 << 25;
 
-/// Triangles per batch for records of type `S`: [`BATCH`], or as many as [`BATCH_BYTES`]
-/// holds when `S` is larger than 64 bytes (a triangle makes one record unless it is clipped).
+/// Triangles per batch for records of type `S`: [`BATCH`] when `S` takes at most 64 bytes,
+/// or as many as [`BATCH_BYTES`] holds (a triangle makes one record unless it is clipped).
 #[must_use]
 pub fn batch_for<S>() -> usize {
-    (BATCH_BYTES / size_of::<S>().max(1)).clamp(1, BATCH)
+    if size_of::<S>() <= 64 { BATCH } else { (BATCH_BYTES / size_of::<S>()).clamp(1, BATCH) }
 }
 
 /// The length of the batches [`pipelined`] cuts `items` items into: as many batches as
 /// batches of `max` would make, of equal length (the last one shorter by less than one item
-/// per batch). A mesh just over one batch (600k triangles) is cut in halves, not into 512k
-/// and 88k, so the batch prepared before any is drawn, alone, is half the mesh rather
+/// per batch). A mesh just over one batch (1.1 M triangles) is cut in halves, not into 1 M
+/// and 0.1 M, so the batch prepared before any is drawn, alone, is half the mesh rather
 /// than nearly all of it. A `max` of 0 counts as 1, and the result is never 0 (callers cut
 /// slices with it). Applied to its own result it gives it back (tested), so a caller may pass
 /// either to [`pipelined`].

@@ -496,7 +496,7 @@ impl Pipeline {
                     // Vertices of a large mesh: the batch's index range shaded into a scratch
                     // window when it is compact (meshes are mostly stored with locality),
                     // otherwise each corner shaded where it is used. A window of at most
-                    // VERTEX_CACHE vertices: a batch (at most 512k triangles) of a mesh stored
+                    // VERTEX_CACHE vertices: a batch (at most 1M triangles) of a mesh stored
                     // with locality spans fewer. (A small mesh's vertices were all shaded up
                     // front, and it has no batch ranges.)
                     let windowed = index_ranges
