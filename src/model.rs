@@ -2,7 +2,9 @@
 //! colours, materials and textures. This is what `trirast render MODEL` runs; it is written
 //! against the public [`crate::pipeline`] API like any user program.
 
+use std::collections::HashMap;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 
@@ -180,7 +182,9 @@ impl ModelOptions {
 /// and the material's plain colour.
 #[derive(Clone, Debug, Default)]
 pub struct MaterialTextures {
-    textures: Vec<Option<Texture>>,
+    /// Materials naming the same file share its one decoded copy (a file's materials often
+    /// share one atlas: five materials of one 8192 x 8192 texture had taken 5.5 GB).
+    textures: Vec<Option<Arc<Texture>>>,
     /// Problems met while loading.
     pub warnings: Vec<String>,
 }
@@ -189,27 +193,34 @@ impl MaterialTextures {
     /// The loaded texture of material `material`, if it has one that could be read.
     #[must_use]
     pub fn get(&self, material: usize) -> Option<&Texture> {
-        self.textures.get(material).and_then(Option::as_ref)
+        self.textures.get(material).and_then(Option::as_deref)
     }
 
     /// Textures already loaded: `textures[k]` is material `k`'s (`None`: none). For a texture
     /// whose loading error the caller reports itself, rather than as a warning.
     #[must_use]
     pub fn from_loaded(textures: Vec<Option<Texture>>) -> Self {
-        Self { textures, warnings: Vec::new() }
+        Self {
+            textures: textures.into_iter().map(|t| t.map(Arc::new)).collect(),
+            warnings: Vec::new(),
+        }
     }
 
-    /// Loads the diffuse textures of `mesh`'s materials.
+    /// Loads the diffuse textures of `mesh`'s materials, each file once.
     #[must_use]
     pub fn load(mesh: &Mesh) -> Self {
         let mut warnings = Vec::new();
+        let mut loaded: HashMap<&PathBuf, Result<Arc<Texture>, String>> = HashMap::new();
         let textures = mesh
             .materials
             .iter()
             .map(|m| {
                 let path: &PathBuf = m.diffuse_texture.as_ref()?;
-                match Texture::load(path) {
-                    Ok(t) => Some(t),
+                let texture = loaded.entry(path).or_insert_with(|| {
+                    Texture::load(path).map(Arc::new).map_err(|e| e.to_string())
+                });
+                match texture {
+                    Ok(t) => Some(Arc::clone(t)),
                     Err(e) => {
                         warnings.push(format!(
                             "material `{}`: texture not used, its diffuse colour instead: {e}",
@@ -350,7 +361,7 @@ impl ModelFragment<'_> {
         let mesh = self.surface.mesh;
         let k = material as usize;
         let Some(m) = mesh.materials.get(k) else { return MaterialFactor::Constant(Vec4::ONE) };
-        match self.surface.textures.textures.get(k).and_then(Option::as_ref) {
+        match self.surface.textures.textures.get(k).and_then(Option::as_deref) {
             Some(t) if mesh.texcoords.is_some() => MaterialFactor::Texture(t),
             _ => MaterialFactor::Constant(Vec3::from(m.diffuse.map(srgb_decode)).extend(1.0)),
         }
@@ -741,6 +752,39 @@ fn face_normals(mesh: &Mesh, view: &Mat4, origin: Vec3) -> Vec<Vec3> {
 mod tests {
     use super::*;
 
+    /// Materials naming one file share one decoded texture, and one that cannot be read
+    /// warns for each material naming it.
+    #[test]
+    fn materials_share_a_texture_file() {
+        let dir = std::env::temp_dir().join(format!("trirast-model-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (png, missing) = (dir.join("atlas.png"), dir.join("missing.png"));
+        image::RgbaImage::from_pixel(4, 2, image::Rgba([10, 20, 30, 255])).save(&png).unwrap();
+        let material = |name: &str, path: &PathBuf| crate::mesh::Material {
+            name: name.into(),
+            diffuse_texture: Some(path.clone()),
+            ..Default::default()
+        };
+        let mesh = Mesh {
+            materials: vec![
+                material("a", &png),
+                material("b", &missing),
+                crate::mesh::Material::default(),
+                material("c", &png),
+                material("d", &missing),
+            ],
+            ..Default::default()
+        };
+        let textures = MaterialTextures::load(&mesh);
+        std::fs::remove_dir_all(&dir).unwrap();
+        let shared = |k: usize| textures.textures[k].as_ref().expect("loaded");
+        assert!(Arc::ptr_eq(shared(0), shared(3)), "one copy of the shared file");
+        assert_eq!(textures.get(0).map(|t| (t.width(), t.height())), Some((4, 2)));
+        assert!([1, 2, 4].iter().all(|&k| textures.get(k).is_none()));
+        assert_eq!(textures.warnings.len(), 2, "{:?}", textures.warnings);
+        assert!(textures.warnings[1].starts_with("material `d`"), "{:?}", textures.warnings);
+    }
+
     /// Gouraud's colours lit side by side are those of one vertex at a time, bit for bit, at
     /// every SIMD level: random positions (some at the eye), normals (some zero, some
     /// missing), albedos, lights with whole exponents (0, 1, the default 32, 1024) and others
@@ -949,7 +993,7 @@ mod tests {
         mesh.triangle_materials = Some((0..mesh.triangles.len() as u32).map(|t| t % 2).collect());
         let texels: Vec<u8> = (0..4 * 8 * 8).map(|k| (k * 37 % 251) as u8).collect();
         let textures = MaterialTextures {
-            textures: vec![None, Some(Texture::from_srgba8(8, 8, &texels))],
+            textures: vec![None, Some(Arc::new(Texture::from_srgba8(8, 8, &texels)))],
             warnings: Vec::new(),
         };
         assert_draws_as_with_full_varyings(&mesh, &textures);
@@ -972,7 +1016,7 @@ mod tests {
         with_materials.triangle_materials = Some((0..count).map(|t| t % 4).collect());
         let texels: Vec<u8> = (0..4 * 8 * 8).map(|k| (k * 37 % 251) as u8).collect();
         let textures = MaterialTextures {
-            textures: vec![None, None, Some(Texture::from_srgba8(8, 8, &texels))],
+            textures: vec![None, None, Some(Arc::new(Texture::from_srgba8(8, 8, &texels)))],
             warnings: Vec::new(),
         };
         assert_draws_as_with_full_varyings(&with_materials, &MaterialTextures::default());
