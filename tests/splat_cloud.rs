@@ -359,9 +359,9 @@ fn malformed_files_name_the_file_and_line_or_byte() {
     let e = error_of(&dir, "long.ply", format!("{XYZ}end_header\n1 2 3 4\n4 5 6\n").as_bytes(), 8);
     assert!(e.contains("found 4 values, but the header declares 3"), "{e}");
 
-    // The crate's ASCII grammar has no NaN; a value too large for `float` is infinite.
+    // A non-finite position, written as a word or as a value too large for `float`.
     let e = error_of(&dir, "nan.ply", format!("{XYZ}end_header\n1 2 3\n4 NaN 6\n").as_bytes(), 9);
-    assert!(e.starts_with("`vertex` 1: not a list of numbers"), "{e}");
+    assert!(e.starts_with("vertex 1: position [4.0, NaN, 6.0] is not finite"), "{e}");
     let e = error_of(&dir, "inf.ply", format!("{XYZ}end_header\n1 2 3\n4 1e39 6\n").as_bytes(), 9);
     assert!(e.starts_with("vertex 1: position [4.0, inf, 6.0] is not finite"), "{e}");
 

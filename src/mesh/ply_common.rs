@@ -498,7 +498,9 @@ impl<F: Fields> Ply<F> {
             let text =
                 std::str::from_utf8(&raw).map_err(|_| (at, "not valid UTF-8".to_string()))?;
             let text = if strip_cr { text.trim_end_matches('\r') } else { text };
-            let row = self.parser.read_ascii_element(text, def).map_err(|e| {
+            let parsed = self.parser.read_ascii_element(text, def);
+            let parsed = parsed.or_else(|e| with_non_finite(&self.parser, text, def).ok_or(e));
+            let row = parsed.map_err(|e| {
                 let found: String = text.trim().chars().take(60).collect();
                 (
                     at,
@@ -682,6 +684,46 @@ fn min_size(def: &ElementDef, encoding: Encoding) -> u64 {
 pub(crate) fn capacity(def: &ElementDef, encoding: Encoding, available: u64) -> usize {
     let fit = available / min_size(def, encoding).max(1) + 1;
     def.count.min(usize::try_from(fit).unwrap_or(usize::MAX))
+}
+
+/// Row `text` of `def` when its only values the crate's grammar refuses are non-finite ones
+/// written as words (`nan`, `inf`, `-Infinity`, in any case: PCL writes `nan` normals) at
+/// `float` or `double` properties of an element without lists: parsed with zeros in their
+/// place, then given those values, as a binary file's would be. `None` otherwise (the crate's
+/// error stands).
+fn with_non_finite<F: Fields>(
+    parser: &Parser<Row<F>>,
+    text: &str,
+    def: &ElementDef,
+) -> Option<Row<F>> {
+    let properties: Vec<(&String, &PropertyType)> =
+        def.properties.iter().map(|(name, p)| (name, &p.data_type)).collect();
+    let mut words = Vec::new();
+    let mut zeroed = String::with_capacity(text.len());
+    for (i, token) in text.split_ascii_whitespace().enumerate() {
+        let word = !token.bytes().any(|b| b.is_ascii_digit());
+        let value = token.parse::<f64>().ok().filter(|v| word && !v.is_finite());
+        if let Some(v) = value {
+            let (name, kind) = properties.get(i)?;
+            let property = match kind {
+                PropertyType::Scalar(ScalarType::Float) => Property::Float(v as f32),
+                PropertyType::Scalar(ScalarType::Double) => Property::Double(v),
+                _ => return None,
+            };
+            words.push((*name, property));
+        }
+        zeroed.push_str(if value.is_some() { "0" } else { token });
+        zeroed.push(' ');
+    }
+    let lists = properties.iter().any(|(_, kind)| matches!(kind, PropertyType::List(..)));
+    if words.is_empty() || lists {
+        return None;
+    }
+    let mut row = parser.read_ascii_element(zeroed.trim_end(), def).ok()?;
+    for (name, property) in words {
+        row.set_property(name, property);
+    }
+    Some(row)
 }
 
 /// The crate's message without its debugging detail.

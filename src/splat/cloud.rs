@@ -633,6 +633,50 @@ mod tests {
 
     use super::*;
 
+    /// Non-finite values written as words in an ASCII file (PCL writes `nan` normals) read as
+    /// the same values do from a binary one; where a binary file's would be an error (a
+    /// position) or cannot be (an integer property), the ASCII line is one too.
+    #[test]
+    fn ascii_non_finite_words_read_as_binary_values() {
+        let header = |format: &str, count: usize| {
+            format!(
+                "ply\nformat {format} 1.0\nelement vertex {count}\nproperty float x\n\
+                 property float y\nproperty float z\nproperty double nx\nproperty float ny\n\
+                 property float nz\nproperty uchar red\nproperty uchar green\n\
+                 property uchar blue\nend_header\n"
+            )
+        };
+        let rows: [([f32; 3], [f64; 3], &str); 3] = [
+            ([1.0, 2.0, 3.0], [f64::NAN, f64::NAN, f64::NAN], "1 2 3 nan NaN NAN 1 2 3"),
+            (
+                [0.5, 0.0, -1.0],
+                [f64::INFINITY, 0.0, f64::NEG_INFINITY],
+                "0.5 0 -1 inf 0 -Infinity 4 5 6",
+            ),
+            ([0.0, 1e-3, 2.0], [0.0, 3.0, 4.0], "0 1e-3 2 0 3 4 7 8 9"),
+        ];
+        let mut ascii = header("ascii", rows.len());
+        let mut binary = header("binary_little_endian", rows.len()).into_bytes();
+        for (k, (p, n, line)) in rows.iter().enumerate() {
+            ascii += line;
+            ascii += "\n";
+            p.iter().for_each(|v| binary.extend(v.to_le_bytes()));
+            binary.extend(n[0].to_le_bytes());
+            binary.extend((n[1] as f32).to_le_bytes());
+            binary.extend((n[2] as f32).to_le_bytes());
+            binary.extend([3 * k as u8 + 1, 3 * k as u8 + 2, 3 * k as u8 + 3]);
+        }
+        let path = Path::new("c.ply");
+        let from_ascii = parse_ply(ascii.as_bytes(), path).unwrap();
+        assert_eq!(from_ascii, parse_ply(&binary, path).unwrap());
+        assert_eq!(from_ascii.normals.as_ref().unwrap()[..2], [[0.0; 3]; 2], "unknown normals");
+        for bad in ["nan 2 3 0 0 1 1 2 3", "1 2 3 0 0 1 nan 2 3", "1 2 3 0 0 1 1 2 3 nan"] {
+            let text = header("ascii", 1) + bad + "\n";
+            let e = parse_ply(text.as_bytes(), path).unwrap_err().to_string();
+            assert!(e.starts_with("c.ply:14:"), "{bad}: {e}");
+        }
+    }
+
     #[test]
     fn normalising_is_idempotent() {
         let mut rng = SmallRng::seed_from_u64(1);
