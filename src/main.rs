@@ -561,13 +561,13 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     let default_msaa = if window { SampleCount::X1 } else { SampleCount::X4 };
     let mut target = Target::multisampled(width, height, args.msaa.unwrap_or(default_msaa))?;
     if args.ids.is_some() {
-        target = target.with_ids();
+        target = target.try_with_ids()?;
     }
     if args.overdraw.is_some() {
-        target = target.with_overdraw();
+        target = target.try_with_overdraw()?;
     }
     if args.normals.is_some() {
-        target = target.with_normals();
+        target = target.try_with_normals()?;
     }
     if window {
         render_window(args, &mut target)?;
@@ -639,9 +639,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         Some(t) => MaterialTextures::from_loaded(vec![Some(t)]),
         None => MaterialTextures::load(&mesh),
     };
-    for w in &textures.warnings {
-        eprintln!("trirast: warning: {w}");
-    }
+    print_warnings(&textures.warnings);
     let options = model_options(args)?;
     let background = args.background.unwrap_or([38, 42, 52]);
     let clear = [background[0], background[1], background[2], 255];
@@ -1140,12 +1138,24 @@ fn splat_bench(points: &[usize], threads: Option<usize>, frames: usize) -> Resul
     Ok(())
 }
 
+/// Warnings shown at most, of one list: a file can make one per line (50,000 `usemtl` names
+/// without a library made as many lines).
+const SHOWN_WARNINGS: usize = 20;
+
+/// Prints `warnings` to stderr, the first [`SHOWN_WARNINGS`] and then how many more there are.
+fn print_warnings(warnings: &[String]) {
+    for w in warnings.iter().take(SHOWN_WARNINGS) {
+        eprintln!("trirast: warning: {w}");
+    }
+    if let Some(more) = warnings.len().checked_sub(SHOWN_WARNINGS).filter(|&n| n > 0) {
+        eprintln!("trirast: warning: ... and {more} more warning(s), not shown");
+    }
+}
+
 /// Prints what loading left to say about a mesh: the reader's warnings, and a hint when a
 /// file has vertices but no faces (a point cloud given to a mesh command).
 fn warn_about(mesh: &Mesh) {
-    for w in &mesh.warnings {
-        eprintln!("trirast: warning: {w}");
-    }
+    print_warnings(&mesh.warnings);
     if mesh.triangles.is_empty() && !mesh.positions.is_empty() {
         eprintln!(
             "trirast: warning: the file has {} vertices but no faces; for a point cloud use \
@@ -1190,9 +1200,7 @@ fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Er
     let mesh = reading(file, |report| trirast::mesh::load_reporting(file, report))?;
     warn_about(&mesh);
     let textures = MaterialTextures::load(&mesh);
-    for w in &textures.warnings {
-        eprintln!("trirast: warning: {w}");
-    }
+    print_warnings(&textures.warnings);
     let start = std::time::Instant::now();
     let cloud = trirast::splat::cloud::sample_mesh(&mesh, &textures, points, seed)?;
     if cloud.positions.is_empty() {
@@ -1381,8 +1389,11 @@ fn info(path: &Path) -> Result<(), Error> {
             texture.unwrap_or("none".into())
         );
     }
-    for w in &mesh.warnings {
+    for w in mesh.warnings.iter().take(SHOWN_WARNINGS) {
         println!("warning:    {w}");
+    }
+    if let Some(more) = mesh.warnings.len().checked_sub(SHOWN_WARNINGS).filter(|&n| n > 0) {
+        println!("warning:    ... and {more} more, not shown");
     }
     Ok(())
 }

@@ -150,25 +150,57 @@ impl Target {
         self.schedule = schedule;
     }
 
-    /// Adds a triangle-id buffer, cleared to -1.
+    /// Adds a triangle-id buffer, cleared to -1. Aborts, as `vec!` does, when it cannot be
+    /// allocated ([`Target::try_with_ids`] reports that instead).
     #[must_use]
     pub fn with_ids(mut self) -> Self {
         self.ids = Some(vec![-1; self.pixel_count() * self.samples.count()]);
         self
     }
 
-    /// Adds an overdraw buffer, cleared to 0.
+    /// Adds an overdraw buffer, cleared to 0 (see [`Target::with_ids`]).
     #[must_use]
     pub fn with_overdraw(mut self) -> Self {
         self.overdraw = Some(vec![0; self.pixel_count()]);
         self
     }
 
-    /// Adds a normal buffer, cleared to zero.
+    /// Adds a normal buffer, cleared to zero (see [`Target::with_ids`]).
     #[must_use]
     pub fn with_normals(mut self) -> Self {
         self.normals = Some(vec![[0.0; 3]; self.pixel_count()]);
         self
+    }
+
+    /// [`Target::with_ids`], or [`Error::TargetMemory`] where the buffer cannot be had (a
+    /// 16384 x 16384 target's ids take 1 GiB a sample: the size comes from the user).
+    pub fn try_with_ids(mut self) -> Result<Self, Error> {
+        self.ids = Some(self.filled(self.pixel_count() * self.samples.count(), -1)?);
+        Ok(self)
+    }
+
+    /// [`Target::with_overdraw`], or [`Error::TargetMemory`] (see [`Target::try_with_ids`]).
+    pub fn try_with_overdraw(mut self) -> Result<Self, Error> {
+        self.overdraw = Some(self.filled(self.pixel_count(), 0)?);
+        Ok(self)
+    }
+
+    /// [`Target::with_normals`], or [`Error::TargetMemory`] (see [`Target::try_with_ids`]).
+    pub fn try_with_normals(mut self) -> Result<Self, Error> {
+        self.normals = Some(self.filled(self.pixel_count(), [0.0; 3])?);
+        Ok(self)
+    }
+
+    /// `n` copies of `value`, allocated fallibly.
+    fn filled<T: Clone>(&self, n: usize, value: T) -> Result<Vec<T>, Error> {
+        let mut v = Vec::new();
+        v.try_reserve_exact(n).map_err(|_| Error::TargetMemory {
+            width: self.width,
+            height: self.height,
+            samples: self.samples.count(),
+        })?;
+        v.resize(n, value);
+        Ok(v)
     }
 
     /// Clears colour to `color`, depth to 1.0, ids to -1, overdraw and normals to 0, in
@@ -460,6 +492,21 @@ impl Target {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The fallible buffer constructors give the buffers the infallible ones give.
+    #[test]
+    fn fallible_buffers_match() {
+        for samples in [SampleCount::X1, SampleCount::X4] {
+            let t = Target::multisampled(7, 5, samples).unwrap();
+            let a = t.clone().with_ids().with_overdraw().with_normals();
+            let b =
+                t.try_with_ids().unwrap().try_with_overdraw().unwrap().try_with_normals().unwrap();
+            assert_eq!(a.ids, b.ids);
+            assert_eq!(a.overdraw, b.overdraw);
+            assert_eq!(a.normals, b.normals);
+            assert_eq!(b.ids.as_ref().map(Vec::len), Some(35 * samples.count()));
+        }
+    }
 
     /// Bands cut every buffer at their rows: a band's rectangle and each of its buffers hold
     /// exactly its rows (per sample or per pixel), so that writing the band's number at every
