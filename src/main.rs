@@ -1142,12 +1142,19 @@ fn splat_bench(points: &[usize], threads: Option<usize>, frames: usize) -> Resul
 /// without a library made as many lines).
 const SHOWN_WARNINGS: usize = 20;
 
-/// Prints `warnings` to stderr, the first [`SHOWN_WARNINGS`] and then how many more there are.
+/// The first [`SHOWN_WARNINGS`] of `warnings`, and how many more there are.
+fn shown(warnings: &[String]) -> (&[String], usize) {
+    let n = warnings.len().min(SHOWN_WARNINGS);
+    (&warnings[..n], warnings.len() - n)
+}
+
+/// Prints [`shown`] warnings to stderr, then how many more there are.
 fn print_warnings(warnings: &[String]) {
-    for w in warnings.iter().take(SHOWN_WARNINGS) {
+    let (first, more) = shown(warnings);
+    for w in first {
         eprintln!("trirast: warning: {w}");
     }
-    if let Some(more) = warnings.len().checked_sub(SHOWN_WARNINGS).filter(|&n| n > 0) {
+    if more > 0 {
         eprintln!("trirast: warning: ... and {more} more warning(s), not shown");
     }
 }
@@ -1389,10 +1396,11 @@ fn info(path: &Path) -> Result<(), Error> {
             texture.unwrap_or("none".into())
         );
     }
-    for w in mesh.warnings.iter().take(SHOWN_WARNINGS) {
+    let (first, more) = shown(&mesh.warnings);
+    for w in first {
         println!("warning:    {w}");
     }
-    if let Some(more) = mesh.warnings.len().checked_sub(SHOWN_WARNINGS).filter(|&n| n > 0) {
+    if more > 0 {
         println!("warning:    ... and {more} more, not shown");
     }
     Ok(())

@@ -3,7 +3,7 @@
 //! against the public [`crate::pipeline`] API like any user program.
 
 use std::collections::HashMap;
-use std::path::PathBuf;
+use std::path::Path;
 use std::sync::Arc;
 
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
@@ -210,12 +210,12 @@ impl MaterialTextures {
     #[must_use]
     pub fn load(mesh: &Mesh) -> Self {
         let mut warnings = Vec::new();
-        let mut loaded: HashMap<&PathBuf, Result<Arc<Texture>, String>> = HashMap::new();
+        let mut loaded: HashMap<&Path, Result<Arc<Texture>, String>> = HashMap::new();
         let textures = mesh
             .materials
             .iter()
             .map(|m| {
-                let path: &PathBuf = m.diffuse_texture.as_ref()?;
+                let path = m.diffuse_texture.as_deref()?;
                 let texture = loaded.entry(path).or_insert_with(|| {
                     Texture::load(path).map(Arc::new).map_err(|e| e.to_string())
                 });
@@ -361,7 +361,7 @@ impl ModelFragment<'_> {
         let mesh = self.surface.mesh;
         let k = material as usize;
         let Some(m) = mesh.materials.get(k) else { return MaterialFactor::Constant(Vec4::ONE) };
-        match self.surface.textures.textures.get(k).and_then(Option::as_deref) {
+        match self.surface.textures.get(k) {
             Some(t) if mesh.texcoords.is_some() => MaterialFactor::Texture(t),
             _ => MaterialFactor::Constant(Vec3::from(m.diffuse.map(srgb_decode)).extend(1.0)),
         }
@@ -760,9 +760,9 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let (png, missing) = (dir.join("atlas.png"), dir.join("missing.png"));
         image::RgbaImage::from_pixel(4, 2, image::Rgba([10, 20, 30, 255])).save(&png).unwrap();
-        let material = |name: &str, path: &PathBuf| crate::mesh::Material {
+        let material = |name: &str, path: &Path| crate::mesh::Material {
             name: name.into(),
-            diffuse_texture: Some(path.clone()),
+            diffuse_texture: Some(path.to_path_buf()),
             ..Default::default()
         };
         let mesh = Mesh {

@@ -172,34 +172,38 @@ impl Target {
         self
     }
 
-    /// [`Target::with_ids`], or [`Error::TargetMemory`] where the buffer cannot be had (a
-    /// 16384 x 16384 target's ids take 1 GiB a sample: the size comes from the user).
+    /// [`Target::with_ids`], or [`Error::OutOfMemory`] naming the buffer where it cannot be
+    /// had (a 16384 x 16384 target's ids take 1 GiB a sample: the size comes from the user).
     pub fn try_with_ids(mut self) -> Result<Self, Error> {
-        self.ids = Some(self.filled(self.pixel_count() * self.samples.count(), -1)?);
+        self.ids = Some(self.filled(self.pixel_count() * self.samples.count(), -1, "ids")?);
         Ok(self)
     }
 
-    /// [`Target::with_overdraw`], or [`Error::TargetMemory`] (see [`Target::try_with_ids`]).
+    /// [`Target::with_overdraw`], or [`Error::OutOfMemory`] (see [`Target::try_with_ids`]).
     pub fn try_with_overdraw(mut self) -> Result<Self, Error> {
-        self.overdraw = Some(self.filled(self.pixel_count(), 0)?);
+        self.overdraw = Some(self.filled(self.pixel_count(), 0, "overdraw")?);
         Ok(self)
     }
 
-    /// [`Target::with_normals`], or [`Error::TargetMemory`] (see [`Target::try_with_ids`]).
+    /// [`Target::with_normals`], or [`Error::OutOfMemory`] (see [`Target::try_with_ids`]).
     pub fn try_with_normals(mut self) -> Result<Self, Error> {
-        self.normals = Some(self.filled(self.pixel_count(), [0.0; 3])?);
+        self.normals = Some(self.filled(self.pixel_count(), [0.0; 3], "normals")?);
         Ok(self)
     }
 
-    /// `n` copies of `value`, allocated fallibly.
-    fn filled<T: Clone>(&self, n: usize, value: T) -> Result<Vec<T>, Error> {
+    /// `n` copies of `value` for the buffer named `buffer`, allocated fallibly and filled in
+    /// parallel (a 16384 x 16384 normal buffer is 3 GiB).
+    fn filled<T: Copy + Send + Sync>(
+        &self,
+        n: usize,
+        value: T,
+        buffer: &str,
+    ) -> Result<Vec<T>, Error> {
         let mut v = Vec::new();
-        v.try_reserve_exact(n).map_err(|_| Error::TargetMemory {
-            width: self.width,
-            height: self.height,
-            samples: self.samples.count(),
+        crate::error::try_reserve_named(&mut v, n, || {
+            format!("the {buffer} buffer of a {}x{} target", self.width, self.height)
         })?;
-        v.resize(n, value);
+        v.par_extend(rayon::iter::repeat_n(value, n));
         Ok(v)
     }
 
@@ -493,7 +497,8 @@ impl Target {
 mod tests {
     use super::*;
 
-    /// The fallible buffer constructors give the buffers the infallible ones give.
+    /// The fallible buffer constructors give the buffers the infallible ones give, and where
+    /// one cannot be had, an error naming it.
     #[test]
     fn fallible_buffers_match() {
         for samples in [SampleCount::X1, SampleCount::X4] {
@@ -506,6 +511,10 @@ mod tests {
             assert_eq!(a.normals, b.normals);
             assert_eq!(b.ids.as_ref().map(Vec::len), Some(35 * samples.count()));
         }
+        let t = Target::new(7, 5).unwrap();
+        crate::error::refusals::refuse_after(Some(0));
+        let e = t.try_with_normals().unwrap_err().to_string();
+        assert_eq!(e, "not enough memory for the normals buffer of a 7x5 target: 0.0 GiB");
     }
 
     /// Bands cut every buffer at their rows: a band's rectangle and each of its buffers hold

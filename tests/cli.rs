@@ -1192,3 +1192,22 @@ fn splat_budget_on_a_single_point_says_nothing_was_left_to_refine() {
     let err = run_ok(&dir.0, args);
     assert!(err.contains("nothing left to refine") && !err.contains("budget"), "{err}");
 }
+
+/// A file that makes a warning per line shows the first twenty and how many more: one with
+/// thirty `usemtl` names and no material library.
+#[test]
+fn warnings_are_capped() {
+    let dir = TempDir::new("warnings");
+    let faces: String = (0..30).map(|i| format!("usemtl m{i}\nf 1 2 3\n")).collect();
+    dir.write("w.obj", &format!("v 0 0 0\nv 1 0 0\nv 0 1 0\n{faces}"));
+    let err = run_ok(&dir.0, ["render", "w.obj", "--size", "16x16", "-o", "w.png"]);
+    let warnings: Vec<&str> = err.lines().filter(|l| l.starts_with("trirast: warning:")).collect();
+    assert_eq!(warnings.len(), 21, "{err}");
+    assert!(warnings[0].contains("material `m0`"), "{err}");
+    assert!(warnings[19].contains("material `m19`"), "{err}");
+    assert_eq!(warnings[20], "trirast: warning: ... and 10 more warning(s), not shown");
+    let out = trirast_in(&dir.0, ["info", "w.obj"]);
+    let info = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(info.lines().filter(|l| l.starts_with("warning:")).count(), 21, "{info}");
+    assert!(info.contains("warning:    ... and 10 more, not shown"), "{info}");
+}

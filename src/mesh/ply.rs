@@ -427,6 +427,15 @@ mod tests {
                       property float y\nproperty float z\nend_header\n\0\0\0\0\0\0\0\0\0\0\xc0\x7f",
         );
         assert!(e.starts_with("t.ply: byte 115: vertex 0: position [0.0, 0.0, NaN]"), "{e}");
+        // The same NaN written as a word in an ASCII file.
+        let e = err(format!("{head}end_header\n0 0 nan\n").as_bytes());
+        assert!(e.starts_with("t.ply:8: vertex 0: position [0.0, 0.0, NaN]"), "{e}");
+        // Words are read only at `float` and `double` properties of elements without lists.
+        let face = "element face 1\nproperty list uchar int vertex_indices\n";
+        let e = err(format!("{head}{face}end_header\n0 0 1\n3 0 nan 0\n").as_bytes());
+        assert!(e.starts_with("t.ply:11: `face` 0: not a list of numbers"), "{e}");
+        let e = err(format!("{head}property int k\nend_header\n0 0 1 nan\n").as_bytes());
+        assert!(e.starts_with("t.ply:9: `vertex` 0: not a list of numbers"), "{e}");
         let e = err(b"plx\n");
         assert!(e.starts_with("t.ply:1: not a PLY file"), "{e}");
         let e = err(b"ply\nformat ascii 1.0\nelement vertex x\n");

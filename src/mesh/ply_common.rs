@@ -10,7 +10,9 @@
 //! records as the crate reads it, is then scanned again for duplicate element or property
 //! names (the crate would silently merge them and misread the body). ASCII elements are
 //! handed to the crate line by line (we count the lines), and binary elements are read from
-//! the source, whose count of bytes read gives the offset of the element that failed. The
+//! the source, whose count of bytes read gives the offset of the element that failed; the
+//! crate's grammar takes digits only, so a line with non-finite values written as words (PCL
+//! writes `nan` normals) is read by [`with_non_finite`] as a binary file's values. The
 //! crate's messages are shortened and completed with what was expected (the element's
 //! declared layout). Reservations are capped by what the rest of the file can hold, so
 //! `element vertex 4000000000` in a small file allocates nothing and fails where the data
@@ -498,8 +500,14 @@ impl<F: Fields> Ply<F> {
             let text =
                 std::str::from_utf8(&raw).map_err(|_| (at, "not valid UTF-8".to_string()))?;
             let text = if strip_cr { text.trim_end_matches('\r') } else { text };
-            let parsed = self.parser.read_ascii_element(text, def);
-            let parsed = parsed.or_else(|e| with_non_finite(&self.parser, text, def).ok_or(e));
+            // A letter other than an exponent's: the line may hold non-finite words, which
+            // the crate's grammar refuses (after parsing the line twice and formatting an
+            // error naming it: PCL's clouds have them on many lines).
+            let words = text.bytes().any(|b| b.is_ascii_alphabetic() && !matches!(b, b'e' | b'E'));
+            let parsed = match words.then(|| with_non_finite(&self.parser, text, def)).flatten() {
+                Some(row) => Ok(row),
+                None => self.parser.read_ascii_element(text, def),
+            };
             let row = parsed.map_err(|e| {
                 let found: String = text.trim().chars().take(60).collect();
                 (
@@ -688,38 +696,44 @@ pub(crate) fn capacity(def: &ElementDef, encoding: Encoding, available: u64) -> 
 
 /// Row `text` of `def` when its only values the crate's grammar refuses are non-finite ones
 /// written as words (`nan`, `inf`, `-Infinity`, in any case: PCL writes `nan` normals) at
-/// `float` or `double` properties of an element without lists: parsed with zeros in their
-/// place, then given those values, as a binary file's would be. `None` otherwise (the crate's
-/// error stands).
+/// `float` or `double` properties of an element without lists: parsed with `0` in place of
+/// each word (the separators as they were, so the grammar sees the line otherwise as
+/// written), then given those values, as a binary file's would be. `None` otherwise (the
+/// crate's error stands).
 fn with_non_finite<F: Fields>(
     parser: &Parser<Row<F>>,
     text: &str,
     def: &ElementDef,
 ) -> Option<Row<F>> {
-    let properties: Vec<(&String, &PropertyType)> =
-        def.properties.iter().map(|(name, p)| (name, &p.data_type)).collect();
-    let mut words = Vec::new();
-    let mut zeroed = String::with_capacity(text.len());
-    for (i, token) in text.split_ascii_whitespace().enumerate() {
-        let word = !token.bytes().any(|b| b.is_ascii_digit());
-        let value = token.parse::<f64>().ok().filter(|v| word && !v.is_finite());
-        if let Some(v) = value {
-            let (name, kind) = properties.get(i)?;
-            let property = match kind {
-                PropertyType::Scalar(ScalarType::Float) => Property::Float(v as f32),
-                PropertyType::Scalar(ScalarType::Double) => Property::Double(v),
-                _ => return None,
-            };
-            words.push((*name, property));
-        }
-        zeroed.push_str(if value.is_some() { "0" } else { token });
-        zeroed.push(' ');
-    }
-    let lists = properties.iter().any(|(_, kind)| matches!(kind, PropertyType::List(..)));
-    if words.is_empty() || lists {
+    if def.properties.values().any(|p| matches!(p.data_type, PropertyType::List(..))) {
         return None;
     }
-    let mut row = parser.read_ascii_element(zeroed.trim_end(), def).ok()?;
+    let mut words = Vec::new();
+    let mut zeroed = String::with_capacity(text.len());
+    let mut copied = 0;
+    for (i, token) in text.split_ascii_whitespace().enumerate() {
+        if token.bytes().any(|b| b.is_ascii_digit()) {
+            continue;
+        }
+        let Some(v) = token.parse::<f64>().ok().filter(|v| !v.is_finite()) else { continue };
+        let (name, p) = def.properties.get_index(i)?;
+        let property = match p.data_type {
+            PropertyType::Scalar(ScalarType::Float) => Property::Float(v as f32),
+            PropertyType::Scalar(ScalarType::Double) => Property::Double(v),
+            _ => return None,
+        };
+        words.push((name, property));
+        // `token` is a slice of `text`: its offset is the distance between their starts.
+        let at = token.as_ptr() as usize - text.as_ptr() as usize;
+        zeroed.push_str(&text[copied..at]);
+        zeroed.push('0');
+        copied = at + token.len();
+    }
+    if words.is_empty() {
+        return None;
+    }
+    zeroed.push_str(&text[copied..]);
+    let mut row = parser.read_ascii_element(&zeroed, def).ok()?;
     for (name, property) in words {
         row.set_property(name, property);
     }

@@ -646,14 +646,16 @@ mod tests {
                  property uchar blue\nend_header\n"
             )
         };
-        let rows: [([f32; 3], [f64; 3], &str); 3] = [
-            ([1.0, 2.0, 3.0], [f64::NAN, f64::NAN, f64::NAN], "1 2 3 nan NaN NAN 1 2 3"),
+        let rows: [([f32; 3], [f64; 3], &str); 4] = [
+            // A word left as the zero it is parsed as would give a unit normal.
+            ([1.0, 2.0, 3.0], [f64::NAN, 0.0, 1.0], "1 2 3\tnan 0  1 1 2 3"),
+            ([1.0, 2.0, 3.0], [f64::NAN, f64::NAN, f64::NAN], "1 2 3 nan NaN NAN 4 5 6"),
             (
                 [0.5, 0.0, -1.0],
                 [f64::INFINITY, 0.0, f64::NEG_INFINITY],
-                "0.5 0 -1 inf 0 -Infinity 4 5 6",
+                "0.5 0 -1 inf 0 -Infinity 7 8 9",
             ),
-            ([0.0, 1e-3, 2.0], [0.0, 3.0, 4.0], "0 1e-3 2 0 3 4 7 8 9"),
+            ([0.0, 1e-3, 2.0], [0.0, 3.0, 4.0], "0 1e-3 2 0 3 4 10 11 12"),
         ];
         let mut ascii = header("ascii", rows.len());
         let mut binary = header("binary_little_endian", rows.len()).into_bytes();
@@ -669,7 +671,7 @@ mod tests {
         let path = Path::new("c.ply");
         let from_ascii = parse_ply(ascii.as_bytes(), path).unwrap();
         assert_eq!(from_ascii, parse_ply(&binary, path).unwrap());
-        assert_eq!(from_ascii.normals.as_ref().unwrap()[..2], [[0.0; 3]; 2], "unknown normals");
+        assert_eq!(from_ascii.normals.as_ref().unwrap()[..3], [[0.0; 3]; 3], "unknown normals");
         for bad in ["nan 2 3 0 0 1 1 2 3", "1 2 3 0 0 1 nan 2 3", "1 2 3 0 0 1 1 2 3 nan"] {
             let text = header("ascii", 1) + bad + "\n";
             let e = parse_ply(text.as_bytes(), path).unwrap_err().to_string();
