@@ -1465,8 +1465,18 @@ fn report(stats: &trirast::DrawStats) {
             stats.non_finite
         );
     }
+    // Clipping can cut a triangle into several (three of them into seven, say): counting the
+    // pieces against the triangles without saying so read as a mistake.
+    let clipped = if stats.rasterized + stats.culled + stats.degenerate + stats.non_finite
+        > stats.submitted
+    {
+        " (clipping cut some into pieces, each counted)"
+    } else {
+        ""
+    };
     eprintln!(
-        "{} triangles: {} rasterized, {} culled or clipped away, {} degenerate; {} fragments",
+        "{} triangles: {} rasterized{clipped}, {} culled or clipped away, {} degenerate; {} \
+         fragments",
         stats.submitted, stats.rasterized, stats.culled, stats.degenerate, stats.fragments
     );
 }

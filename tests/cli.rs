@@ -1211,3 +1211,27 @@ fn warnings_are_capped() {
     assert_eq!(info.lines().filter(|l| l.starts_with("warning:")).count(), 21, "{info}");
     assert!(info.contains("warning:    ... and 10 more, not shown"), "{info}");
 }
+
+/// The statistics line says when clipping cut triangles into pieces, each counted as
+/// rasterized: three triangles at the eye give seven pieces at 800 x 600 (a smaller target's
+/// guard band leaves them whole), which without a word read as a miscount.
+#[test]
+fn statistics_say_clipped_pieces_are_counted() {
+    let dir = TempDir::new("pieces");
+    dir.write(
+        "e.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 -1\nv 1 0 -1\nf 1 2 3\nf 1 4 5\nf 2 3 4\n",
+    );
+    let view = ["--eye", "0.5,0.5,0", "--target", "0.3,0.3,-5", "--cull", "none"];
+    let err = run_ok(
+        &dir.0,
+        [&["render", "e.obj", "--size", "800x600", "-o", "e.png"][..], &view].concat(),
+    );
+    let line = err.lines().find(|l| l.contains("fragments")).unwrap_or_default();
+    let rasterized: usize =
+        line.split(": ").nth(1).and_then(|s| s.split(' ').next()?.parse().ok()).unwrap();
+    assert!(line.starts_with("3 triangles: ") && rasterized > 3, "{line}");
+    assert!(line.contains("(clipping cut some into pieces, each counted)"), "{line}");
+    let err = run_ok(&dir.0, ["render", "e.obj", "--size", "32x32", "-o", "f.png"]);
+    assert!(!err.contains("clipping cut"), "{err}");
+}
