@@ -35,6 +35,23 @@ pub enum Error {
         /// How many bytes were asked for.
         bytes: u128,
     },
+    /// The buffers asked for need more memory than the system has available. Checked before
+    /// they are allocated, because they are cleared as they are made: with overcommit the
+    /// allocation itself succeeds, and the system stops the process once the pages are touched.
+    #[error(
+        "{what} needs {needed:.1} GiB of memory and {available:.1} GiB is available; ask for \
+         a smaller size or fewer samples",
+        needed = *.needed as f64 / f64::from(1 << 30),
+        available = *.available as f64 / f64::from(1 << 30)
+    )]
+    MemoryUnavailable {
+        /// What the memory is for.
+        what: String,
+        /// Bytes needed.
+        needed: u128,
+        /// Bytes available.
+        available: u128,
+    },
     /// A vertex lies outside the fixed-point range.
     #[error(
         "triangle {triangle}: vertex {vertex} at ({x}, {y}) is outside the supported window \

@@ -505,6 +505,84 @@ impl From<DepthTestArg> for DepthTest {
 /// A mistake in what the command was given that clap cannot see and the library has no error
 /// for: a value that does not fit the projection, an input with nothing to sample, a file's
 /// triangle out of the window range (said with the file's name).
+/// Refuses, before anything is allocated, a target whose buffers need more memory than is
+/// `available` (see [`Error::MemoryUnavailable`]): colour and depth (8 bytes a sample),
+/// `per_sample` and `per_pixel` bytes of the other buffers asked for, and the resolved colour
+/// a PNG is written from. Sizes outside the supported range are left to [`Target`] to refuse.
+fn check_target_memory(
+    (width, height): (u32, u32),
+    samples: SampleCount,
+    per_sample: u128,
+    per_pixel: u128,
+    available: Option<u128>,
+) -> Result<(), Error> {
+    let sides = 1..=trirast::fixed::MAX_TARGET_SIZE;
+    let (Some(available), true) = (available, sides.contains(&width) && sides.contains(&height))
+    else {
+        return Ok(());
+    };
+    let count = samples.count() as u128;
+    let needed =
+        u128::from(width) * u128::from(height) * (count * (8 + per_sample) + per_pixel + 4);
+    if needed <= available {
+        return Ok(());
+    }
+    let what = format!("a {width}x{height} target with {count} sample(s) per pixel");
+    Err(Error::MemoryUnavailable { what, needed, available })
+}
+
+/// Bytes this process can still have without being stopped or pushing others out: Linux's
+/// estimate of allocatable memory (`MemAvailable`, reclaimable caches included) plus free
+/// swap, less where a control group above the process sets a lower limit. `None` where the
+/// system does not say (not Linux), and then nothing is refused up front.
+fn memory_available() -> Option<u128> {
+    let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let available = meminfo_available(&meminfo)?;
+    Some(cgroup_room().map_or(available, |room| available.min(room)))
+}
+
+/// `MemAvailable` plus `SwapFree` of a `/proc/meminfo` text, in bytes.
+fn meminfo_available(meminfo: &str) -> Option<u128> {
+    let field = |name: &str| {
+        meminfo.lines().find_map(|line| {
+            let kib = line.strip_prefix(name)?.strip_prefix(':')?.trim().strip_suffix("kB")?;
+            kib.trim().parse::<u128>().ok().map(|kib| kib * 1024)
+        })
+    };
+    Some(field("MemAvailable")? + field("SwapFree").unwrap_or(0))
+}
+
+/// The least room a memory control group above this process leaves it (its limit less its
+/// usage), from the process's group up to the root, cgroup v2 or v1; `None` where none sets a
+/// limit that can be read.
+fn cgroup_room() -> Option<u128> {
+    let groups = std::fs::read_to_string("/proc/self/cgroup").ok()?;
+    // v2: one line `0::/path`, `memory.max` reading "max" where no limit is set. v1: the
+    // line of the `memory` controller, no limit reading as a huge number.
+    let (own, root, limit, usage) = if let Some(own) =
+        groups.lines().find_map(|line| line.split_once(":memory:").map(|(_, path)| path))
+    {
+        (own, "/sys/fs/cgroup/memory", "memory.limit_in_bytes", "memory.usage_in_bytes")
+    } else {
+        let own = groups.lines().find_map(|line| line.strip_prefix("0::"))?;
+        (own, "/sys/fs/cgroup", "memory.max", "memory.current")
+    };
+    let mut dir = Path::new(root).join(own.trim_start_matches('/'));
+    let read = |dir: &Path, file| std::fs::read_to_string(dir.join(file)).ok();
+    let mut least: Option<u128> = None;
+    loop {
+        if let (Some(max), Some(current)) = (read(&dir, limit), read(&dir, usage))
+            && let (Ok(max), Ok(current)) = (max.trim().parse::<u128>(), current.trim().parse())
+        {
+            let room = max.saturating_sub(current);
+            least = Some(least.map_or(room, |l: u128| l.min(room)));
+        }
+        if !dir.pop() || !dir.starts_with(root) {
+            return least;
+        }
+    }
+}
+
 fn usage(message: String) -> Error {
     Error::Usage(message)
 }
@@ -559,7 +637,12 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     let (width, height) = args.size;
     let window = args.projection == ProjectionArg::Window;
     let default_msaa = if window { SampleCount::X1 } else { SampleCount::X4 };
-    let mut target = Target::multisampled(width, height, args.msaa.unwrap_or(default_msaa))?;
+    let samples = args.msaa.unwrap_or(default_msaa);
+    let per_sample = if args.ids.is_some() { 4 } else { 0 };
+    let per_pixel =
+        if args.overdraw.is_some() { 4 } else { 0 } + if args.normals.is_some() { 12 } else { 0 };
+    check_target_memory(args.size, samples, per_sample, per_pixel, memory_available())?;
+    let mut target = Target::multisampled(width, height, samples)?;
     if args.ids.is_some() {
         target = target.try_with_ids()?;
     }
@@ -1277,6 +1360,7 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
     ];
     check_outputs(&outputs, &[&args.file], None)?;
     // The target first: a size it refuses is reported before the hierarchy is built.
+    check_target_memory(args.size, SampleCount::X1, 0, 0, memory_available())?;
     let (width, height) = args.size;
     let mut target = Target::new(width, height)?;
     let tree = load_splats(&args.file)?;
@@ -1418,6 +1502,7 @@ fn demo(
         DemoArg::Soup => Demo::Soup,
     };
     check_outputs(&[("--output", Some(output), Written::Png)], &[], None)?;
+    check_target_memory(size, SampleCount::X1, 0, 0, memory_available())?;
     let mut target = Target::new(size.0, size.1)?;
     let s = scene::demo(which, size.0, size.1);
     let options = RenderOptions::default().with_shading(s.shading).with_algorithm(algorithm.into());
@@ -1484,6 +1569,48 @@ fn report(stats: &trirast::DrawStats) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A target is refused up front exactly when its buffers need more than is available,
+    /// counting the buffers asked for; no figure from the system, no refusal.
+    #[test]
+    fn targets_are_refused_only_past_the_memory_available() {
+        let size = (1000, 500);
+        // Colour and depth at 4x, ids at 4x, overdraw and normals, the resolved colour.
+        let needed = 1000 * 500 * (4 * (8 + 4) + 16 + 4);
+        let check = |available| check_target_memory(size, SampleCount::X4, 4, 16, available);
+        assert!(check(Some(needed)).is_ok());
+        assert!(check(None).is_ok());
+        let Err(Error::MemoryUnavailable { what, needed: n, available }) = check(Some(needed - 1))
+        else {
+            panic!("one byte short is not refused");
+        };
+        assert_eq!((n, available), (needed, needed - 1));
+        assert_eq!(what, "a 1000x500 target with 4 sample(s) per pixel");
+        // Sizes out of range are for `Target` to name.
+        assert!(check_target_memory((0, 500), SampleCount::X1, 0, 0, Some(0)).is_ok());
+        assert!(check_target_memory((16385, 1), SampleCount::X1, 0, 0, Some(0)).is_ok());
+        // 16384 x 16384 at 8x: 17 GiB of colour and depth.
+        let big = check_target_memory((16384, 16384), SampleCount::X8, 0, 0, Some(16 << 30));
+        assert!(big.unwrap_err().to_string().starts_with(
+            "a 16384x16384 target with 8 sample(s) per pixel needs 17.0 GiB of memory and 16.0 \
+             GiB is available"
+        ));
+    }
+
+    /// `/proc/meminfo`'s fields are read by name, in kibibytes; swap counts when present.
+    #[test]
+    fn meminfo_is_read() {
+        let text = "MemTotal:       24000000 kB\nMemFree:   100 kB\nMemAvailable:   2000 kB\n\
+                    SwapTotal:  9 kB\nSwapFree:   300 kB\n";
+        assert_eq!(meminfo_available(text), Some(2300 * 1024));
+        assert_eq!(meminfo_available("MemAvailable: 5 kB\n"), Some(5 * 1024));
+        assert_eq!(meminfo_available("MemTotal: 5 kB\nMemAvailableX: 7 kB\n"), None);
+        assert_eq!(meminfo_available("MemAvailable: many kB\n"), None);
+        // On Linux the live figure is read at all.
+        if cfg!(target_os = "linux") {
+            assert!(memory_available().is_some_and(|b| b > 0));
+        }
+    }
 
     /// Turntable frame names sort in frame order: three digits up to 1,000 frames, as many as
     /// the last frame needs beyond.
