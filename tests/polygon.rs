@@ -502,6 +502,121 @@ fn fill_edge_cases() {
 }
 
 // ---------------------------------------------------------------------------------------------
+// (b2) Polygons of more than 1024 corners: the constrained Delaunay path (earcut's time on
+// them can grow with the square of the corners), held to the same properties.
+
+/// A spiral strip around `c` (pixels): `m` corners out along one arm of `turns` turns, back
+/// along a second arm `width` pixels further out (less than the arms' spacing, so the strip
+/// never touches itself). Earcut's worst case: every ear's box holds most of the ring.
+fn spiral(grid: Grid, c: [f64; 2], reach: f64, turns: f64, m: usize, width: f64) -> Vec<P> {
+    let angle = turns * std::f64::consts::TAU;
+    let pitch = (reach - width) / angle;
+    let arm = |offset: f64| -> Vec<P> {
+        (0..m)
+            .map(|i| {
+                let t = angle * i as f64 / m as f64;
+                let r = 1.0 + offset + pitch * t;
+                [grid.round(c[0] + r * t.cos()), grid.round(c[1] + r * t.sin())]
+            })
+            .collect()
+    };
+    let mut ring = arm(0.0);
+    ring.extend(arm(width).into_iter().rev());
+    ring.dedup();
+    ring
+}
+
+/// A large random polygon (more than 1024 corners after deduplication): a spiral strip, or a
+/// star of many corners with up to four holes; with holes placed as [`polygon`] places them.
+fn large_polygon(rng: &mut SmallRng, i: usize) -> Vec<Vec<P>> {
+    loop {
+        let grid = [Grid::Any, Grid::Halves][rng.random_range(0..2)];
+        let c = [rng.random_range(15.0..32.0), rng.random_range(12.0..27.0)];
+        let ring = if i.is_multiple_of(2) {
+            let turns: f64 = rng.random_range(2.0..6.0);
+            let reach = rng.random_range(20.0..40.0);
+            let width = rng.random_range(0.3..0.8f64) * (reach / turns / 1.2).min(3.0);
+            spiral(grid, c, reach, turns, rng.random_range(600..1500), width)
+        } else {
+            let r1 = rng.random_range(15.0..60.0);
+            let (r0, n) = (r1 * rng.random_range(0.3..0.9), rng.random_range(1100..2500));
+            star(rng, grid, c, r0, r1, n)
+        };
+        if ring.len() <= 1024 || !is_valid(std::slice::from_ref(&ring)) {
+            continue;
+        }
+        if i.is_multiple_of(2) {
+            return vec![if rng.random() { ring } else { ring.into_iter().rev().collect() }];
+        }
+        // Holes: small stars where they fit.
+        let mut rings = vec![ring];
+        for _ in 0..rng.random_range(0..=4) {
+            let hc = [rng.random_range(5.0..42.0), rng.random_range(5.0..34.0)];
+            let r = rng.random_range(0.5..4.0);
+            let (grid, n) = (Grid::random(rng), rng.random_range(3..9));
+            rings.push(star(rng, grid, hc, r * 0.3, r, n));
+            if !is_valid(&rings) {
+                rings.pop();
+            }
+        }
+        return rings;
+    }
+}
+
+#[test]
+fn large_polygons_tile_and_fill_exactly() {
+    let mut rng = SmallRng::seed_from_u64(0x1a76e);
+    let mut holes = 0;
+    for i in 0..12 {
+        let rings = large_polygon(&mut rng, i);
+        holes += rings.len() - 1;
+        let pts = concat(&rings);
+        let outer_sign = ring_area2(&rings[0]).signum();
+        let snapped: Vec<Vec<[i32; 2]>> =
+            rings.iter().map(|r| r.iter().map(|p| p.map(|v| v as i32)).collect()).collect();
+        let tris = triangulate_snapped(&snapped);
+        // Every triangulation of n corners and h holes has n + 2h - 2 triangles.
+        assert_eq!(tris.len(), pts.len() + 2 * (rings.len() - 1) - 2, "polygon {i}");
+        let mut total = 0;
+        for t in &tris {
+            let a = cross(pts[t[0]], pts[t[1]], pts[t[2]]);
+            assert_eq!(a.signum(), outer_sign, "polygon {i}: triangle {t:?} flipped or empty");
+            total += a.abs();
+        }
+        assert_eq!(total, polygon_area2(&rings), "polygon {i}: exact area");
+        let float: Vec<Vec<[f64; 2]>> =
+            rings.iter().map(|r| r.iter().map(|p| p.map(|v| v as f64 / 256.0)).collect()).collect();
+        let fpts: Vec<[f64; 2]> = float.iter().flatten().copied().collect();
+        let ftris = triangulate_polygon(&float);
+        assert_eq!(ftris.len(), tris.len(), "polygon {i}: f64 triangles");
+        let ftotal: f64 = ftris
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|k| fpts[k]);
+                let s = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+                assert_eq!(s.signum() as i128, outer_sign, "polygon {i}: f64 triangle {t:?}");
+                s.abs()
+            })
+            .sum();
+        let expected = polygon_area2(&rings) as f64 / 65536.0;
+        assert!((ftotal - expected).abs() <= 1e-9 * expected, "polygon {i}: f64 area");
+        check_fill(&rings, None);
+        // As a mesh face (a spiral's ring, on the plane z = 0 in f32): n - 2 triangles wound
+        // like the face.
+        if rings.len() == 1 {
+            let face: Vec<[f32; 3]> =
+                float[0].iter().map(|p| [p[0] as f32, p[1] as f32, 0.0]).collect();
+            let tris = triangulate_face(&face);
+            assert_n_minus_2(&tris, face.len(), &[]);
+            for t in &tris {
+                assert_eq!(cross(pts[t[0]], pts[t[1]], pts[t[2]]).signum(), outer_sign);
+            }
+        }
+    }
+    assert!(holes >= 4, "only {holes} holes in the large polygons");
+}
+
+// ---------------------------------------------------------------------------------------------
 // (c) Mesh faces: random 2D polygons embedded in 3D keep their winding and their area.
 
 /// An integer quaternion's rotation matrix scaled by its squared norm: a rotation times an
