@@ -38,11 +38,12 @@ pub enum Error {
     /// The buffers asked for need more memory than the system has available. Checked before
     /// they are allocated, because they are cleared as they are made: with overcommit the
     /// allocation itself succeeds, and the system stops the process once the pages are touched.
+    /// Needed is rounded up and available down, to hundredths of a GiB, so the two never
+    /// read the same.
     #[error(
-        "{what} needs {needed:.1} GiB of memory and {available:.1} GiB is available; ask for \
-         a smaller size or fewer samples",
-        needed = *.needed as f64 / f64::from(1 << 30),
-        available = *.available as f64 / f64::from(1 << 30)
+        "{what} needs {needed:.2} GiB of memory and {available:.2} GiB is available",
+        needed = (*.needed as f64 / f64::from(1 << 30) * 100.0).ceil() / 100.0,
+        available = (*.available as f64 / f64::from(1 << 30) * 100.0).floor() / 100.0
     )]
     MemoryUnavailable {
         /// What the memory is for.

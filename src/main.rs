@@ -502,13 +502,11 @@ impl From<DepthTestArg> for DepthTest {
     }
 }
 
-/// A mistake in what the command was given that clap cannot see and the library has no error
-/// for: a value that does not fit the projection, an input with nothing to sample, a file's
-/// triangle out of the window range (said with the file's name).
 /// Refuses, before anything is allocated, a target whose buffers need more memory than is
 /// `available` (see [`Error::MemoryUnavailable`]): colour and depth (8 bytes a sample),
-/// `per_sample` and `per_pixel` bytes of the other buffers asked for, and the resolved colour
-/// a PNG is written from. Sizes outside the supported range are left to [`Target`] to refuse.
+/// `per_sample` and `per_pixel` bytes of the other buffers asked for, and 8 bytes a pixel for
+/// the PNG (the resolved colour, and the compressed image the encoder holds beside it). Sizes
+/// outside the supported range are left to [`Target`] to refuse.
 fn check_target_memory(
     (width, height): (u32, u32),
     samples: SampleCount,
@@ -523,7 +521,7 @@ fn check_target_memory(
     };
     let count = samples.count() as u128;
     let needed =
-        u128::from(width) * u128::from(height) * (count * (8 + per_sample) + per_pixel + 4);
+        u128::from(width) * u128::from(height) * (count * (8 + per_sample) + per_pixel + 8);
     if needed <= available {
         return Ok(());
     }
@@ -552,37 +550,58 @@ fn meminfo_available(meminfo: &str) -> Option<u128> {
     Some(field("MemAvailable")? + field("SwapFree").unwrap_or(0))
 }
 
-/// The least room a memory control group above this process leaves it (its limit less its
-/// usage), from the process's group up to the root, cgroup v2 or v1; `None` where none sets a
-/// limit that can be read.
+/// The value of `name` in a cgroup `memory.stat` text (`name value` lines).
+fn memory_stat(stat: &str, name: &str) -> Option<u128> {
+    stat.lines().find_map(|line| line.strip_prefix(name)?.strip_prefix(' ')?.trim().parse().ok())
+}
+
+/// The least room a memory control group above this process leaves it, from the process's
+/// group up to the root, cgroup v2 or v1 (its `memory` controller, possibly mounted with
+/// others); `None` where none sets a limit that can be read. A group's room is its limit
+/// less its usage, the inactive file cache (which the kernel reclaims before it stops a
+/// process) not counted as used.
 fn cgroup_room() -> Option<u128> {
     let groups = std::fs::read_to_string("/proc/self/cgroup").ok()?;
-    // v2: one line `0::/path`, `memory.max` reading "max" where no limit is set. v1: the
-    // line of the `memory` controller, no limit reading as a huge number.
-    let (own, root, limit, usage) = if let Some(own) =
-        groups.lines().find_map(|line| line.split_once(":memory:").map(|(_, path)| path))
-    {
-        (own, "/sys/fs/cgroup/memory", "memory.limit_in_bytes", "memory.usage_in_bytes")
-    } else {
-        let own = groups.lines().find_map(|line| line.strip_prefix("0::"))?;
-        (own, "/sys/fs/cgroup", "memory.max", "memory.current")
+    // v1: the line of the controllers that include `memory`, mounted under their names.
+    let v1 = groups.lines().find_map(|line| {
+        let (_, rest) = line.split_once(':')?;
+        let (controllers, path) = rest.split_once(':')?;
+        let root = format!("/sys/fs/cgroup/{controllers}");
+        controllers.split(',').any(|c| c == "memory").then_some((path, root))
+    });
+    // v2: one line `0::/path`, `memory.max` reading "max" where no limit is set. v1: no
+    // limit reads as a huge number.
+    let (own, root, limit, usage, inactive) = match v1 {
+        Some((own, root)) => {
+            (own, root, "memory.limit_in_bytes", "memory.usage_in_bytes", "total_inactive_file")
+        }
+        None => {
+            let own = groups.lines().find_map(|line| line.strip_prefix("0::"))?;
+            (own, "/sys/fs/cgroup".to_string(), "memory.max", "memory.current", "inactive_file")
+        }
     };
-    let mut dir = Path::new(root).join(own.trim_start_matches('/'));
+    let root = PathBuf::from(root);
+    let mut dir = root.join(own.trim_start_matches('/'));
     let read = |dir: &Path, file| std::fs::read_to_string(dir.join(file)).ok();
     let mut least: Option<u128> = None;
     loop {
         if let (Some(max), Some(current)) = (read(&dir, limit), read(&dir, usage))
             && let (Ok(max), Ok(current)) = (max.trim().parse::<u128>(), current.trim().parse())
         {
-            let room = max.saturating_sub(current);
+            let cache = read(&dir, "memory.stat").and_then(|s| memory_stat(&s, inactive));
+            let used: u128 = current - cache.unwrap_or(0).min(current);
+            let room = max.saturating_sub(used);
             least = Some(least.map_or(room, |l: u128| l.min(room)));
         }
-        if !dir.pop() || !dir.starts_with(root) {
+        if !dir.pop() || !dir.starts_with(&root) {
             return least;
         }
     }
 }
 
+/// A mistake in what the command was given that clap cannot see and the library has no error
+/// for: a value that does not fit the projection, an input with nothing to sample, a file's
+/// triangle out of the window range (said with the file's name).
 fn usage(message: String) -> Error {
     Error::Usage(message)
 }
@@ -1576,7 +1595,7 @@ mod tests {
     fn targets_are_refused_only_past_the_memory_available() {
         let size = (1000, 500);
         // Colour and depth at 4x, ids at 4x, overdraw and normals, the resolved colour.
-        let needed = 1000 * 500 * (4 * (8 + 4) + 16 + 4);
+        let needed = 1000 * 500 * (4 * (8 + 4) + 16 + 8);
         let check = |available| check_target_memory(size, SampleCount::X4, 4, 16, available);
         assert!(check(Some(needed)).is_ok());
         assert!(check(None).is_ok());
@@ -1589,12 +1608,14 @@ mod tests {
         // Sizes out of range are for `Target` to name.
         assert!(check_target_memory((0, 500), SampleCount::X1, 0, 0, Some(0)).is_ok());
         assert!(check_target_memory((16385, 1), SampleCount::X1, 0, 0, Some(0)).is_ok());
-        // 16384 x 16384 at 8x: 17 GiB of colour and depth.
-        let big = check_target_memory((16384, 16384), SampleCount::X8, 0, 0, Some(16 << 30));
-        assert!(big.unwrap_err().to_string().starts_with(
-            "a 16384x16384 target with 8 sample(s) per pixel needs 17.0 GiB of memory and 16.0 \
-             GiB is available"
-        ));
+        // 16384 x 16384 at 8x: 16 GiB of colour and depth, 2 GiB for the PNG. Needed is
+        // rounded up and available down, so the two never read the same.
+        let big = check_target_memory((16384, 16384), SampleCount::X8, 0, 0, Some((18 << 30) - 1));
+        assert_eq!(
+            big.unwrap_err().to_string(),
+            "a 16384x16384 target with 8 sample(s) per pixel needs 18.00 GiB of memory and \
+             17.99 GiB is available"
+        );
     }
 
     /// `/proc/meminfo`'s fields are read by name, in kibibytes; swap counts when present.
@@ -1608,8 +1629,12 @@ mod tests {
         assert_eq!(meminfo_available("MemAvailable: many kB\n"), None);
         // On Linux the live figure is read at all.
         if cfg!(target_os = "linux") {
-            assert!(memory_available().is_some_and(|b| b > 0));
+            assert!(memory_available().is_some());
         }
+        let stat = "cache 5\ninactive_file 300\ntotal_inactive_file 7\n";
+        assert_eq!(memory_stat(stat, "inactive_file"), Some(300));
+        assert_eq!(memory_stat(stat, "total_inactive_file"), Some(7));
+        assert_eq!(memory_stat(stat, "active_file"), None);
     }
 
     /// Turntable frame names sort in frame order: three digits up to 1,000 frames, as many as

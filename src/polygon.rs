@@ -62,7 +62,8 @@ const EARCUT_I32_HALF_RANGE: i64 = 1 << 19;
 /// The face is projected onto the coordinate plane its Newell normal is most aligned with (so
 /// the projection is as little foreshortened as possible), keeping the orientation: every
 /// output triangle's normal points the same way as the face's Newell normal. A strictly convex
-/// face gives exactly the fan `(0, i, i + 1)`; other faces are triangulated by earcut.
+/// face gives exactly the fan `(0, i, i + 1)`; other faces are triangulated by earcut (above
+/// 1024 corners by a constrained Delaunay triangulation where that covers every corner).
 ///
 /// A twisted (non-planar) face can project onto a degenerate ring (two corners on one point,
 /// the ring touching or crossing itself), of which earcut leaves corners out: a hole in the
@@ -195,7 +196,8 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 ///
 /// Triangles are wound like the outer ring. Rings must not cross or touch each other (holes
 /// strictly inside the outer ring, pairwise disjoint), and each must be simple; for other input
-/// the result is whatever earcut makes of it, except that rings passing through one point more
+/// the result is whatever earcut or the Delaunay triangulation (above 1024 corners, see the
+/// module docs) makes of it, except that rings passing through one point more
 /// than twice (repeats next to each other counting once) give no triangles. Non-finite
 /// coordinates give no triangles, holes with fewer than 3 points are ignored. For an exact
 /// triangulation of pixel coordinates, see [`triangulate_snapped`].
@@ -292,7 +294,7 @@ pub fn triangulate_snapped(rings: &[Vec<[i32; 2]>]) -> Vec<[usize; 3]> {
 /// the 1/256-pixel grid, centres exactly on its boundary follow the top-left rule, and no pixel
 /// is lit twice (see the module docs for why). The rings must form a valid polygon (simple
 /// rings, holes strictly inside the outer ring and disjoint from each other, after snapping);
-/// other input is drawn as earcut triangulates it, without panicking, except that rings
+/// other input is drawn as it is triangulated, without panicking, except that rings
 /// passing through one point more than twice are not drawn ([`triangulate_snapped`]).
 ///
 /// Errors: a finite vertex outside [-32768, 32768) pixels gives
@@ -470,7 +472,6 @@ fn flatten<T: Copy>(
     (data, holes, map)
 }
 
-/// Runs earcut in `f64` and winds the triangles counter-clockwise (y up) iff `ccw`.
 /// Triangulates the rings of `data` (the outer ring, then one from each start in `holes`):
 /// through [`cdt_rings`] above [`CDT_ABOVE_CORNERS`] corners where it can, else earcut.
 fn triangulate_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Vec<[usize; 3]> {
@@ -490,10 +491,11 @@ fn triangulate_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Vec<[usiz
 /// A corner equal to the one before it on its ring is left out, as earcut leaves it out.
 /// `None`, for earcut to decide, where the result would not be a triangulation of the polygon
 /// over all its other corners: two of them on one point (spade keeps one vertex per position,
-/// so a bridge or a pinch would lose one), a ring left with fewer than 3, sides that cross or overlap (constraints
-/// in conflict), coordinates spade refuses (beyond about `1e20`), parities that disagree, or a
-/// count other than the `n + 2h - 2` triangles every triangulation of `n` corners and `h`
-/// holes has.
+/// so a bridge or a pinch would lose one), a ring left with fewer than 3, sides that cross
+/// (constraints in conflict), coordinates spade refuses (magnitudes above 2^201 or non-zero
+/// below 2^-142), parities that disagree (sides that overlap, which spade merges, or a corner
+/// on another side), or a count other than the `n + 2h - 2` triangles every triangulation of
+/// `n` corners and `h` holes has.
 fn cdt_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Option<Vec<[usize; 3]>> {
     let key = |i: usize| data[i].map(|c| (c + 0.0).to_bits());
     let mut bounds = vec![0];
@@ -568,6 +570,7 @@ fn cdt_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Option<Vec<[usize
     (tris.len() + 2 == n + 2 * holes.len()).then_some(tris)
 }
 
+/// Runs earcut in `f64` and winds the triangles counter-clockwise (y up) iff `ccw`.
 fn earcut_f64(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Vec<[usize; 3]> {
     let mut flat = Vec::new();
     Earcut::new().earcut(data.iter().copied(), holes, &mut flat);
@@ -868,19 +871,33 @@ mod tests {
         // repeated corners) are refused or triangulated, never a panic.
         use rand::{Rng, SeedableRng};
         let mut rng = rand::rngs::SmallRng::seed_from_u64(0xcd7);
-        for side in [4.0, 40.0, 1e6] {
+        for side in [34usize, 40, 100_000] {
             for _ in 0..20 {
-                let random: Vec<[f64; 2]> = (0..1100)
-                    .map(|_| [0, 1].map(|_| (rng.random::<f64>() * side).round()))
-                    .collect();
+                // Distinct corners, for spade to see them.
+                let (mut seen, mut random) = (std::collections::HashSet::new(), Vec::new());
+                while random.len() < 1100 {
+                    let cell = [rng.random_range(0..side), rng.random_range(0..side)];
+                    if seen.insert(cell) {
+                        random.push(cell.map(|v| v as f64));
+                    }
+                }
                 if let Some(tris) = cdt_rings(&random, &[], true) {
                     assert_eq!(tris.len(), random.len() - 2);
                 }
                 let _ = triangulate_polygon(&[random]);
             }
         }
-        // Above the threshold, rings go this way, and refused ones still go to earcut.
+        // Above the threshold, rings go this way, the faces' and the snapped fill's too, and
+        // refused ones still go to earcut.
         assert_eq!(triangulate_rings(&ring, &[], true), cdt_rings(&ring, &[], true).unwrap());
+        let face: Vec<[f32; 3]> = ring.iter().map(|p| [p[0] as f32, p[1] as f32, 0.0]).collect();
+        assert_eq!(triangulate_face(&face), cdt_rings(&ring, &[], shoelace(&ring) > 0.0).unwrap());
+        let snapped: Vec<[i32; 2]> = ring.iter().map(|p| p.map(|v| (v * 4.0) as i32)).collect();
+        let exact: Vec<[f64; 2]> = snapped.iter().map(|p| p.map(f64::from)).collect();
+        assert_eq!(
+            triangulate_snapped(&[snapped]),
+            cdt_rings(&exact, &[], shoelace(&ring) > 0.0).unwrap()
+        );
         assert_eq!(triangulate_rings(&pinched, &[], true), earcut_f64(&pinched, &[], true));
     }
 }
