@@ -625,6 +625,9 @@ fn materials_resolve_relative_paths_and_missing_files_are_warnings() {
     for needle in [
         "missing.png of material `gone` was not found; using its diffuse colour",
         "broken.png of material `broken` cannot be decoded",
+        // Each names its `map_Kd` line.
+        "lib.mtl:8: texture ",
+        "lib.mtl:11: texture ",
         "scene.obj:17: material `nowhere`: no material library defines it",
     ] {
         assert!(warnings.contains(needle), "{needle:?} not in warnings:\n{warnings}");
@@ -760,7 +763,7 @@ fn material_libraries_and_textures_that_are_not_files_are_warnings() {
         let p = path.clone();
         let mesh = within_seconds(move || mesh::load(&p)).unwrap();
         let expected = format!(
-            "{}: texture {} of material `m` is {kind}, not a regular file; using its diffuse \
+            "{}:3: texture {} of material `m` is {kind}, not a regular file; using its diffuse \
              colour",
             library.display(),
             dir.join(&texture).display()
@@ -817,9 +820,9 @@ fn oversized_textures_are_refused_from_their_header() {
     fs::write(&path, obj).unwrap();
     let mesh = mesh::load(&path).unwrap();
     let library = dir.join("lib.mtl");
-    let expected = [("wide", "20000x1"), ("bomb", "8193x8193")].map(|(name, size)| {
+    let expected = [("wide", "20000x1", 3), ("bomb", "8193x8193", 5)].map(|(name, size, line)| {
         format!(
-            "{}: texture {} of material `{name}` is {size} texels, more than a texture may have \
+            "{}:{line}: texture {} of material `{name}` is {size} texels, more than a texture may have \
              (at most 16384 a side and 67108864 in all); using its diffuse colour",
             library.display(),
             dir.join(format!("{name}.png")).display()

@@ -27,6 +27,9 @@ pub struct MaterialLibrary {
     /// One entry per `newmtl`; `diffuse_texture` is resolved against the library's directory
     /// but not checked for existence (see [`apply`]).
     pub materials: Vec<Material>,
+    /// The line of each material's `map_Kd` (0 where it has none), for warnings about the
+    /// texture to name.
+    pub texture_lines: Vec<usize>,
     /// Statements that were understood but not supported (`Kd spectral ...`, say).
     pub warnings: Vec<String>,
 }
@@ -72,6 +75,7 @@ fn statement(
             return Err((line, "`newmtl` needs a material name".into()));
         }
         lib.materials.push(Material { name: args.join(" "), ..Material::default() });
+        lib.texture_lines.push(0);
         return Ok(());
     }
     if lower != "kd" && lower != "map_kd" {
@@ -107,6 +111,9 @@ fn statement(
             return Err((line, "`map_Kd` needs a file name".into()));
         };
         material.diffuse_texture = Some(dir.join(file));
+        if let Some(at) = lib.texture_lines.last_mut() {
+            *at = line;
+        }
     }
     Ok(())
 }
@@ -123,7 +130,8 @@ fn statement(
 pub fn apply(mesh: &mut Mesh, obj: &MaterialStatements, obj_path: &Path) -> Result<(), Error> {
     let dir = obj_path.parent().unwrap_or_else(|| Path::new(""));
     let obj_name = obj_path.display();
-    let mut defined: HashMap<String, (Material, PathBuf)> = HashMap::new();
+    // Each material name's first definition: the material, its library and its `map_Kd` line.
+    let mut defined: HashMap<String, (Material, PathBuf, usize)> = HashMap::new();
     let mut missing_library = false;
     for (argument, line) in &obj.libraries {
         for file in library_files(dir, argument) {
@@ -156,15 +164,15 @@ pub fn apply(mesh: &mut Mesh, obj: &MaterialStatements, obj_path: &Path) -> Resu
             for w in lib.warnings {
                 mesh.warnings.push(format!("{}: {w}", file.display()));
             }
-            for m in lib.materials {
-                defined.entry(m.name.clone()).or_insert_with(|| (m, file.clone()));
+            for (m, at) in lib.materials.into_iter().zip(lib.texture_lines) {
+                defined.entry(m.name.clone()).or_insert_with(|| (m, file.clone(), at));
             }
         }
     }
     let lines: HashMap<&str, u32> =
         obj.names.iter().map(|(name, line)| (name.as_str(), *line)).collect();
     for material in mesh.materials.iter_mut().filter(|m| !m.name.is_empty()) {
-        let Some((found, library)) = defined.get(&material.name) else {
+        let Some((found, library, texture_line)) = defined.get(&material.name) else {
             if missing_library {
                 // Probably defined in the missing library, which has its warning already.
                 continue;
@@ -187,7 +195,8 @@ pub fn apply(mesh: &mut Mesh, obj: &MaterialStatements, obj_path: &Path) -> Resu
             match check_texture(texture) {
                 Ok(path) => material.diffuse_texture = Some(path),
                 Err(why) => mesh.warnings.push(format!(
-                    "{}: texture {} of material `{}` {why}; using its diffuse colour",
+                    "{}:{texture_line}: texture {} of material `{}` {why}; using its diffuse \
+                     colour",
                     library.display(),
                     texture.display(),
                     material.name
