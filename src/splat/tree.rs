@@ -422,10 +422,9 @@ fn angle(a: [f32; 3], b: [f32; 3]) -> f32 {
 /// above it ([`with_chains`]).
 const CHAIN_RATIO: f32 = 4.0;
 
-/// The base-2 logarithm of how many times `child`'s radius `parent`'s is, and whether that is
-/// more than [`CHAIN_RATIO`]. Taken of the quotient where it is finite (so the chains of
-/// ordinary trees are what they always were), of the logarithms' difference where it
-/// overflows (radii of 3e38 over 1e-45).
+/// `log2(parent / child)` for radii whose quotient is more than [`CHAIN_RATIO`], else `None`.
+/// Taken of the quotient where it is finite (so the chains of ordinary trees are what they
+/// always were), of the logarithms' difference where it overflows (radii of 3e38 over 1e-45).
 fn log2_ratio(parent: f32, child: f32) -> Option<f32> {
     let ratio = parent / child;
     if ratio.is_nan() || ratio <= CHAIN_RATIO {
