@@ -75,9 +75,13 @@ const EARCUT_I32_HALF_RANGE: i64 = 1 << 19;
 /// keeps earcut's answer, which leaves out only corners repeated or on the line through their
 /// neighbours.
 ///
-/// Degenerate input never panics: fewer than 3 points give nothing; a zero or non-finite normal
-/// (collinear or repeated points, NaN, infinity) gives the fan, whose triangles the rasterizer
-/// then drops and counts as degenerate or non-finite. So does a face passing through one point
+/// Degenerate input never panics: fewer than 3 points give nothing; a corner with a NaN or
+/// infinite coordinate makes the face undefined, and it gives the fan from that corner, every
+/// triangle of which the rasterizer drops and counts as non-finite (the fan from corner 0 drew
+/// its other triangles over each other: a star of 2,000 corners with one NaN covered three
+/// times its area); a zero or non-finite normal of finite corners (collinear or repeated
+/// points, an overflow) gives the fan, whose triangles the rasterizer then drops and counts
+/// as degenerate, or draws. So does a face passing through one point
 /// more than twice (repeats next to each other counting once), which is not a simple polygon
 /// and would take earcut time cubic in its length.
 #[must_use]
@@ -85,6 +89,9 @@ pub fn triangulate_face(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
     let n = points.len();
     if n <= 3 {
         return fan(n);
+    }
+    if let Some(k) = points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        return fan(n).into_iter().map(|t| t.map(|i| (i + k) % n)).collect();
     }
     let normal = newell_normal(points);
     if !normal.iter().all(|c| c.is_finite()) || normal == [0.0; 3] {
@@ -716,10 +723,21 @@ mod tests {
         assert_eq!(triangulate_face(&[[0.0; 3], [1.0; 3], [2.0; 3]]), vec![[0, 1, 2]]);
         let line = [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [2.0, 2.0, 2.0], [3.0, 3.0, 3.0]];
         assert_eq!(triangulate_face(&line), fan(4));
+        // A non-finite corner: every triangle has it, so the rasterizer drops them all.
         let nan = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [f32::NAN, 1.0, 0.0], [0.0, 1.0, 0.0]];
-        assert_eq!(triangulate_face(&nan), fan(4));
+        assert_eq!(triangulate_face(&nan), [[2, 3, 0], [2, 0, 1]]);
         let inf = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [f32::INFINITY, 1.0, 0.0], [0.0, 1.0, 0.0]];
-        assert_eq!(triangulate_face(&inf), fan(4));
+        assert_eq!(triangulate_face(&inf), [[2, 3, 0], [2, 0, 1]]);
+        let mut star: Vec<[f32; 3]> = (0..2000)
+            .map(|i| {
+                let (a, r) = (i as f32 * std::f32::consts::TAU / 2000.0, [1.0, 0.3][i % 2]);
+                [r * a.cos(), r * a.sin(), 0.0]
+            })
+            .collect();
+        star[700][1] = f32::NAN;
+        let tris = triangulate_face(&star);
+        assert_eq!(tris.len(), 1998);
+        assert!(tris.iter().all(|t| t.contains(&700)));
     }
 
     /// Polygons through one point three times or more take earcut time cubic in their length
