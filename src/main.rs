@@ -531,12 +531,33 @@ fn check_target_memory(
 
 /// Bytes this process can still have without being stopped or pushing others out: Linux's
 /// estimate of allocatable memory (`MemAvailable`, reclaimable caches included) plus free
-/// swap, less where a control group above the process sets a lower limit. `None` where the
-/// system does not say (not Linux), and then nothing is refused up front.
+/// swap, less where a control group above the process sets a lower limit, or the process's
+/// address space limit (`ulimit -v`) leaves less room. `None` where the system does not say
+/// (not Linux), and then nothing is refused up front.
 fn memory_available() -> Option<u128> {
     let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let available = meminfo_available(&meminfo)?;
-    Some(cgroup_room().map_or(available, |room| available.min(room)))
+    let mut available = meminfo_available(&meminfo)?;
+    for room in [cgroup_room(), address_space_room()].into_iter().flatten() {
+        available = available.min(room);
+    }
+    Some(available)
+}
+
+/// The room the address space limit leaves: `Max address space` of `/proc/self/limits` less
+/// `VmSize` of `/proc/self/status`; `None` where it is unlimited or cannot be read.
+fn address_space_room() -> Option<u128> {
+    let limits = std::fs::read_to_string("/proc/self/limits").ok()?;
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    address_space_room_of(&limits, &status)
+}
+
+/// [`address_space_room`] of the two files' texts.
+fn address_space_room_of(limits: &str, status: &str) -> Option<u128> {
+    let soft = limits.lines().find_map(|l| l.strip_prefix("Max address space"))?;
+    let limit: u128 = soft.split_whitespace().next()?.parse().ok()?;
+    let size = status.lines().find_map(|l| l.strip_prefix("VmSize:"))?;
+    let kib: u128 = size.trim().strip_suffix("kB")?.trim().parse().ok()?;
+    Some(limit.saturating_sub(kib * 1024))
 }
 
 /// `MemAvailable` plus `SwapFree` of a `/proc/meminfo` text, in bytes.
@@ -1379,7 +1400,8 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
     ];
     check_outputs(&outputs, &[&args.file], None)?;
     // The target first: a size it refuses is reported before the hierarchy is built.
-    check_target_memory(args.size, SampleCount::X1, 0, 0, memory_available())?;
+    // Per pixel beside the target: the scratch target each level is drawn into.
+    check_target_memory(args.size, SampleCount::X1, 0, 8, memory_available())?;
     let (width, height) = args.size;
     let mut target = Target::new(width, height)?;
     let tree = load_splats(&args.file)?;
@@ -1631,6 +1653,12 @@ mod tests {
         if cfg!(target_os = "linux") {
             assert!(memory_available().is_some());
         }
+        let limits = "Max cpu time              unlimited            unlimited            seconds\n\
+                      Max address space         6000000000           unlimited            bytes\n";
+        let status = "Name:\ttrirast\nVmPeak:\t  9 kB\nVmSize:\t  1000 kB\n";
+        assert_eq!(address_space_room_of(limits, status), Some(6_000_000_000 - 1_024_000));
+        let unlimited = limits.replace("6000000000 ", "unlimited  ");
+        assert_eq!(address_space_room_of(&unlimited, status), None);
         let stat = "cache 5\ninactive_file 300\ntotal_inactive_file 7\n";
         assert_eq!(memory_stat(stat, "inactive_file"), Some(300));
         assert_eq!(memory_stat(stat, "total_inactive_file"), Some(7));
