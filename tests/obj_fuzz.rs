@@ -233,17 +233,22 @@ fn check_mesh(mesh: &ObjMesh, lines: usize) {
         assert!(m.iter().all(|&k| (k as usize) < indexed.materials.len()), "material index");
     }
     let triangles = window_triangles(mesh);
-    assert_eq!(triangles.len(), mesh.triangle_count());
-    // Fan order: triangle k of a face starts at the face's first corner.
+    // A face of n corners gives at most n - 2 triangles (fewer where the triangulation leaves
+    // out collinear or repeated corners), in file order: each triangle's corners are corners
+    // of its face, the faces taken one after another.
+    assert!(triangles.len() <= mesh.triangle_count());
     let mut k = 0;
     for face in mesh.faces() {
-        let [x, y, z] = mesh.positions[face[0].position as usize];
-        for _ in 2..face.len() {
-            let v = triangles[k][0];
-            assert!(same(v.x, x) && same(v.y, y) && same(v.z, z), "fan vertex of triangle {k}");
+        let corners: Vec<[f32; 3]> =
+            face.iter().map(|c| mesh.positions[c.position as usize]).collect();
+        let of_face = |v: &trirast::Vertex| {
+            corners.iter().any(|&[x, y, z]| same(v.x, x) && same(v.y, y) && same(v.z, z))
+        };
+        while k < triangles.len() && triangles[k].iter().all(of_face) {
             k += 1;
         }
     }
+    assert_eq!(k, triangles.len(), "triangle {k} is not of its face, in file order");
     // An accepted mesh may still be undrawable (out-of-range vertices are an error), but
     // drawing it must not panic, and both rasterizers must agree on it.
     let draw = |algorithm| {

@@ -123,8 +123,14 @@ pub fn unorm8(c: f32) -> u8 {
 
 /// The mesh's faces as window-space triangles: `v x y z` is a position in pixels (y down) with
 /// depth `z`, an optional `w` gives `1/w` for perspective-correct shading, and an optional
-/// colour in [0, 1] is the vertex colour (white when absent). A face of n corners becomes the
-/// fan `(c0, c_i, c_i+1)`, n - 2 triangles numbered in file order.
+/// colour in [0, 1] is the vertex colour (white when absent). Faces are polygons in the
+/// window's x-y plane ([`crate::polygon::triangulate_polygon`], wound like the face): a
+/// strictly convex face of n corners becomes the fan `(c0, c_i, c_i+1)`, a concave one its
+/// triangulation (the fan drew a dart over its notch, twice over part of it). Triangles are
+/// numbered in file order, face by face. A face that does not triangulate (zero area, a
+/// corner on one point three times) is fanned, for the rasterizer to count or draw as before;
+/// one with a NaN or infinite corner becomes the fan from that corner, all of which the
+/// rasterizer drops and counts.
 #[must_use]
 pub fn window_triangles(mesh: &ObjMesh) -> Vec<[Vertex; 3]> {
     let vertex = |c: &Corner| {
@@ -140,10 +146,53 @@ pub fn window_triangles(mesh: &ObjMesh) -> Vec<[Vertex; 3]> {
     };
     let mut out = Vec::with_capacity(mesh.triangle_count());
     for face in mesh.faces() {
-        let c0 = vertex(&face[0]);
-        for pair in face[1..].windows(2) {
-            out.push([c0, vertex(&pair[0]), vertex(&pair[1])]);
+        if face.len() == 3 {
+            out.push([vertex(&face[0]), vertex(&face[1]), vertex(&face[2])]);
+            continue;
         }
+        let corners: Vec<Vertex> = face.iter().map(vertex).collect();
+        out.extend(window_face(&corners).into_iter().map(|t| t.map(|i| corners[i])));
     }
     out
+}
+
+/// The triangles of one window-space face (see [`window_triangles`]), as corner indices.
+fn window_face(corners: &[Vertex]) -> Vec<[usize; 3]> {
+    let n = corners.len();
+    let fan_from = |k: usize| (1..n - 1).map(|i| [k, (k + i) % n, (k + i + 1) % n]).collect();
+    if let Some(k) = corners.iter().position(|c| !(c.x.is_finite() && c.y.is_finite())) {
+        return fan_from(k);
+    }
+    let ring: Vec<[f64; 2]> = corners.iter().map(|c| [f64::from(c.x), f64::from(c.y)]).collect();
+    let tris = crate::polygon::triangulate_polygon(&[ring]);
+    if tris.is_empty() { fan_from(0) } else { tris }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A concave face is drawn as its polygon: its triangles tile the dart (each wound like
+    /// the face, their areas adding up to its area), where the fan covered the notch too. A
+    /// NaN corner is in every triangle of its face, so the rasterizer drops them all.
+    #[test]
+    fn window_faces_are_triangulated_as_polygons() {
+        let dart = b"v 100 100 0.5\nv 500 400 0.5\nv 900 100 0.5\nv 500 900 0.5\nf 1 2 3 4\n";
+        let mesh = obj::parse(dart).unwrap();
+        let tris = window_triangles(&mesh);
+        assert_eq!(tris.len(), 2);
+        let area2 = |[a, b, c]: [Vertex; 3]| (b.x - a.x) * (c.y - a.y) - (c.x - a.x) * (b.y - a.y);
+        // Twice the face's signed area (shoelace) is 400,000.
+        assert!(tris.iter().all(|&t| area2(t) > 0.0));
+        assert_eq!(tris.iter().map(|&t| area2(t)).sum::<f32>(), 400_000.0);
+        // A convex face is the fan from its first corner, as ever.
+        let square = b"v 0 0 0\nv 4 0 0\nv 4 4 0\nv 0 4 0\nf 1 2 3 4\n";
+        let tris = window_triangles(&obj::parse(square).unwrap());
+        let corners: Vec<[f32; 2]> = tris.iter().flatten().map(|v| [v.x, v.y]).collect();
+        assert_eq!(corners, [[0., 0.], [4., 0.], [4., 4.], [0., 0.], [4., 4.], [0., 4.]]);
+        let nan = b"v 100 100 0.5\nv 500 400 0.5\nv nan 100 0.5\nv 500 900 0.5\nf 1 2 3 4\n";
+        let tris = window_triangles(&obj::parse(nan).unwrap());
+        assert_eq!(tris.len(), 2);
+        assert!(tris.iter().all(|t| t.iter().any(|v| v.x.is_nan())));
+    }
 }
