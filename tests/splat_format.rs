@@ -612,6 +612,36 @@ fn isolated_points_keep_their_splat_size_through_the_file() {
     assert_eq!(tree.leaf_count(), 40_030);
 }
 
+/// Points beside a few with huge splat radii sit under parents billions of times their
+/// size; the chains above them keep them where they are through the file. (Coarser chains,
+/// tried to bound the nodes they add, lost them: at radius 1e10 on one point in a hundred,
+/// half the others decoded far from their place and were culled, all at 1e15.)
+#[test]
+fn points_beside_huge_splats_keep_their_place_through_the_file() {
+    let mut rng = Rng::new(8);
+    for big in [1e6f32, 1e10, 1e15] {
+        let positions: Vec<[f32; 3]> =
+            (0..1000).map(|_| [0; 3].map(|_| rng.unit() as f32 * 2.0 - 1.0)).collect();
+        let radii = (0..1000).map(|i| if i % 100 == 0 { big } else { 0.01 }).collect();
+        let cloud = PointCloud { positions, normals: None, colors: None, radii: Some(radii) };
+        let tree = SplatTree::build(&cloud).unwrap();
+        let decoded = format::decode(&format::encode(&tree).unwrap()).unwrap();
+        let small = tree
+            .nodes
+            .iter()
+            .zip(&decoded.nodes)
+            .filter(|(n, _)| n.child_count == 0 && n.radius == 0.01);
+        let mut count = 0;
+        for (n, d) in small {
+            count += 1;
+            assert!(d.radius < 0.025, "radius {big}: a leaf decoded at radius {}", d.radius);
+            let off = dist(n.centre, d.centre);
+            assert!(off < 0.01, "radius {big}: a leaf decoded {off} from its place");
+        }
+        assert_eq!(count, 990);
+    }
+}
+
 #[test]
 fn duplicates_and_zero_radii() {
     // 300 copies of one point with no splat radius: every sphere is exact, radius 0.

@@ -422,22 +422,13 @@ fn angle(a: [f32; 3], b: [f32; 3]) -> f32 {
 /// above it ([`with_chains`]).
 const CHAIN_RATIO: f32 = 4.0;
 
-/// `log2(parent / child)` for radii whose quotient is more than [`CHAIN_RATIO`], else `None`.
-/// Taken of the quotient where it is finite (so the chains of ordinary trees are what they
-/// always were), of the logarithms' difference where it overflows (radii of 3e38 over 1e-45).
-fn log2_ratio(parent: f32, child: f32) -> Option<f32> {
-    let ratio = parent / child;
+/// How many single-child nodes go above a node whose parent is `ratio` times its size: radii
+/// doubling from the node's up to below the parent's.
+fn chain_length(ratio: f32) -> u8 {
     if ratio.is_nan() || ratio <= CHAIN_RATIO {
-        return None;
+        return 0;
     }
-    // At most 277, the range of `f32` magnitudes (an infinite parent is no further).
-    Some(if ratio.is_finite() { ratio.log2() } else { (parent.log2() - child.log2()).min(277.0) })
-}
-
-/// How many single-child nodes go above a node whose parent is `2^log2_ratio` times its size,
-/// their radii growing `2^bits` times a step from the node's up to below the parent's.
-fn chain_length(log2_ratio: f32, bits: u32) -> u8 {
-    ((log2_ratio / bits as f32).ceil() as u8).saturating_sub(1).clamp(1, 40)
+    (ratio.log2().ceil() as u8).saturating_sub(1).clamp(1, 40)
 }
 
 /// `nodes` (breadth-first) with single-child nodes inserted above every node (of non-zero
@@ -453,44 +444,21 @@ fn chain_length(log2_ratio: f32, bits: u32) -> u8 {
 /// step at most 4x (usually 2x in a built tree), decoded sizes stay within a small factor.
 /// The inserted spheres contain every point below them, as the invariant asks.
 ///
-/// At most as many chain nodes are added as the tree has nodes. A cloud whose radii span
-/// the whole `f32` range (3e38 on one point in a hundred, 1e-45 on the others) would
-/// otherwise get forty above nearly every leaf, 44 nodes a point (`pack` of 300,000 such
-/// points passed 2.2 GB): there the steps grow (4x, 16x, ... a step, spread evenly in
-/// scale between the node and its parent) until the chains fit, and such nodes decode
-/// larger than they are.
-///
-/// Its arrays (the ratios, chain lengths and steps, the new nodes, each level's work list)
-/// are allocated fallibly, as [`SplatTree::build`]'s are.
+/// Its arrays (the chain lengths, the new nodes, each level's work list) are allocated
+/// fallibly, as [`SplatTree::build`]'s are.
 fn with_chains(building: Building, nodes: Vec<SplatNode>) -> Result<Vec<SplatNode>, Error> {
-    let mut log2 = building.filled(nodes.len(), f32::NAN, "chain ratios")?;
+    let mut chain = building.filled(nodes.len(), 0u8, "chain lengths")?;
     for n in &nodes {
         for k in n.children() {
             if nodes[k].radius > 0.0 {
-                log2[k] = log2_ratio(n.radius, nodes[k].radius).unwrap_or(f32::NAN);
+                chain[k] = chain_length(n.radius / nodes[k].radius);
             }
         }
     }
-    let added = |bits| -> usize {
-        log2.iter().filter(|l| !l.is_nan()).map(|&l| usize::from(chain_length(l, bits))).sum()
-    };
-    // Steps of 2^bits: doubling unless the chains would more than double the tree.
-    let bits = (0..9).map(|k| 1u32 << k).find(|&bits| added(bits) <= nodes.len()).unwrap_or(256);
-    let extra = added(bits);
+    let extra: usize = chain.iter().map(|&c| usize::from(c)).sum();
     if extra == 0 {
         return Ok(nodes);
     }
-    let mut chain = building.filled(nodes.len(), 0u8, "chain lengths")?;
-    // Each chain's step in scale, as a power of two: 1 (doubling) where the steps double,
-    // else the ratio spread evenly over the chain's steps (at most `bits`, so below the parent).
-    let mut step = building.filled(nodes.len(), 1.0f32, "chain steps")?;
-    for (k, &l) in log2.iter().enumerate().filter(|(_, l)| !l.is_nan()) {
-        chain[k] = chain_length(l, bits);
-        if bits > 1 {
-            step[k] = l / f32::from(chain[k] + 1);
-        }
-    }
-    drop(log2);
     // Level by level over (node, chain nodes still to emit above it).
     let mut out: Vec<SplatNode> = Vec::new();
     building.reserve(&mut out, nodes.len() + extra, "nodes with chains")?;
@@ -506,9 +474,7 @@ fn with_chains(building: Building, nodes: Vec<SplatNode>) -> Result<Vec<SplatNod
         for &(i, pending) in &level {
             let n = nodes[i];
             if pending > 0 {
-                // Exact where the steps double: a power of two times an `f32`.
-                let scale = (f64::from(pending) * f64::from(step[i])).exp2();
-                let radius = (f64::from(n.radius) * scale) as f32;
+                let radius = n.radius * (1u64 << pending.min(60)) as f32;
                 out.push(SplatNode { radius, first_child: next_first, child_count: 1, ..n });
                 next.push((i, pending - 1));
                 next_first += 1;
@@ -609,9 +575,7 @@ mod tests {
             ("nodes", 1, bytes(nodes, size_of::<SplatNode>())),
             ("point counts per node", 2, bytes(nodes, 4)),
             ("radii of the nodes above leaves", 1, bytes(nodes / 2, 4)),
-            ("chain ratios", 1, bytes(nodes, 4)),
             ("chain lengths", 1, bytes(nodes, 1)),
-            ("chain steps", 1, bytes(nodes, 4)),
             ("nodes with chains", 1, bytes(whole.nodes.len(), size_of::<SplatNode>())),
         ];
         for (k, (part, refusals, most)) in all.iter().enumerate() {
@@ -622,47 +586,6 @@ mod tests {
         assert_eq!(last.len(), 1, "{parts:?}");
         assert_eq!(last[0].0, "a level of nodes with chains");
         assert_eq!(last[0].1, depth(&whole) - 1);
-    }
-
-    /// Radii spanning the whole `f32` range (3e38 on one point in a hundred, 1e-45 on the
-    /// others) had put forty chain nodes above nearly every leaf. The chains now add at most as
-    /// many nodes as the tree has, and each chain still climbs from its node towards its
-    /// parent: same centre, radii growing, below the parent's.
-    #[test]
-    fn chains_at_most_double_the_tree() {
-        let mut rng = SmallRng::seed_from_u64(9);
-        let n = 3000;
-        let positions: Vec<[f32; 3]> =
-            (0..n).map(|_| std::array::from_fn(|_| rng.random_range(-1.0..1.0))).collect();
-        let radii = (0..n).map(|i| if i % 100 == 0 { 3e38 } else { 1e-45 }).collect();
-        let cloud = PointCloud { positions, radii: Some(radii), ..PointCloud::default() };
-        let tree = SplatTree::build(&cloud).unwrap();
-        let nodes = &tree.nodes;
-        let plain = nodes.iter().filter(|n| n.child_count != 1).count();
-        let chained = nodes.len() - plain;
-        assert!(chained > n / 2 && chained <= plain, "{chained} chain nodes, {plain} others");
-        let mut parent = vec![usize::MAX; nodes.len()];
-        for (p, node) in nodes.iter().enumerate() {
-            node.children().for_each(|c| parent[c] = p);
-        }
-        for (k, node) in nodes.iter().enumerate().filter(|(_, n)| n.child_count == 1) {
-            let below = nodes[node.first_child as usize];
-            assert_eq!(node.centre, below.centre, "chain node {k}");
-            assert!(below.radius < node.radius, "chain node {k}: {node:?} over {below:?}");
-            assert!(node.radius < nodes[parent[k]].radius, "chain node {k} reaches its parent");
-        }
-        // An ordinary cloud's chains still double a step.
-        let positions: Vec<[f32; 3]> = (0..n)
-            .map(|i| {
-                let spread = if i % 500 == 0 { 100.0 } else { 1.0 };
-                std::array::from_fn(|_| rng.random_range(-spread..spread))
-            })
-            .collect();
-        let tree = SplatTree::build(&PointCloud { positions, ..PointCloud::default() }).unwrap();
-        let chains = tree.nodes.iter().filter(|n| n.child_count == 1);
-        for node in chains {
-            assert_eq!(tree.nodes[node.first_child as usize].radius * 2.0, node.radius);
-        }
     }
 
     /// Levels of the tree over `n` points before chains are inserted.
