@@ -620,6 +620,35 @@ fn cgroup_room() -> Option<u128> {
     }
 }
 
+/// Warns where the framing's single-precision arithmetic cannot follow the model: squares of
+/// distances overflow past about 1.8e19 (a cloud with one point at 1e20 drew nothing; a star
+/// scaled by 1e20 framed as one flat wedge) and underflow below about 1e-19 (a model 1e-25
+/// across was framed as a unit sphere, a dot too small to draw). `what` names a position.
+fn warn_of_scale(positions: &[[f32; 3]], what: &str) {
+    let finite = positions.iter().flatten().filter(|c| c.is_finite());
+    let reach = finite.clone().fold(0.0f32, |m, c| m.max(c.abs()));
+    if reach > 1e18 {
+        eprintln!(
+            "trirast: warning: a {what} lies {reach:.1e} units along an axis; past about 1e19 \
+             the view's single-precision arithmetic overflows and the picture may be wrong"
+        );
+        return;
+    }
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for p in positions.iter().filter(|p| p.iter().all(|c| c.is_finite())) {
+        for k in 0..3 {
+            (lo[k], hi[k]) = (lo[k].min(p[k]), hi[k].max(p[k]));
+        }
+    }
+    let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max);
+    if extent > 0.0 && extent < 1e-18 {
+        eprintln!(
+            "trirast: warning: the model spans {extent:.1e} units; below about 1e-19 the \
+             view's single-precision arithmetic underflows and it may not be framed"
+        );
+    }
+}
+
 /// A mistake in what the command was given that clap cannot see and the library has no error
 /// for: a value that does not fit the projection, an input with nothing to sample, a file's
 /// triangle out of the window range (said with the file's name).
@@ -767,6 +796,9 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     let background = args.background.unwrap_or([38, 42, 52]);
     let clear = [background[0], background[1], background[2], 255];
     let (centre, radius) = camera::bounding_sphere(&mesh.positions);
+    if args.eye.is_none() {
+        warn_of_scale(&mesh.positions, "vertex");
+    }
     let [az, el] = args.view.unwrap_or([30.0, 20.0]);
     let camera_at = |azimuth: f32| -> Camera {
         let projection = match args.projection {
@@ -1410,15 +1442,7 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
     let leaves: Vec<[f32; 3]> =
         tree.nodes.iter().filter(|n| n.child_count == 0).map(|n| n.centre).collect();
     let (centre, radius) = camera::bounding_sphere(&leaves);
-    // The view's arithmetic is single precision: squares of distances past about 1.8e19
-    // overflow, and a cloud with one point at 1e20 drew nothing at all.
-    let reach = leaves.iter().flatten().fold(0.0f32, |m, c| m.max(c.abs()));
-    if reach > 1e18 {
-        eprintln!(
-            "trirast: warning: a point lies {reach:.1e} units along an axis; past about \
-             1e19 the view's single-precision arithmetic overflows and points may be lost"
-        );
-    }
+    warn_of_scale(&leaves, "point");
     let [az, el] = args.view.unwrap_or([30.0, 20.0]);
     let camera = Camera::framing_sphere(
         centre,

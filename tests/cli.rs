@@ -1235,3 +1235,25 @@ fn statistics_say_clipped_pieces_are_counted() {
     let err = run_ok(&dir.0, ["render", "e.obj", "--size", "32x32", "-o", "f.png"]);
     assert!(!err.contains("clipping cut"), "{err}");
 }
+
+/// Models past the framing's single-precision range say so: a triangle 1e20 units out (its
+/// distances' squares overflow) and one 1e-25 across (they underflow: it was framed as a unit
+/// sphere and drew nothing); the same triangle at 1e3 does not.
+#[test]
+fn models_beyond_single_precision_framing_are_warned_of() {
+    let dir = TempDir::new("scale");
+    for (scale, warned) in [
+        ("1e20", Some("1.0e20 units along an axis")),
+        ("1e-25", Some("spans 1.0e-25 units")),
+        ("1e3", None),
+    ] {
+        let obj = format!("v 0 0 0\nv {scale} 0 0\nv 0 {scale} 0\nf 1 2 3\n");
+        dir.write("s.obj", &obj);
+        let err = run_ok(&dir.0, ["render", "s.obj", "--size", "16x16", "-o", "s.png"]);
+        let warning = err.lines().find(|l| l.starts_with("trirast: warning:"));
+        match warned {
+            Some(needle) => assert!(warning.is_some_and(|w| w.contains(needle)), "{scale}: {err}"),
+            None => assert_eq!(warning, None, "{scale}: {err}"),
+        }
+    }
+}
