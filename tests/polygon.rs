@@ -349,6 +349,44 @@ fn kind_of(i: usize) -> Kind {
 // ---------------------------------------------------------------------------------------------
 // (a) Triangles tile the polygon: total area equals the polygon's area.
 
+/// Checks that both triangulations of `rings` tile it, and returns them (snapped, then
+/// `f64`). Exact: the snapped triangulation, in integers, every triangle wound like the outer
+/// ring and none empty, so the absolute areas cannot cancel: their sum is the polygon's area.
+/// Floating point: the same polygon in pixels through `triangulate_polygon`, to 1e-9 of it.
+fn assert_tiles(rings: &[Vec<P>]) -> (Vec<[usize; 3]>, Vec<[usize; 3]>) {
+    let pts = concat(rings);
+    let expected = polygon_area2(rings);
+    let outer_sign = ring_area2(&rings[0]).signum();
+    let snapped: Vec<Vec<[i32; 2]>> =
+        rings.iter().map(|r| r.iter().map(|p| p.map(|v| v as i32)).collect()).collect();
+    let tris = triangulate_snapped(&snapped);
+    let mut total = 0;
+    for t in &tris {
+        let a = cross(pts[t[0]], pts[t[1]], pts[t[2]]);
+        assert_eq!(a.signum(), outer_sign, "triangle {t:?} flipped or empty in {rings:?}");
+        total += a.abs();
+    }
+    assert_eq!(total, expected, "exact area mismatch for {rings:?}");
+
+    let float: Vec<Vec<[f64; 2]>> =
+        rings.iter().map(|r| r.iter().map(|p| p.map(|v| v as f64 / 256.0)).collect()).collect();
+    let fpts: Vec<[f64; 2]> = float.iter().flatten().copied().collect();
+    let ftris = triangulate_polygon(&float);
+    let mut ftotal = 0.0;
+    for t in &ftris {
+        let [a, b, c] = t.map(|k| fpts[k]);
+        let s = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+        assert_eq!(s.signum() as i128, outer_sign, "f64 triangle {t:?} flipped in {rings:?}");
+        ftotal += s.abs();
+    }
+    let fexpected = expected as f64 / 65536.0;
+    assert!(
+        (ftotal - fexpected).abs() <= 1e-9 * fexpected,
+        "f64 area {ftotal} != {fexpected} for {rings:?}"
+    );
+    (tris, ftris)
+}
+
 #[test]
 fn triangulations_add_up_to_the_polygon_area() {
     let mut rng = SmallRng::seed_from_u64(0x5eed_a4ea);
@@ -356,40 +394,8 @@ fn triangulations_add_up_to_the_polygon_area() {
     for i in 0..3000 {
         let rings = polygon(&mut rng, kind_of(i), 4);
         with_holes += usize::from(rings.len() > 1);
-        let pts = concat(&rings);
-        let expected = polygon_area2(&rings);
-        let outer_sign = ring_area2(&rings[0]).signum();
-
-        // Exact: the snapped triangulation, in integers. Every triangle wound like the outer
-        // ring and none empty, so the absolute areas cannot cancel: they tile.
-        let snapped: Vec<Vec<[i32; 2]>> =
-            rings.iter().map(|r| r.iter().map(|p| p.map(|v| v as i32)).collect()).collect();
-        let tris = triangulate_snapped(&snapped);
-        let mut total = 0;
-        for t in &tris {
-            let a = cross(pts[t[0]], pts[t[1]], pts[t[2]]);
-            assert_eq!(a.signum(), outer_sign, "triangle {t:?} flipped or empty in {rings:?}");
-            total += a.abs();
-        }
-        assert_eq!(total, expected, "exact area mismatch for {rings:?}");
+        let (tris, _) = assert_tiles(&rings);
         earcut_used += usize::from(tris.iter().enumerate().any(|(j, t)| *t != [0, j + 1, j + 2]));
-
-        // Floating point: the same polygon in pixels through `triangulate_polygon`.
-        let float: Vec<Vec<[f64; 2]>> =
-            rings.iter().map(|r| r.iter().map(|p| p.map(|v| v as f64 / 256.0)).collect()).collect();
-        let fpts: Vec<[f64; 2]> = float.iter().flatten().copied().collect();
-        let mut ftotal = 0.0;
-        for t in triangulate_polygon(&float) {
-            let [a, b, c] = t.map(|k| fpts[k]);
-            let s = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
-            assert_eq!(s.signum() as i128, outer_sign, "f64 triangle {t:?} flipped in {rings:?}");
-            ftotal += s.abs();
-        }
-        let fexpected = expected as f64 / 65536.0;
-        assert!(
-            (ftotal - fexpected).abs() <= 1e-9 * fexpected,
-            "f64 area {ftotal} != {fexpected} for {rings:?}"
-        );
     }
     assert!(with_holes > 1000, "only {with_holes} polygons with holes");
     assert!(earcut_used > 1500, "only {earcut_used} polygons went through earcut");
@@ -572,40 +578,19 @@ fn large_polygons_tile_and_fill_exactly() {
         holes += rings.len() - 1;
         let pts = concat(&rings);
         let outer_sign = ring_area2(&rings[0]).signum();
-        let snapped: Vec<Vec<[i32; 2]>> =
-            rings.iter().map(|r| r.iter().map(|p| p.map(|v| v as i32)).collect()).collect();
-        let tris = triangulate_snapped(&snapped);
+        let (tris, ftris) = assert_tiles(&rings);
         // Every triangulation of n corners and h holes has n + 2h - 2 triangles.
         assert_eq!(tris.len(), pts.len() + 2 * (rings.len() - 1) - 2, "polygon {i}");
-        let mut total = 0;
-        for t in &tris {
-            let a = cross(pts[t[0]], pts[t[1]], pts[t[2]]);
-            assert_eq!(a.signum(), outer_sign, "polygon {i}: triangle {t:?} flipped or empty");
-            total += a.abs();
-        }
-        assert_eq!(total, polygon_area2(&rings), "polygon {i}: exact area");
-        let float: Vec<Vec<[f64; 2]>> =
-            rings.iter().map(|r| r.iter().map(|p| p.map(|v| v as f64 / 256.0)).collect()).collect();
-        let fpts: Vec<[f64; 2]> = float.iter().flatten().copied().collect();
-        let ftris = triangulate_polygon(&float);
         assert_eq!(ftris.len(), tris.len(), "polygon {i}: f64 triangles");
-        let ftotal: f64 = ftris
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|k| fpts[k]);
-                let s = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
-                assert_eq!(s.signum() as i128, outer_sign, "polygon {i}: f64 triangle {t:?}");
-                s.abs()
-            })
-            .sum();
-        let expected = polygon_area2(&rings) as f64 / 65536.0;
-        assert!((ftotal - expected).abs() <= 1e-9 * expected, "polygon {i}: f64 area");
         check_fill(&rings, None);
         // As a mesh face (a spiral's ring, on the plane z = 0 in f32): n - 2 triangles wound
         // like the face.
         if rings.len() == 1 {
-            let face: Vec<[f32; 3]> =
-                float[0].iter().map(|p| [p[0] as f32, p[1] as f32, 0.0]).collect();
+            let face: Vec<[f32; 3]> = pts
+                .iter()
+                .map(|p| p.map(|v| (v as f64 / 256.0) as f32))
+                .map(|[x, y]| [x, y, 0.0])
+                .collect();
             let tris = triangulate_face(&face);
             assert_n_minus_2(&tris, face.len(), &[]);
             for t in &tris {
