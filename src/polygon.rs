@@ -91,7 +91,7 @@ pub fn triangulate_face(points: &[[f32; 3]]) -> Vec<[usize; 3]> {
         return fan(n);
     }
     if let Some(k) = points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-        return fan(n).into_iter().map(|t| t.map(|i| (i + k) % n)).collect();
+        return fan_from(n, k);
     }
     let normal = newell_normal(points);
     if !normal.iter().all(|c| c.is_finite()) || normal == [0.0; 3] {
@@ -360,23 +360,46 @@ pub fn fill_polygon_with(
 /// repeats itself, and they are common (flattened curves snapped to the grid, exporters'
 /// repeated indices).
 fn most_corners_at_one_point(points: &[[f64; 2]], holes: &[usize]) -> usize {
-    let key = |p: &[f64; 2]| p.map(|c| (c + 0.0).to_bits());
+    let kept = rings_without_repeats(points, holes);
+    most_at_one_point(points, kept.iter().flatten().copied())
+}
+
+/// A point's identity for the repeat tests: its bits, `-0.0` and `0.0` being one.
+fn point_key(p: &[f64; 2]) -> [u64; 2] {
+    p.map(|c| (c + 0.0).to_bits())
+}
+
+/// The indices of each ring's corners (the first ring, then one from each start in `holes`)
+/// but those equal to the corner before them round their ring: what earcut keeps.
+fn rings_without_repeats(points: &[[f64; 2]], holes: &[usize]) -> Vec<Vec<usize>> {
     let mut bounds = vec![0];
     bounds.extend_from_slice(holes);
     bounds.push(points.len());
-    let mut keys: Vec<[u64; 2]> = Vec::with_capacity(points.len());
-    for ring in bounds.windows(2).map(|w| &points[w[0]..w[1]]) {
-        let previous = ring.iter().cycle().skip(ring.len().saturating_sub(1));
-        let kept = ring.iter().zip(previous).filter(|(p, q)| key(p) != key(q));
-        keys.extend(kept.map(|(p, _)| key(p)));
-    }
+    let key = |i: usize| point_key(&points[i]);
+    let ring = |(start, end): (usize, usize)| -> Vec<usize> {
+        let previous = |i: usize| if i == start { end - 1 } else { i - 1 };
+        (start..end).filter(|&i| key(i) != key(previous(i))).collect()
+    };
+    bounds.windows(2).map(|w| ring((w[0], w[1]))).collect()
+}
+
+/// How many of the `corners` lie on the most visited point (see [`point_key`]).
+fn most_at_one_point(points: &[[f64; 2]], corners: impl Iterator<Item = usize>) -> usize {
+    let mut keys: Vec<[u64; 2]> = corners.map(|i| point_key(&points[i])).collect();
     keys.sort_unstable();
     keys.chunk_by(|a, b| a == b).map(<[_]>::len).max().unwrap_or(0)
 }
 
 /// The fan `(0, i, i + 1)` over `n` corners: the triangulation of a convex polygon.
 fn fan(n: usize) -> Vec<[usize; 3]> {
-    (1..n.saturating_sub(1)).map(|i| [0, i, i + 1]).collect()
+    fan_from(n, 0)
+}
+
+/// The fan `(k, k + i, k + i + 1)` (round the ring) over `n` corners. From a corner with a
+/// NaN or infinite coordinate, every triangle has that corner, so the rasterizer drops and
+/// counts them all.
+pub(crate) fn fan_from(n: usize, k: usize) -> Vec<[usize; 3]> {
+    (1..n.saturating_sub(1)).map(|i| [k, (k + i) % n, (k + i + 1) % n]).collect()
 }
 
 /// Newell's normal, twice the vector area: exact direction for planar polygons, a least-squares
@@ -504,30 +527,20 @@ fn triangulate_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Vec<[usiz
 /// on another side), or a count other than the `n + 2h - 2` triangles every triangulation of
 /// `n` corners and `h` holes has.
 fn cdt_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Option<Vec<[usize; 3]>> {
-    let key = |i: usize| data[i].map(|c| (c + 0.0).to_bits());
-    let mut bounds = vec![0];
-    bounds.extend_from_slice(holes);
-    bounds.push(data.len());
-    // The corners kept, and the sides between them as spade's indices into `kept`.
-    let (mut kept, mut sides) = (Vec::with_capacity(data.len()), Vec::with_capacity(data.len()));
-    for w in bounds.windows(2) {
-        let (start, end) = (w[0], w[1]);
-        let first = kept.len();
-        kept.extend(
-            (start..end).filter(|&i| key(i) != key(if i == start { end - 1 } else { i - 1 })),
-        );
-        if kept.len() - first < 3 {
-            return None;
-        }
-        let last = kept.len() - 1;
-        sides.extend((first..=last).map(|k| [k, if k == last { first } else { k + 1 }]));
-    }
-    let n = kept.len();
-    let mut keys: Vec<[u64; 2]> = kept.iter().map(|&i| key(i)).collect();
-    keys.sort_unstable();
-    if keys.windows(2).any(|w| w[0] == w[1]) {
+    let rings = rings_without_repeats(data, holes);
+    if rings.iter().any(|r| r.len() < 3)
+        || most_at_one_point(data, rings.iter().flatten().copied()) > 1
+    {
         return None;
     }
+    // The corners kept, and the sides between them as spade's indices into `kept`.
+    let (mut kept, mut sides) = (Vec::with_capacity(data.len()), Vec::with_capacity(data.len()));
+    for ring in rings {
+        let (first, last) = (kept.len(), kept.len() + ring.len() - 1);
+        sides.extend((first..=last).map(|k| [k, if k == last { first } else { k + 1 }]));
+        kept.extend(ring);
+    }
+    let n = kept.len();
     let points = kept.iter().map(|&i| Point2::new(data[i][0], data[i][1])).collect();
     let mut conflict = false;
     let cdt =

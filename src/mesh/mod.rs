@@ -158,14 +158,14 @@ pub fn window_triangles(mesh: &ObjMesh) -> Vec<[Vertex; 3]> {
 
 /// The triangles of one window-space face (see [`window_triangles`]), as corner indices.
 fn window_face(corners: &[Vertex]) -> Vec<[usize; 3]> {
+    use crate::polygon::{fan_from, triangulate_polygon};
     let n = corners.len();
-    let fan_from = |k: usize| (1..n - 1).map(|i| [k, (k + i) % n, (k + i + 1) % n]).collect();
     if let Some(k) = corners.iter().position(|c| !(c.x.is_finite() && c.y.is_finite())) {
-        return fan_from(k);
+        return fan_from(n, k);
     }
     let ring: Vec<[f64; 2]> = corners.iter().map(|c| [f64::from(c.x), f64::from(c.y)]).collect();
-    let tris = crate::polygon::triangulate_polygon(&[ring]);
-    if tris.is_empty() { fan_from(0) } else { tris }
+    let tris = triangulate_polygon(&[ring]);
+    if tris.is_empty() { fan_from(n, 0) } else { tris }
 }
 
 #[cfg(test)]
