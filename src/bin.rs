@@ -294,6 +294,8 @@ pub struct SmallRun {
     at: usize,
     level: SimdLevel,
     coverage: crate::simd::SmallEight,
+    /// Each sample's coverage, on a 4x target ([`crate::simd::shade_small_samples`]).
+    samples: crate::simd::SmallSamples,
     shading: crate::simd::SmallShading,
 }
 
@@ -303,6 +305,7 @@ impl Default for SmallRun {
             at: 0,
             level: SimdLevel::Scalar,
             coverage: Default::default(),
+            samples: Default::default(),
             shading: Default::default(),
         }
     }
@@ -344,10 +347,17 @@ pub struct SmallRunSetter<'r> {
 }
 
 impl SmallRunSetter<'_> {
-    /// The run's coverage and shading, to be set (see [`crate::simd::small_run_geometry`]).
+    /// The run's coverage, each sample's on a 4x target, and shading, to be set (see
+    /// [`crate::simd::small_run_geometry`], [`crate::simd::small_run_samples_geometry`]).
     #[inline(always)]
-    pub fn parts(&mut self) -> (&mut crate::simd::SmallEight, &mut crate::simd::SmallShading) {
-        (&mut self.run.coverage, &mut self.run.shading)
+    pub fn parts(
+        &mut self,
+    ) -> (
+        &mut crate::simd::SmallEight,
+        &mut crate::simd::SmallSamples,
+        &mut crate::simd::SmallShading,
+    ) {
+        (&mut self.run.coverage, &mut self.run.samples, &mut self.run.shading)
     }
 
     /// Keeps the run, for the kernel at `level`, with its `lanes` triangles counted as
@@ -1054,7 +1064,7 @@ fn shade_small_run<'a, S: Record, F: TriangleFragments<S::Payload>>(
 }
 
 /// Shades `run` (see [`SmallRun`]) within `band` with `depth_test`, after the queue's earlier
-/// fragments; returns its covered pixels.
+/// fragments; returns its covered samples.
 pub(crate) fn shade_small_run_lanes<'a, T, F: TriangleFragments<T>>(
     band: &mut TargetBand<'_>,
     run: &SmallRun,
@@ -1062,6 +1072,10 @@ pub(crate) fn shade_small_run_lanes<'a, T, F: TriangleFragments<T>>(
     (fragments, queue): (&F, &mut shade::SharedLaneQueue<'a, T>),
 ) -> u64 {
     queue.flush(band, fragments);
+    if band.samples().count() > 1 {
+        let parts = (&run.coverage, &run.samples, &run.shading);
+        return crate::simd::shade_small_samples(run.level, parts, 0..8, band, depth_test);
+    }
     crate::simd::shade_small_eight(run.level, &run.coverage, &run.shading, 0..8, band, depth_test)
 }
 

@@ -392,6 +392,12 @@ impl Pipeline {
         let plain = !want_normal && target.samples().count() == 1;
         let small = (plain && level >= SimdLevel::Avx2 && level.is_available()).then_some(level);
         let kernel = small.filter(|&l| l == SimdLevel::Avx512);
+        // The front end's small runs take a 4x target too (its small kernel computes a pixel's
+        // colour once, `simd::shade_small_samples`), without an overdraw buffer.
+        let samples_runs = target.samples() == simd::SMALL_SAMPLES && target.overdraw.is_none();
+        let runs = (!want_normal && level >= SimdLevel::Avx2 && level.is_available())
+            .then_some(level)
+            .filter(|_| plain || samples_runs);
         let shade = ShaderStage { shader: fragment_shader, want_normal, kernel, small, level };
         let mut stats = DrawStats { submitted: triangles.len(), ..DrawStats::default() };
         let count = |stats: &mut DrawStats, r: &Result<_, Skipped>| match r {
@@ -468,7 +474,7 @@ impl Pipeline {
                     // Small triangles' kernel colours, where the stage shades in kernels.
                     let colors =
                         |v: [&_; 3], primitive| fragment_shader.interpolated_color(v, primitive);
-                    let colors = small.map(|_| &colors);
+                    let colors = runs.map(|_| &colors);
                     let (counts, covered) = bands.draw(
                         target,
                         front.coverage,
@@ -1074,11 +1080,18 @@ impl FrontEnd {
         (colors, level): (impl Fn([&V; 3], u32) -> Option<InterpolatedColor>, SimdLevel),
         run: &mut bin::SmallRunSetter<'_>,
     ) -> bool {
-        let (coverage, shading) = run.parts();
+        let (coverage, samples, shading) = run.parts();
         let clip = &self.coverage.clip;
-        if simd::small_run_geometry(level, rows, rest, clip, coverage, shading).is_none() {
+        let geometry = if self.samples.count() > 1 {
+            let parts = (coverage, samples, shading);
+            simd::small_run_samples_geometry(level, rows, rest, clip, parts)
+        } else {
+            simd::small_run_geometry(level, rows, rest, clip, coverage, shading)
+        };
+        if geometry.is_none() {
             return false;
         }
+        let (_, _, shading) = run.parts();
         let mut bits = rest;
         while bits != 0 {
             let j = bits.trailing_zeros() as usize;

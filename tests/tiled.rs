@@ -1114,8 +1114,9 @@ fn last_schedule_reports_the_schedule_used() {
 }
 
 /// A shader whose colour is the interpolated vertex colour times a tint, with a constant alpha,
-/// counting its calls. It says so through `interpolated_color`, except for every seventh
-/// triangle (so that the kernels' runs of triangles meet ones they must leave to the shader).
+/// counting its calls. It says so through `interpolated_color`, except for every thirteenth
+/// triangle (so that the kernels' runs of triangles meet ones they must leave to the shader,
+/// while some groups of eight the front end sets up have none).
 struct Tinted(std::sync::atomic::AtomicUsize);
 
 const TINT: Vec4 = Vec4::new(0.9, 0.5, 1.25, 7.0);
@@ -1136,7 +1137,7 @@ impl trirast::pipeline::FragmentShader<Vec4> for Tinted {
         v: [&Vec4; 3],
         primitive: u32,
     ) -> Option<trirast::pipeline::InterpolatedColor> {
-        if primitive % 7 == 3 {
+        if primitive % 13 == 3 {
             return None;
         }
         let colors = v.map(|c| *c);
@@ -1217,6 +1218,8 @@ fn assert_vertex_colours_match(
     let counted = Tinted(0.into());
     let (reference, ref_stats) = draw(Backend::Reference, Schedule::Auto, None, &counted);
     let reference_calls = counted.0.into_inner();
+    // Multisampled, only the banded front end sets small triangles up as kernel lanes.
+    let multisampled = fresh().samples().count() > 1;
     for level in SimdLevel::available() {
         for threads in [1, 2, 7] {
             for schedule in SCHEDULES {
@@ -1229,8 +1232,12 @@ fn assert_vertex_colours_match(
                     assert_same(a, b, &format!("{what}, shader {k}"));
                 }
                 let calls = counted.0.into_inner();
-                if kernels.contains(&level) {
-                    assert!(4 * calls < reference_calls, "{what}: {calls} of {reference_calls}");
+                // Multisampled, the groups of eight of the front end with a triangle the
+                // tinted shader declines (most) are left to the shader whole.
+                if kernels.contains(&level) && !(multisampled && schedule == Schedule::Binned) {
+                    let (few, of) = if multisampled { (5, 4) } else { (4, 1) };
+                    let enough = few * calls < of * reference_calls;
+                    assert!(enough, "{what}: {calls} of {reference_calls}");
                 }
             }
         }
@@ -1299,15 +1306,26 @@ fn tiny_vertex_coloured_triangles_match_the_reference() {
     }
     let mesh = (&positions[..], &colors[..], &triangles[..]);
     let tests = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always];
-    for (k, depth_test) in tests.into_iter().enumerate() {
-        let fresh = || {
-            let t = Target::new(96, 72).unwrap();
-            if k == 0 { t.with_ids().with_overdraw() } else { t }
-        };
-        let pipeline = Pipeline::default().with_cull(FaceCull::None).with_depth_test(depth_test);
-        let what = format!("{depth_test:?}");
-        let kernels = [SimdLevel::Avx2, SimdLevel::Avx512];
-        let stats = assert_vertex_colours_match(mesh, pipeline, fresh, &kernels, &what);
-        assert!(stats[0].fragments > 10_000, "{:?}", stats[0]);
+    for samples in [SampleCount::X1, SampleCount::X4] {
+        for (k, depth_test) in tests.into_iter().enumerate() {
+            // At 4x an overdraw buffer keeps the triangles off the small kernel: ids alone.
+            let fresh = || {
+                let t = Target::multisampled(96, 72, samples).unwrap();
+                match k {
+                    0 => t.with_ids().with_overdraw(),
+                    1 => t.with_ids(),
+                    _ => t,
+                }
+            };
+            let pipeline =
+                Pipeline::default().with_cull(FaceCull::None).with_depth_test(depth_test);
+            let what = format!("{samples:?}, {depth_test:?}");
+            let kernels: &[_] = match (samples, k) {
+                (SampleCount::X4, 0) => &[],
+                _ => &[SimdLevel::Avx2, SimdLevel::Avx512],
+            };
+            let stats = assert_vertex_colours_match(mesh, pipeline, fresh, kernels, &what);
+            assert!(stats[0].fragments > 10_000, "{:?}", stats[0]);
+        }
     }
 }

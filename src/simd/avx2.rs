@@ -731,7 +731,7 @@ pub(super) unsafe fn shade_small_eight(
         if pass == 0 {
             continue;
         }
-        let rgba = small_colors(s, (table, &columns), tri, &picks, (f1, f2), pass);
+        let rgba = small_colors::<1>(s, (table, &columns), tri, &picks, (f1, f2), pass);
         let mut rgba_lanes = [0u32; 8];
         // SAFETY: eight `u32`s, 32 bytes; the store needs no alignment.
         unsafe { _mm256_storeu_si256(rgba_lanes.as_mut_ptr().cast(), rgba) };
@@ -742,6 +742,185 @@ pub(super) unsafe fn shade_small_eight(
         }
     }
     listed as u64
+}
+
+/// [`super::shade_small_samples`] in AVX2: [`shade_small_eight`]'s groups of eight listed
+/// pixels, each listed as `l << 10 | mask << 6 | bit` (`mask` its covered samples), each
+/// sample's depth computed side by side at the centre's numerators plus the lane's
+/// [`super::sample_offsets`] (`i32` sums below 2^26, exact in `f64`), the colour at the
+/// centre. The depth tests and the depth and id writes go pixel by pixel in listed order,
+/// then the colours of the pixels that passed, in the same order: a sample two triangles of
+/// a group share is tested against the earlier one's write, and keeps the later colour.
+///
+/// # Safety
+/// The CPU must support AVX2, FMA, POPCNT, BMI1 and BMI2 (the AVX2 level's features).
+#[target_feature(enable = "avx2,fma,popcnt,bmi1,bmi2")]
+pub(super) unsafe fn shade_small_samples(
+    eight: &SmallEight,
+    samples: &super::SmallSamples,
+    s: &SmallShading,
+    lanes: std::ops::Range<usize>,
+    target: &mut TargetBand<'_>,
+    depth_test: DepthTest,
+) -> u64 {
+    const N: usize = 4;
+    let stride = target.stride();
+    // As in `shade_small_eight`: only the entries listed and the eight after them are read.
+    let mut entries = [std::mem::MaybeUninit::<i32>::uninit(); 8 * 64 + 8];
+    let mut listed = 0;
+    let mut drawn = 0;
+    let mut covered = 0u64;
+    let inside = &samples.inside;
+    for l in lanes {
+        assert!(l < 8, "eight lanes");
+        let mut cells = eight.inside[l] & s.cells[l];
+        drawn |= i32::from(cells != 0) << l;
+        while cells != 0 {
+            let bit = cells.trailing_zeros();
+            let mask = (inside[0][l] >> bit & 1)
+                | (inside[1][l] >> bit & 1) << 1
+                | (inside[2][l] >> bit & 1) << 2
+                | (inside[3][l] >> bit & 1) << 3;
+            covered += u64::from(mask.count_ones());
+            entries[listed].write((l as i32) << 10 | (mask as i32) << 6 | bit as i32);
+            listed += 1;
+            cells &= cells - 1;
+        }
+    }
+    // SAFETY: `listed <= 8 * 64`: eight entries from it are within `entries`.
+    unsafe { _mm256_storeu_si256(entries.as_mut_ptr().add(listed).cast(), _mm256_setzero_si256()) };
+    let load = |v: &[i32; 8]| {
+        // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
+        unsafe { _mm256_loadu_si256(v.as_ptr().cast()) }
+    };
+    let first = box_starts(s, target, drawn);
+    let edges = [load(&eight.edges[1]), load(&eight.edges[2])];
+    let step_x = [load(&eight.step_x[1]), load(&eight.step_x[2])];
+    let step_y = [load(&eight.step_y[1]), load(&eight.step_y[2])];
+    let bias = [load(&eight.bias[0]), load(&eight.bias[1])];
+    // Each sample's numerator offsets, lane by lane (`sample_offsets`): `(step >> 8) o`.
+    let offsets: [[__m256i; 2]; N] = std::array::from_fn(|n| {
+        let [ox, oy] = super::SMALL_SAMPLES.offset(n).map(|v| _mm256_set1_epi32(v as i32));
+        std::array::from_fn(|k| {
+            _mm256_add_epi32(
+                _mm256_mullo_epi32(_mm256_srai_epi32::<8>(step_x[k]), ox),
+                _mm256_mullo_epi32(_mm256_srai_epi32::<8>(step_y[k]), oy),
+            )
+        })
+    });
+    let ids_v = load(&s.id);
+    let depth = s.depth.each_ref().map(|v| WordPairs::of(v));
+    let table = crate::color::srgb8_table();
+    let columns = columns_of(&s.color_rows);
+    let stride_v = _mm256_set1_epi32(stride as i32);
+    assert!(target.depth.len() <= i32::MAX as usize, "buffers indexed in `i32`");
+    let mut g = 0;
+    while g < listed {
+        let count = (listed - g).min(8);
+        // SAFETY: `g < listed <= 8 * 64`: eight entries from `g` are within `entries`, and
+        // initialized (listed, or the zeros after them).
+        let e = unsafe { _mm256_loadu_si256(entries.as_ptr().add(g).cast()) };
+        g += count;
+        let tri = _mm256_srli_epi32::<10>(e);
+        let mask = _mm256_and_si256(_mm256_srli_epi32::<6>(e), _mm256_set1_epi32(15));
+        let column = _mm256_and_si256(e, _mm256_set1_epi32(7));
+        let row = _mm256_and_si256(_mm256_srli_epi32::<3>(e), _mm256_set1_epi32(7));
+        let at = _mm256_add_epi32(
+            _mm256_add_epi32(_mm256_permutevar8x32_epi32(first, tri), column),
+            _mm256_mullo_epi32(row, stride_v),
+        );
+        let pick = |v: __m256i| _mm256_permutevar8x32_epi32(v, tri);
+        // The centre's numerators `E_k + r step_y + c step_x - bias` in `i32`.
+        let centre: [__m256i; 2] = std::array::from_fn(|k| {
+            let v = _mm256_add_epi32(pick(edges[k]), _mm256_mullo_epi32(row, pick(step_y[k])));
+            let v = _mm256_add_epi32(v, _mm256_mullo_epi32(column, pick(step_x[k])));
+            _mm256_sub_epi32(v, pick(bias[k]))
+        });
+        let wide = |v: __m256i| {
+            [
+                _mm256_cvtepi32_pd(_mm256_castsi256_si128(v)),
+                _mm256_cvtepi32_pd(_mm256_extracti128_si256::<1>(v)),
+            ]
+        };
+        let picks = [WordPick::of(tri, 0), WordPick::of(tri, 1)];
+        let c: [[__m256d; 3]; 2] =
+            std::array::from_fn(|h| std::array::from_fn(|k| depth[k].pick(&picks[h])));
+        // Sample `n`'s depth, as `crate::shade::depth_at` computes it.
+        let mut z_lanes = [[0f32; 8]; N];
+        for (n, out) in z_lanes.iter_mut().enumerate() {
+            let f1 = wide(_mm256_add_epi32(centre[0], pick(offsets[n][0])));
+            let f2 = wide(_mm256_add_epi32(centre[1], pick(offsets[n][1])));
+            let half_z = |h: usize| {
+                let z = _mm256_add_pd(
+                    _mm256_add_pd(c[h][0], _mm256_mul_pd(f1[h], c[h][1])),
+                    _mm256_mul_pd(f2[h], c[h][2]),
+                );
+                _mm256_cvtpd_ps(z)
+            };
+            let z = _mm256_set_m128(half_z(1), half_z(0));
+            let z = _mm256_min_ps(_mm256_set1_ps(1.0), _mm256_max_ps(_mm256_setzero_ps(), z));
+            // SAFETY: eight `f32`s, 32 bytes; the store needs no alignment.
+            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), z) };
+        }
+        let (mut at_lanes, mut mask_lanes, mut id_lanes) = ([0i32; 8], [0i32; 8], [0i32; 8]);
+        // SAFETY: each array holds eight four-byte lanes, 32 bytes; the stores need no
+        // alignment.
+        unsafe {
+            _mm256_storeu_si256(at_lanes.as_mut_ptr().cast(), at);
+            _mm256_storeu_si256(mask_lanes.as_mut_ptr().cast(), mask);
+            _mm256_storeu_si256(id_lanes.as_mut_ptr().cast(), pick(ids_v));
+        }
+        // The pixel loop's tests and writes, pixel by pixel in listed order (indexing checks
+        // that each sample lies in the buffers).
+        let mut passed = [0u32; 8];
+        let mut pass = 0u32;
+        for i in 0..count {
+            let p = N * at_lanes[i] as u32 as usize;
+            let mut bits = mask_lanes[i] as u32;
+            let mut ok = 0u32;
+            while bits != 0 {
+                let n = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                if depth_test.passes(z_lanes[n][i], target.depth[p + n]) {
+                    ok |= 1 << n;
+                }
+            }
+            if ok == 0 {
+                continue;
+            }
+            let mut bits = ok;
+            while bits != 0 {
+                let n = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                target.depth[p + n] = z_lanes[n][i];
+                if let Some(ids) = target.ids.as_deref_mut() {
+                    ids[p + n] = id_lanes[i];
+                }
+            }
+            passed[i] = ok;
+            pass |= 1 << i;
+        }
+        if pass == 0 {
+            continue;
+        }
+        let (f1, f2) = (wide(centre[0]), wide(centre[1]));
+        let rgba = small_colors::<4>(s, (table, &columns), tri, &picks, (f1, f2), pass);
+        let mut rgba_lanes = [[0u8; 4]; 8];
+        // SAFETY: eight four-byte lanes, 32 bytes; the store needs no alignment.
+        unsafe { _mm256_storeu_si256(rgba_lanes.as_mut_ptr().cast(), rgba) };
+        while pass != 0 {
+            let i = pass.trailing_zeros() as usize;
+            pass &= pass - 1;
+            let p = N * at_lanes[i] as u32 as usize;
+            let mut bits = passed[i];
+            while bits != 0 {
+                let n = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                target.color[p + n] = rgba_lanes[i];
+            }
+        }
+    }
+    covered
 }
 
 /// Each box's first pixel, `target.index` in `i32` lanes, for the small kernels at AVX2 and
@@ -829,10 +1008,13 @@ impl WordPick {
 
 /// The colours of a group of [`shade_small_eight`] at barycentric numerators `f1`, `f2` (two
 /// halves of four), lane `i` of triangle `tri[i]`, as [`perspective`] computes one
-/// triangle's (the lanes of `pass` matter; the others compute from leftovers).
+/// triangle's (the lanes of `pass` matter; the others compute from leftovers). One copy per
+/// kernel (`SAMPLES`, the kernel's samples per pixel, is not read), so that each has one
+/// caller and is inlined there: called from both kernels, the compiler left it out of line,
+/// its vectors passed through memory (the grid at 1x 22 -> 40 ms on two threads).
 #[inline]
 #[target_feature(enable = "avx2,fma")]
-fn small_colors(
+fn small_colors<const SAMPLES: usize>(
     s: &SmallShading,
     (table, columns): (&[u32; ENCODE_BUCKETS], &[__m256; 16]),
     tri: __m256i,

@@ -1344,6 +1344,178 @@ pub fn shade_small_eight_scalar(
     covered
 }
 
+/// Samples per pixel of the multisampled small kernel ([`shade_small_samples`]): the 4x
+/// pattern, the CLI's default for meshes.
+pub const SMALL_SAMPLES: SampleCount = SampleCount::X4;
+
+/// Each sample's coverage of eight small triangles' boxes on a 4x target: `inside[s][l]` bit
+/// `8 r + c` is set where sample `s` of that pixel of lane `l`'s box is covered (numbered as
+/// [`SmallEight::inside`], which then holds the pixels with any sample covered).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SmallSamples {
+    /// Sample by sample, lane by lane.
+    pub inside: [[u64; 8]; 4],
+}
+
+/// Edges 1 and 2's change (the barycentric numerators') from lane `l`'s pixel centres to
+/// sample `s` of [`SMALL_SAMPLES`]: `A ox + B oy`, the edge's coefficients being its steps
+/// over a pixel (`256 A`, `256 B`, exact multiples) over 256. Below 2^12 * 2 * 112 in
+/// magnitude for a small triangle.
+#[inline(always)]
+fn sample_offsets(eight: &SmallEight, l: usize, s: usize) -> [i32; 3] {
+    let [ox, oy] = SMALL_SAMPLES.offset(s).map(|v| v as i32);
+    std::array::from_fn(|k| (eight.step_x[k][l] >> 8) * ox + (eight.step_y[k][l] >> 8) * oy)
+}
+
+/// Each sample's coverage (`out`) of the first `span` columns and rows of eight small
+/// triangles' boxes, from their edges at the boxes' first pixel centres (`eight`, as
+/// [`small_eight`] sets them), and the pixels with any covered sample into `eight.inside`.
+/// The edge values at a sample are those at its pixel centre plus [`sample_offsets`]: exact,
+/// as the edge functions are linear, and the same row masks as the pixel loop's
+/// ([`crate::raster::edge::row_coverage_within`] at the sample's offset).
+pub fn small_samples(eight: &mut SmallEight, span: [usize; 2], out: &mut SmallSamples) {
+    let (columns, rows) = (span[0].min(SMALL_BOX as usize), span[1].min(SMALL_BOX as usize));
+    for l in 0..8 {
+        let step_x = std::array::from_fn(|k| i64::from(eight.step_x[k][l]));
+        let step_y: [i64; 3] = std::array::from_fn(|k| i64::from(eight.step_y[k][l]));
+        let mut any = 0;
+        for (s, inside) in out.inside.iter_mut().enumerate() {
+            let o = sample_offsets(eight, l, s);
+            let mut row: [i64; 3] = std::array::from_fn(|k| i64::from(eight.edges[k][l] + o[k]));
+            let mut mask = 0;
+            for r in 0..rows {
+                let bits = crate::raster::edge::row_coverage_within(row, step_x, columns);
+                mask |= u64::from(bits) << (8 * r);
+                row = std::array::from_fn(|k| row[k] + step_y[k]);
+            }
+            inside[l] = mask;
+            any |= mask;
+        }
+        eight.inside[l] = any;
+    }
+}
+
+/// [`small_run_geometry`] for a 4x target ([`SMALL_SAMPLES`]): each lane's box the pixels any
+/// of whose samples its snapped box holds (the union of the sample boxes, as
+/// [`crate::shade::shade_triangle`] takes them), at most [`SMALL_BOX`] pixels a side before
+/// clipping, and each sample's coverage in `samples` ([`small_samples`]). Lane by lane
+/// through setup's functions, the edges at `level` ([`small_eight`]).
+pub fn small_run_samples_geometry(
+    level: SimdLevel,
+    rows: &CornerGroup,
+    mask: u8,
+    clip: &PixelRect,
+    (eight, samples, shading): (&mut SmallEight, &mut SmallSamples, &mut SmallShading),
+) -> Option<[usize; 2]> {
+    let mut lanes = [SmallLane::default(); 8];
+    let mut span = [1, 1];
+    for (l, lane) in lanes.iter_mut().enumerate() {
+        let xy = rows.get(l);
+        if mask & (1 << l) == 0 {
+            shading.cells[l] = 0;
+            continue;
+        }
+        let setup = TriangleSetup::from_snapped(setup::widen(xy), CullMode::None).ok()?;
+        let extent = setup.extent();
+        let boxes = (0..SMALL_SAMPLES.count())
+            .map(|s| setup::sample_bounds(extent, SMALL_SAMPLES.offset(s)));
+        let b = boxes.reduce(|a, b| a.union(&b))?;
+        if b.x1 - b.x0 >= SMALL_BOX || b.y1 - b.y0 >= SMALL_BOX {
+            return None;
+        }
+        let rect = b.intersect(clip)?;
+        *lane = SmallLane { xy, clockwise: setup.clockwise, first: [rect.x0, rect.y0] };
+        shading.set_box(l, &rect);
+        shading.inv_area2[l] = 1.0 / setup.area2 as f64;
+        let (columns, rows) = ((rect.x1 - rect.x0 + 1) as usize, (rect.y1 - rect.y0 + 1) as usize);
+        span = [span[0].max(columns), span[1].max(rows)];
+    }
+    small_eight(level, &lanes, span, eight);
+    small_samples(eight, span, samples);
+    Some(span)
+}
+
+/// [`shade_small_eight`] on a 4x target ([`SMALL_SAMPLES`], no overdraw buffer): the pixels of
+/// each box with any covered sample (`samples`, [`small_samples`]) as the pixel loop draws
+/// them ([`KernelTarget`]'s multisampled pixel: each covered sample's depth tested, and where
+/// one passes, the colour at the pixel centre written to those that passed). Returns the
+/// number of covered samples. From AVX2 on, eight listed pixels a group whatever triangle
+/// each belongs to (their four samples' depths and the centre's colour side by side), the
+/// depth tests and writes pixel by pixel in listed order.
+///
+/// # Panics
+/// If the target is not 4x, has an overdraw buffer, or a covered pixel of a box does not lie
+/// in the buffers.
+#[inline]
+pub fn shade_small_samples(
+    level: SimdLevel,
+    (eight, samples, shading): (&SmallEight, &SmallSamples, &SmallShading),
+    lanes: std::ops::Range<usize>,
+    target: &mut crate::target::TargetBand<'_>,
+    depth_test: DepthTest,
+) -> u64 {
+    assert!(target.samples() == SMALL_SAMPLES, "a 4x target");
+    assert!(target.overdraw.is_none(), "no overdraw buffer");
+    #[cfg(target_arch = "x86_64")]
+    if level.has_avx2() {
+        // SAFETY: the AVX2 level's features (AVX2, FMA, POPCNT, BMI1, BMI2) were just checked
+        // at run time.
+        return unsafe {
+            avx2::shade_small_samples(eight, samples, shading, lanes, target, depth_test)
+        };
+    }
+    shade_small_samples_scalar((eight, samples, shading), lanes, target, depth_test)
+}
+
+/// [`shade_small_samples`] one pixel at a time, through [`KernelTarget`]'s multisampled pixel.
+pub fn shade_small_samples_scalar(
+    (eight, samples, shading): (&SmallEight, &SmallSamples, &SmallShading),
+    lanes: std::ops::Range<usize>,
+    target: &mut crate::target::TargetBand<'_>,
+    depth_test: DepthTest,
+) -> u64 {
+    let n = SMALL_SAMPLES.count();
+    assert!(target.samples() == SMALL_SAMPLES, "a 4x target");
+    let (mut covered, stride) = (0, target.stride());
+    for l in lanes {
+        let mut any = eight.inside[l] & shading.cells[l];
+        if any == 0 {
+            continue;
+        }
+        let first = target.index(shading.x0[l], shading.y0[l]);
+        let offsets: [[i64; 2]; 4] = std::array::from_fn(|s| {
+            let o = sample_offsets(eight, l, s);
+            [i64::from(o[1]), i64::from(o[2])]
+        });
+        let color = SpanColor::Perspective(shading.color(l));
+        let s = shading;
+        let mut t = KernelTarget {
+            depth_plane: [s.depth[0][l], s.depth[1][l], s.depth[2][l]],
+            color: &color,
+            depth_test,
+            id: s.id[l],
+            depth: &mut *target.depth,
+            color_out: &mut *target.color,
+            ids: target.ids.as_deref_mut(),
+            overdraw: None,
+        };
+        while any != 0 {
+            let bit = any.trailing_zeros() as i32;
+            any &= any - 1;
+            let mask = (0..n).fold(0, |m, s| m | ((samples.inside[s][l] >> bit) as u32 & 1) << s);
+            let (c, r) = (bit & 7, bit >> 3);
+            let f = |k: usize, b: usize| {
+                let v = eight.edges[k][l] + r * eight.step_y[k][l] + c * eight.step_x[k][l];
+                i64::from(v - eight.bias[b][l])
+            };
+            let p = n * (first + r as usize * stride + c as usize);
+            t.pixel_samples(p, mask, (f(1, 0), f(2, 1)), &offsets);
+            covered += u64::from(mask.count_ones());
+        }
+    }
+    covered
+}
+
 /// Shades a small triangle at `level`; returns the number of covered pixels. At AVX2, a box
 /// whose last four-pixel group would reach past the buffers (the target's last row, right
 /// edge) takes the scalar kernel; AVX-512 masks its loads and stores to the box.
@@ -3153,6 +3325,116 @@ mod tests {
             }
         }
         assert!(runs > 3000 && refused > 3000, "{runs} runs set up, {refused} refused");
+    }
+
+    /// The 4x small kernel and its set-up: runs of random triangles crowding a few pixels (so
+    /// that a group's triangles share pixels and samples), their boxes up to 8 pixels a side
+    /// with the samples' reach, some cut by the clip rectangle (a band's rows, with the rows
+    /// above it in the buffers), some refused as too large. Each sample's coverage is the
+    /// setup's own test at that sample, and every covered sample of the triangle within the
+    /// clip lies in its box; the kernel at every level gives the scalar loop's buffers and
+    /// count bit for bit, on random depths, with and without ids, every depth test.
+    #[test]
+    fn small_sample_runs_cover_and_shade_as_scalar() {
+        let mut rng = SmallRng::seed_from_u64(71);
+        let (mut covered, mut refused) = (0, 0);
+        let (width, height) = (18, 16);
+        let clip = PixelRect { x0: 0, y0: 4, x1: width - 1, y1: height - 1 };
+        for round in 0..6_000 {
+            let spot = [rng.random_range(0..width), rng.random_range(1..height)];
+            let reach = if round % 4 == 0 { 7 * 256 } else { 3 * 256 };
+            let mut group = CornerGroup::default();
+            let mut mask = 0u8;
+            for l in 0..8 {
+                let mut corner = || {
+                    let d =
+                        |rng: &mut SmallRng, at: i32| at * 256 + rng.random_range(-reach..reach);
+                    [d(&mut rng, spot[0]), d(&mut rng, spot[1])]
+                };
+                let xy = [corner(), corner(), corner()];
+                group.set(l, xy);
+                let area = TriangleSetup::signed_area2(setup::widen(xy), CullMode::None);
+                if area.is_ok() && rng.random_range(0..8) != 0 {
+                    mask |= 1 << l;
+                }
+            }
+            let mut parts =
+                (SmallEight::default(), SmallSamples::default(), SmallShading::default());
+            let level = SimdLevel::available()[round % SimdLevel::available().len()];
+            let (e, s, sh) = (&mut parts.0, &mut parts.1, &mut parts.2);
+            let Some(_) = small_run_samples_geometry(level, &group, mask, &clip, (e, s, sh)) else {
+                refused += 1;
+                continue;
+            };
+            let (eight, samples, shading) = &mut parts;
+            for l in (0..8).filter(|l| mask & (1 << l) != 0) {
+                let setup = TriangleSetup::from_snapped(setup::widen(group.get(l)), CullMode::None)
+                    .unwrap();
+                let (x0, y0) = (shading.x0[l], shading.y0[l]);
+                let mut in_box = 0;
+                for s in 0..4 {
+                    let [ox, oy] = SMALL_SAMPLES.offset(s);
+                    for bit in (0..64).filter(|b| shading.cells[l] >> b & 1 != 0) {
+                        let (px, py) = (x0 + bit % 8, y0 + bit / 8);
+                        let (x, y) = (fixed::pixel_centre(px) + ox, fixed::pixel_centre(py) + oy);
+                        let inside = samples.inside[s][l] >> bit & 1 != 0;
+                        assert_eq!(inside, setup.covers_point(x, y), "round {round}, lane {l}");
+                        in_box += u32::from(inside);
+                    }
+                    let all = (clip.y0..=clip.y1)
+                        .flat_map(|py| (clip.x0..=clip.x1).map(move |px| (px, py)))
+                        .filter(|&(px, py)| {
+                            let (x, y) = (fixed::pixel_centre(px), fixed::pixel_centre(py));
+                            setup.covers_point(x + ox, y + oy)
+                        })
+                        .count();
+                    in_box -= all as u32;
+                }
+                assert_eq!(in_box, 0, "round {round}, lane {l}: a covered sample outside the box");
+                let any = samples.inside.iter().fold(0, |m, s| m | s[l]);
+                assert_eq!(eight.inside[l] & shading.cells[l], any & shading.cells[l]);
+                let depth = PlaneEquation::from_coefficients([
+                    rng.random_range(-0.2..1.2),
+                    rng.random_range(-1e-5..1e-5),
+                    rng.random_range(-1e-5..1e-5),
+                ]);
+                let color = random_perspective(&mut rng, round + l);
+                shading.set_shading(l, &depth, &color, 100 + l as i32);
+            }
+            let start = rng.random_range(0..8);
+            let run = start..rng.random_range(start + 1..=8);
+            let depth_test = [DepthTest::Less, DepthTest::LessEqual, DepthTest::Always][round % 3];
+            let mut want =
+                crate::target::Target::multisampled(width as u32, height as u32, SMALL_SAMPLES)
+                    .unwrap();
+            if round % 2 == 0 {
+                want = want.with_ids();
+            }
+            for d in &mut want.depth {
+                *d = rng.random_range(0.0..1.0);
+            }
+            let before = want.clone();
+            let parts = (&*eight, &*samples, &*shading);
+            let n = {
+                let mut bands = want.bands_from(&[0, 4]);
+                shade_small_samples_scalar(parts, run.clone(), &mut bands[1], depth_test)
+            };
+            for level in SimdLevel::available() {
+                let mut got = before.clone();
+                let mut bands = got.bands_from(&[0, 4]);
+                let m = shade_small_samples(level, parts, run.clone(), &mut bands[1], depth_test);
+                let what = format!("{level:?}, round {round}");
+                assert_eq!(m, n, "{what}");
+                let bits = |t: &crate::target::Target| {
+                    t.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>()
+                };
+                assert!(bits(&want) == bits(&got) && want.color == got.color, "{what}");
+                assert!(want.ids == got.ids, "{what}");
+            }
+            assert!(want.depth != before.depth || n == 0 || depth_test != DepthTest::Always);
+            covered += n;
+        }
+        assert!(covered > 50_000 && refused > 500, "{covered} covered, {refused} refused");
     }
 
     /// Eight small triangles shaded together at AVX2 and AVX-512 are shaded as one pixel at
