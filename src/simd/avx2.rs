@@ -573,6 +573,21 @@ fn small_eight_rows(
             put(&mut out.bias[k - 1], bias);
         }
     }
+    inside_masks(value, (step_x, step_y), span, &mut out.inside);
+}
+
+/// The coverage bits of the first `span` columns and rows of eight boxes (bit `8 r + c` of
+/// `out[l]`, as [`SmallEight::inside`]) from the biased edge values at their first sample
+/// (`value`) and their steps.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn inside_masks(
+    value: [__m256i; 3],
+    (step_x, step_y): ([__m256i; 3], [__m256i; 3]),
+    span: [usize; 2],
+    out: &mut [u64; 8],
+) {
+    let zero = _mm256_setzero_si256();
     // Bit `8 r + c` of each lane (less 32 from row 4 on): the sign of `e0 | e1 | e2` there
     // (set: outside), the values stepped from pixel to pixel.
     let (columns, rows) = (span[0].min(8), span[1].min(8));
@@ -602,8 +617,56 @@ fn small_eight_rows(
         (_mm256_permute2x128_si256::<0x20>(a, b), _mm256_permute2x128_si256::<0x31>(a, b));
     // SAFETY: eight `u64`s, 64 bytes, in two stores of 32; they need no alignment.
     unsafe {
-        _mm256_storeu_si256(out.inside.as_mut_ptr().cast(), first);
-        _mm256_storeu_si256(out.inside.as_mut_ptr().add(4).cast(), last);
+        _mm256_storeu_si256(out.as_mut_ptr().cast(), first);
+        _mm256_storeu_si256(out.as_mut_ptr().add(4).cast(), last);
+    }
+}
+
+/// Lane `i` (below 8) of `v`.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn lane_of(v: __m256i, i: usize) -> i32 {
+    _mm256_cvtsi256_si32(_mm256_permutevar8x32_epi32(v, _mm256_set1_epi32(i as i32)))
+}
+
+/// An edge's change from the pixel centres to sample `s` of [`super::SMALL_SAMPLES`], lane by
+/// lane, from its steps over a pixel (`super::sample_offsets`).
+#[inline]
+#[target_feature(enable = "avx2")]
+fn sample_offset(step_x: __m256i, step_y: __m256i, s: usize) -> __m256i {
+    let [ox, oy] = super::SMALL_SAMPLES.offset(s).map(|v| _mm256_set1_epi32(v as i32));
+    _mm256_add_epi32(
+        _mm256_mullo_epi32(_mm256_srai_epi32::<8>(step_x), ox),
+        _mm256_mullo_epi32(_mm256_srai_epi32::<8>(step_y), oy),
+    )
+}
+
+/// [`super::small_samples`]: each sample's edge values at the boxes' first pixels, those at
+/// the centre plus the sample's offsets (`(step >> 8) o`), through [`inside_masks`].
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn small_samples(
+    eight: &mut SmallEight,
+    span: [usize; 2],
+    out: &mut super::SmallSamples,
+) {
+    let load = |v: &[i32; 8]| {
+        // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
+        unsafe { _mm256_loadu_si256(v.as_ptr().cast()) }
+    };
+    let value = eight.edges.each_ref().map(load);
+    let step_x = eight.step_x.each_ref().map(load);
+    let step_y = eight.step_y.each_ref().map(load);
+    for (s, inside) in out.inside.iter_mut().enumerate() {
+        let at = std::array::from_fn(|k| {
+            _mm256_add_epi32(value[k], sample_offset(step_x[k], step_y[k], s))
+        });
+        inside_masks(at, (step_x, step_y), span, inside);
+    }
+    for l in 0..8 {
+        eight.inside[l] = out.inside.iter().fold(0, |m, s| m | s[l]);
     }
 }
 
@@ -799,15 +862,8 @@ pub(super) unsafe fn shade_small_samples(
     let step_y = [load(&eight.step_y[1]), load(&eight.step_y[2])];
     let bias = [load(&eight.bias[0]), load(&eight.bias[1])];
     // Each sample's numerator offsets, lane by lane (`sample_offsets`): `(step >> 8) o`.
-    let offsets: [[__m256i; 2]; N] = std::array::from_fn(|n| {
-        let [ox, oy] = super::SMALL_SAMPLES.offset(n).map(|v| _mm256_set1_epi32(v as i32));
-        std::array::from_fn(|k| {
-            _mm256_add_epi32(
-                _mm256_mullo_epi32(_mm256_srai_epi32::<8>(step_x[k]), ox),
-                _mm256_mullo_epi32(_mm256_srai_epi32::<8>(step_y[k]), oy),
-            )
-        })
-    });
+    let offsets: [[__m256i; 2]; N] =
+        std::array::from_fn(|n| std::array::from_fn(|k| sample_offset(step_x[k], step_y[k], n)));
     let ids_v = load(&s.id);
     let depth = s.depth.each_ref().map(|v| WordPairs::of(v));
     let table = crate::color::srgb8_table();
@@ -846,8 +902,7 @@ pub(super) unsafe fn shade_small_samples(
         let c: [[__m256d; 3]; 2] =
             std::array::from_fn(|h| std::array::from_fn(|k| depth[k].pick(&picks[h])));
         // Sample `n`'s depth, as `crate::shade::depth_at` computes it.
-        let mut z_lanes = [[0f32; 8]; N];
-        for (n, out) in z_lanes.iter_mut().enumerate() {
+        let z: [__m256; N] = std::array::from_fn(|n| {
             let f1 = wide(_mm256_add_epi32(centre[0], pick(offsets[n][0])));
             let f2 = wide(_mm256_add_epi32(centre[1], pick(offsets[n][1])));
             let half_z = |h: usize| {
@@ -858,43 +913,70 @@ pub(super) unsafe fn shade_small_samples(
                 _mm256_cvtpd_ps(z)
             };
             let z = _mm256_set_m128(half_z(1), half_z(0));
-            let z = _mm256_min_ps(_mm256_set1_ps(1.0), _mm256_max_ps(_mm256_setzero_ps(), z));
-            // SAFETY: eight `f32`s, 32 bytes; the store needs no alignment.
-            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), z) };
+            _mm256_min_ps(_mm256_set1_ps(1.0), _mm256_max_ps(_mm256_setzero_ps(), z))
+        });
+        // Transposed: pixel `i`'s four samples side by side at `4 i` of `by_pixel` (`u[j]`
+        // holds pixels `j` and `j + 4`).
+        let (t0, t1) = (_mm256_unpacklo_ps(z[0], z[1]), _mm256_unpackhi_ps(z[0], z[1]));
+        let (t2, t3) = (_mm256_unpacklo_ps(z[2], z[3]), _mm256_unpackhi_ps(z[2], z[3]));
+        let u = [
+            _mm256_shuffle_ps::<0x44>(t0, t2),
+            _mm256_shuffle_ps::<0xEE>(t0, t2),
+            _mm256_shuffle_ps::<0x44>(t1, t3),
+            _mm256_shuffle_ps::<0xEE>(t1, t3),
+        ];
+        let mut by_pixel = [0f32; 32];
+        // SAFETY: four stores of eight `f32`s into the 32 of `by_pixel`; stores need no
+        // alignment.
+        unsafe {
+            let out = by_pixel.as_mut_ptr();
+            _mm256_storeu_ps(out, _mm256_permute2f128_ps::<0x20>(u[0], u[1]));
+            _mm256_storeu_ps(out.add(8), _mm256_permute2f128_ps::<0x20>(u[2], u[3]));
+            _mm256_storeu_ps(out.add(16), _mm256_permute2f128_ps::<0x31>(u[0], u[1]));
+            _mm256_storeu_ps(out.add(24), _mm256_permute2f128_ps::<0x31>(u[2], u[3]));
         }
-        let (mut at_lanes, mut mask_lanes, mut id_lanes) = ([0i32; 8], [0i32; 8], [0i32; 8]);
+        let (mut at_lanes, mut mask_lanes) = ([0i32; 8], [0i32; 8]);
         // SAFETY: each array holds eight four-byte lanes, 32 bytes; the stores need no
         // alignment.
         unsafe {
             _mm256_storeu_si256(at_lanes.as_mut_ptr().cast(), at);
             _mm256_storeu_si256(mask_lanes.as_mut_ptr().cast(), mask);
-            _mm256_storeu_si256(id_lanes.as_mut_ptr().cast(), pick(ids_v));
         }
-        // The pixel loop's tests and writes, pixel by pixel in listed order (indexing checks
-        // that each sample lies in the buffers).
-        let mut passed = [0u32; 8];
+        let id_lanes = pick(ids_v);
+        // The pixel loop's tests and writes, pixel by pixel in listed order, a pixel's four
+        // samples at once (the slices check that they lie in the buffers).
+        let mut passed = [_mm_setzero_si128(); 8];
         let mut pass = 0u32;
         for i in 0..count {
             let p = N * at_lanes[i] as u32 as usize;
-            let mut bits = mask_lanes[i] as u32;
-            let mut ok = 0u32;
-            while bits != 0 {
-                let n = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                if depth_test.passes(z_lanes[n][i], target.depth[p + n]) {
-                    ok |= 1 << n;
+            let depth = &mut target.depth[p..p + N];
+            // SAFETY: four `f32`s of `by_pixel` (at most 28 + 4) and of `depth` (its length);
+            // unaligned loads and stores need no alignment.
+            let ok = unsafe {
+                let z = _mm_loadu_ps(by_pixel.as_ptr().add(4 * i));
+                let stored = _mm_loadu_ps(depth.as_ptr());
+                let covered = _mm_castsi128_ps(lane_mask(mask_lanes[i] as u32));
+                let ok = match depth_test {
+                    DepthTest::Less => _mm_and_ps(_mm_cmp_ps::<_CMP_LT_OQ>(z, stored), covered),
+                    DepthTest::LessEqual => {
+                        _mm_and_ps(_mm_cmp_ps::<_CMP_LE_OQ>(z, stored), covered)
+                    }
+                    DepthTest::Always => covered,
+                };
+                if _mm_movemask_ps(ok) == 0 {
+                    continue;
                 }
-            }
-            if ok == 0 {
-                continue;
-            }
-            let mut bits = ok;
-            while bits != 0 {
-                let n = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                target.depth[p + n] = z_lanes[n][i];
-                if let Some(ids) = target.ids.as_deref_mut() {
-                    ids[p + n] = id_lanes[i];
+                _mm_storeu_ps(depth.as_mut_ptr(), _mm_blendv_ps(stored, z, ok));
+                _mm_castps_si128(ok)
+            };
+            if let Some(ids) = target.ids.as_deref_mut() {
+                let ids = &mut ids[p..p + N];
+                let id = _mm_set1_epi32(lane_of(id_lanes, i));
+                // SAFETY: four `i32`s of `ids` (its length); unaligned loads and stores need
+                // no alignment.
+                unsafe {
+                    let old = _mm_loadu_si128(ids.as_ptr().cast());
+                    _mm_storeu_si128(ids.as_mut_ptr().cast(), _mm_blendv_epi8(old, id, ok));
                 }
             }
             passed[i] = ok;
@@ -905,18 +987,18 @@ pub(super) unsafe fn shade_small_samples(
         }
         let (f1, f2) = (wide(centre[0]), wide(centre[1]));
         let rgba = small_colors::<4>(s, (table, &columns), tri, &picks, (f1, f2), pass);
-        let mut rgba_lanes = [[0u8; 4]; 8];
-        // SAFETY: eight four-byte lanes, 32 bytes; the store needs no alignment.
-        unsafe { _mm256_storeu_si256(rgba_lanes.as_mut_ptr().cast(), rgba) };
         while pass != 0 {
             let i = pass.trailing_zeros() as usize;
             pass &= pass - 1;
             let p = N * at_lanes[i] as u32 as usize;
-            let mut bits = passed[i];
-            while bits != 0 {
-                let n = bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                target.color[p + n] = rgba_lanes[i];
+            let colors = &mut target.color[p..p + N];
+            let rgba = _mm_set1_epi32(lane_of(rgba, i));
+            // SAFETY: four four-byte colours of `colors` (its length); unaligned loads and
+            // stores need no alignment.
+            unsafe {
+                let old = _mm_loadu_si128(colors.as_ptr().cast());
+                let new = _mm_blendv_epi8(old, rgba, passed[i]);
+                _mm_storeu_si128(colors.as_mut_ptr().cast(), new);
             }
         }
     }

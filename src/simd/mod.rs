@@ -1372,8 +1372,24 @@ fn sample_offsets(eight: &SmallEight, l: usize, s: usize) -> [i32; 3] {
 /// [`small_eight`] sets them), and the pixels with any covered sample into `eight.inside`.
 /// The edge values at a sample are those at its pixel centre plus [`sample_offsets`]: exact,
 /// as the edge functions are linear, and the same row masks as the pixel loop's
-/// ([`crate::raster::edge::row_coverage_within`] at the sample's offset).
-pub fn small_samples(eight: &mut SmallEight, span: [usize; 2], out: &mut SmallSamples) {
+/// ([`crate::raster::edge::row_coverage_within`] at the sample's offset). Integer arithmetic,
+/// the same at every level.
+pub fn small_samples(
+    level: SimdLevel,
+    eight: &mut SmallEight,
+    span: [usize; 2],
+    out: &mut SmallSamples,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if level.has_avx2() {
+        // SAFETY: AVX2 support was just checked at run time.
+        return unsafe { avx2::small_samples(eight, span, out) };
+    }
+    small_samples_scalar(eight, span, out);
+}
+
+/// [`small_samples`] a lane and a sample at a time.
+pub fn small_samples_scalar(eight: &mut SmallEight, span: [usize; 2], out: &mut SmallSamples) {
     let (columns, rows) = (span[0].min(SMALL_BOX as usize), span[1].min(SMALL_BOX as usize));
     for l in 0..8 {
         let step_x = std::array::from_fn(|k| i64::from(eight.step_x[k][l]));
@@ -1431,7 +1447,7 @@ pub fn small_run_samples_geometry(
         span = [span[0].max(columns), span[1].max(rows)];
     }
     small_eight(level, &lanes, span, eight);
-    small_samples(eight, span, samples);
+    small_samples(level, eight, span, samples);
     Some(span)
 }
 
