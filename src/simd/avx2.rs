@@ -105,14 +105,16 @@ fn corner_rows(tris: &[[u32; 3]; 8], window: &[Corner], base: u32) -> ([__m256i;
 /// `i32` lanes (twice the area of a triangle whose box is at most 8 x 8 pixels, its vertices
 /// within 9 * 256 units of each other, stays below 2^23; lanes outside `mask` may wrap, and
 /// are dropped, as are lanes refused before their areas are used), `1 / area2` in two `f64`
-/// halves, and the coverage as [`small_eight`] computes it.
+/// halves, and the coverage as [`small_eight`] computes it. With a `reach` (a 4x target's,
+/// [`super::small_run_samples_geometry`]), the boxes are those of the samples, the pixel
+/// centres' coverage then to be replaced by the samples' ([`small_samples`]).
 ///
 /// # Safety
 /// The CPU must support AVX2.
 #[target_feature(enable = "avx2")]
 pub(super) unsafe fn small_run_geometry(
     rows: &CornerGroup,
-    mask: u8,
+    (mask, reach): (u8, i32),
     clip: &PixelRect,
     eight: &mut SmallEight,
     shading: &mut SmallShading,
@@ -124,7 +126,7 @@ pub(super) unsafe fn small_run_geometry(
     let mask =
         _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(i32::from(mask)), lanes), lanes);
     // The boxes, and within the clip rectangle.
-    let b = eight_boxes([x[0], y[0], x[1], y[1], x[2], y[2]], clip);
+    let b = eight_boxes_reaching([x[0], y[0], x[1], y[1], x[2], y[2]], clip, reach);
     let most = _mm256_set1_epi32(super::SMALL_BOX - 1);
     let large =
         _mm256_or_si256(_mm256_cmpgt_epi32(b.width, most), _mm256_cmpgt_epi32(b.height, most));
@@ -2301,10 +2303,19 @@ pub(super) struct EightBoxes {
 #[inline]
 #[target_feature(enable = "avx2")]
 pub(super) fn eight_boxes(v: [__m256i; 6], tile: &PixelRect) -> EightBoxes {
+    eight_boxes_reaching(v, tile, 0)
+}
+
+/// [`eight_boxes`] of the extents widened by `reach` on every side: the pixels any of whose
+/// samples lies in the extent, for a pattern reaching `reach` from the centre each way on
+/// both axes.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn eight_boxes_reaching(v: [__m256i; 6], tile: &PixelRect, reach: i32) -> EightBoxes {
     let [x0, y0, x1, y1, x2, y2] = v;
-    let half = _mm256_set1_epi32(fixed::HALF);
-    let min = |a, b, c| _mm256_min_epi32(_mm256_min_epi32(a, b), c);
-    let max = |a, b, c| _mm256_max_epi32(_mm256_max_epi32(a, b), c);
+    let (half, reach) = (_mm256_set1_epi32(fixed::HALF), _mm256_set1_epi32(reach));
+    let min = |a, b, c| _mm256_sub_epi32(_mm256_min_epi32(_mm256_min_epi32(a, b), c), reach);
+    let max = |a, b, c| _mm256_add_epi32(_mm256_max_epi32(_mm256_max_epi32(a, b), c), reach);
     let first = |v| {
         _mm256_srai_epi32::<8>(_mm256_add_epi32(_mm256_sub_epi32(v, half), _mm256_set1_epi32(255)))
     };

@@ -1218,7 +1218,7 @@ pub fn small_run_geometry(
     #[cfg(target_arch = "x86_64")]
     if level.has_avx2() {
         // SAFETY: AVX2 support was just checked at run time.
-        return unsafe { avx2::small_run_geometry(rows, mask, clip, eight, shading) };
+        return unsafe { avx2::small_run_geometry(rows, (mask, 0), clip, eight, shading) };
     }
     small_run_geometry_scalar(rows, mask, clip, eight, shading)
 }
@@ -1373,23 +1373,9 @@ fn sample_offsets(eight: &SmallEight, l: usize, s: usize) -> [i32; 3] {
 /// The edge values at a sample are those at its pixel centre plus [`sample_offsets`]: exact,
 /// as the edge functions are linear, and the same row masks as the pixel loop's
 /// ([`crate::raster::edge::row_coverage_within`] at the sample's offset). Integer arithmetic,
-/// the same at every level.
-pub fn small_samples(
-    level: SimdLevel,
-    eight: &mut SmallEight,
-    span: [usize; 2],
-    out: &mut SmallSamples,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if level.has_avx2() {
-        // SAFETY: AVX2 support was just checked at run time.
-        return unsafe { avx2::small_samples(eight, span, out) };
-    }
-    small_samples_scalar(eight, span, out);
-}
-
-/// [`small_samples`] a lane and a sample at a time.
-pub fn small_samples_scalar(eight: &mut SmallEight, span: [usize; 2], out: &mut SmallSamples) {
+/// the same at every level; [`small_run_samples_geometry`] computes it in AVX2 from that level
+/// on.
+pub fn small_samples(eight: &mut SmallEight, span: [usize; 2], out: &mut SmallSamples) {
     let (columns, rows) = (span[0].min(SMALL_BOX as usize), span[1].min(SMALL_BOX as usize));
     for l in 0..8 {
         let step_x = std::array::from_fn(|k| i64::from(eight.step_x[k][l]));
@@ -1414,10 +1400,31 @@ pub fn small_samples_scalar(eight: &mut SmallEight, span: [usize; 2], out: &mut 
 /// [`small_run_geometry`] for a 4x target ([`SMALL_SAMPLES`]): each lane's box the pixels any
 /// of whose samples its snapped box holds (the union of the sample boxes, as
 /// [`crate::shade::shade_triangle`] takes them), at most [`SMALL_BOX`] pixels a side before
-/// clipping, and each sample's coverage in `samples` ([`small_samples`]). Lane by lane
-/// through setup's functions, the edges at `level` ([`small_eight`]).
+/// clipping, and each sample's coverage in `samples` ([`small_samples`]). From AVX2 on, the
+/// boxes of the extents widened by the pattern's reach, the same as the union, since the 4x
+/// pattern reaches as far each way on both axes (tested against the scalar version).
 pub fn small_run_samples_geometry(
     level: SimdLevel,
+    rows: &CornerGroup,
+    mask: u8,
+    clip: &PixelRect,
+    (eight, samples, shading): (&mut SmallEight, &mut SmallSamples, &mut SmallShading),
+) -> Option<[usize; 2]> {
+    #[cfg(target_arch = "x86_64")]
+    if level.has_avx2() {
+        let reach = SMALL_SAMPLES.reach() as i32;
+        // SAFETY: AVX2 support was just checked at run time.
+        let span = unsafe { avx2::small_run_geometry(rows, (mask, reach), clip, eight, shading) };
+        // SAFETY: as above.
+        unsafe { avx2::small_samples(eight, span?, samples) };
+        return span;
+    }
+    small_run_samples_geometry_scalar(rows, mask, clip, (eight, samples, shading))
+}
+
+/// [`small_run_samples_geometry`] lane by lane, through setup's functions and the scalar
+/// coverage.
+pub fn small_run_samples_geometry_scalar(
     rows: &CornerGroup,
     mask: u8,
     clip: &PixelRect,
@@ -1446,8 +1453,8 @@ pub fn small_run_samples_geometry(
         let (columns, rows) = ((rect.x1 - rect.x0 + 1) as usize, (rect.y1 - rect.y0 + 1) as usize);
         span = [span[0].max(columns), span[1].max(rows)];
     }
-    small_eight(level, &lanes, span, eight);
-    small_samples(level, eight, span, samples);
+    small_eight_scalar(&lanes, span, eight);
+    small_samples(eight, span, samples);
     Some(span)
 }
 
@@ -3376,12 +3383,38 @@ mod tests {
             }
             let mut parts =
                 (SmallEight::default(), SmallSamples::default(), SmallShading::default());
-            let level = SimdLevel::available()[round % SimdLevel::available().len()];
             let (e, s, sh) = (&mut parts.0, &mut parts.1, &mut parts.2);
-            let Some(_) = small_run_samples_geometry(level, &group, mask, &clip, (e, s, sh)) else {
+            let verdict = small_run_samples_geometry_scalar(&group, mask, &clip, (e, s, sh));
+            // Each level's set-up is the scalar one (the lanes it sets).
+            for level in SimdLevel::available() {
+                let mut got =
+                    (SmallEight::default(), SmallSamples::default(), SmallShading::default());
+                let (e, s, sh) = (&mut got.0, &mut got.1, &mut got.2);
+                let v = small_run_samples_geometry(level, &group, mask, &clip, (e, s, sh));
+                let what = format!("{level:?}, round {round}");
+                assert_eq!(v, verdict, "{what}");
+                if v.is_none() {
+                    continue;
+                }
+                let (g, w) = (&got, &parts);
+                for l in (0..8).filter(|l| mask & (1 << l) != 0) {
+                    assert_eq!(g.0.inside[l], w.0.inside[l], "{what}, lane {l}");
+                    for k in 0..3 {
+                        assert_eq!(g.0.edges[k][l], w.0.edges[k][l], "{what}, lane {l}");
+                        assert_eq!(g.0.step_x[k][l], w.0.step_x[k][l], "{what}, lane {l}");
+                        assert_eq!(g.0.step_y[k][l], w.0.step_y[k][l], "{what}, lane {l}");
+                    }
+                    assert_eq!([g.0.bias[0][l], g.0.bias[1][l]], [w.0.bias[0][l], w.0.bias[1][l]]);
+                    assert!((0..4).all(|s| g.1.inside[s][l] == w.1.inside[s][l]), "{what}");
+                    assert_eq!([g.2.x0[l], g.2.y0[l]], [w.2.x0[l], w.2.y0[l]], "{what}");
+                    assert_eq!(g.2.inv_area2[l].to_bits(), w.2.inv_area2[l].to_bits(), "{what}");
+                }
+                assert_eq!(g.2.cells, w.2.cells, "{what}");
+            }
+            if verdict.is_none() {
                 refused += 1;
                 continue;
-            };
+            }
             let (eight, samples, shading) = &mut parts;
             for l in (0..8).filter(|l| mask & (1 << l) != 0) {
                 let setup = TriangleSetup::from_snapped(setup::widen(group.get(l)), CullMode::None)
