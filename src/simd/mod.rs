@@ -1370,7 +1370,7 @@ fn sample_offsets(eight: &SmallEight, l: usize, s: usize) -> [i32; 3] {
 /// Each sample's coverage (`out`) of the first `span` columns and rows of eight small
 /// triangles' boxes, from their edges at the boxes' first pixel centres (`eight`, as
 /// [`small_eight`] sets them), and the pixels with any covered sample into `eight.inside`.
-/// The edge values at a sample are those at its pixel centre plus [`sample_offsets`]: exact,
+/// The edge values at a sample are those at its pixel centre plus `A ox + B oy`: exact,
 /// as the edge functions are linear, and the same row masks as the pixel loop's
 /// ([`crate::raster::edge::row_coverage_within`] at the sample's offset). Integer arithmetic,
 /// the same at every level; [`small_run_samples_geometry`] computes it in AVX2 from that level
