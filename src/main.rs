@@ -1407,9 +1407,16 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
     Ok(tree)
 }
 
+/// The points of a splat hierarchy: its leaves' centres.
+fn leaf_centres(tree: &trirast::splat::SplatTree) -> Vec<[f32; 3]> {
+    tree.nodes.iter().filter(|n| n.child_count == 0).map(|n| n.centre).collect()
+}
+
 fn pack(file: &Path, output: &Path) -> Result<(), Error> {
     check_outputs(&[("--output", Some(output), Written::Tsplat)], &[file], None)?;
     let tree = load_splats(file)?;
+    // Said where the cloud is packed, as `splat` says it again where it is drawn.
+    warn_of_scale(&leaf_centres(&tree), "point");
     trirast::splat::format::write(output, &tree)?;
     let bytes = std::fs::metadata(output).map_err(|e| Error::io(output, e))?.len();
     eprintln!(
@@ -1439,8 +1446,7 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
     let tree = load_splats(&args.file)?;
     // Framed like `trirast render` frames a mesh: by the points' bounding box, so a cloud
     // sampled from a mesh appears exactly where the mesh does.
-    let leaves: Vec<[f32; 3]> =
-        tree.nodes.iter().filter(|n| n.child_count == 0).map(|n| n.centre).collect();
+    let leaves = leaf_centres(&tree);
     let (centre, radius) = camera::bounding_sphere(&leaves);
     warn_of_scale(&leaves, "point");
     let [az, el] = args.view.unwrap_or([30.0, 20.0]);

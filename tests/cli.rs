@@ -1130,7 +1130,8 @@ fn sample_warns_about_a_texture_that_does_not_decode() {
 
 /// A cloud reaching past what the splat view's single-precision arithmetic holds is drawn
 /// with a warning saying so (one point at 1e20 beside a unit cluster drew nothing, silently),
-/// and a size the target refuses is reported before the hierarchy is built.
+/// which `pack` gives too, and a size the target refuses is reported before the hierarchy is
+/// built.
 #[test]
 fn splat_warns_about_points_too_far_and_checks_the_size_first() {
     let dir = TempDir::new("far-cloud");
@@ -1144,6 +1145,11 @@ fn splat_warns_about_points_too_far_and_checks_the_size_first() {
     let err = run_ok(&dir.0, ["splat", "far.ply", "--size", "32x32", "-o", "far.png"]);
     assert!(err.contains("warning") && err.contains("1.0e20"), "{err}");
     let err = run_ok(&dir.0, ["splat", "near.ply", "--size", "32x32", "-o", "near.png"]);
+    assert!(!err.contains("warning"), "{err}");
+    // `pack` says so too, before the cloud is drawn from its file.
+    let err = run_ok(&dir.0, ["pack", "far.ply", "-o", "far.tsplat"]);
+    assert!(err.contains("warning") && err.contains("1.0e20"), "{err}");
+    let err = run_ok(&dir.0, ["pack", "near.ply", "-o", "near.tsplat"]);
     assert!(!err.contains("warning"), "{err}");
     let err = run_err(&dir.0, ["splat", "near.ply", "--size", "0x32", "-o", "zero.png"]);
     assert!(err.contains("0x32") && !err.contains("hierarchy"), "{err}");
