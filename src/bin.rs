@@ -914,15 +914,18 @@ pub(crate) enum Eight {
     Narrow(SimdLevel),
     /// The smallest triangles' coverage ([`crate::simd::small_eight`]).
     Small,
-    /// Nothing (multisampled targets): each record on its own.
+    /// Nothing (multisampled window triangles, 8x targets): each record on its own.
     None,
 }
 
 impl Eight {
     /// The kind for a target with `samples` per pixel: window triangles at `window` (their
-    /// narrow kernel's level, if any), otherwise the smallest triangles; nothing beyond 1x.
+    /// narrow kernel's level, if any), otherwise the smallest triangles (on a 4x target,
+    /// only for the small kernel: [`crate::simd::shade_small_samples`]); nothing else beyond
+    /// 1x.
     pub(crate) fn of(window: Option<SimdLevel>, samples: SampleCount) -> Self {
         match window {
+            None if samples == crate::simd::SMALL_SAMPLES => Self::Small,
             _ if samples.count() > 1 => Self::None,
             Some(level) => Self::Narrow(level),
             None => Self::Small,
@@ -935,6 +938,8 @@ impl Eight {
 pub(crate) struct EightSetup {
     narrow: crate::simd::NarrowEight,
     small: crate::simd::SmallEight,
+    /// Each sample's coverage of the small lanes, on a 4x target.
+    samples: crate::simd::SmallSamples,
     shading: crate::simd::SmallShading,
 }
 
@@ -975,9 +980,11 @@ where
         }
         // Fewer than eight too: a band's piece ends with them (about one record in seven of
         // the bunny's, whose pieces lose half their triangles to culling).
+        // Multisampled, for the small kernel alone (there is no shared queue).
+        (Eight::Small, _) if band.samples().count() > 1 && !kernels => (0, 0),
         (Eight::Small, _) => {
             let tests = (clip, shared, kernel, kernels);
-            small_lanes(records, tests, setup, &mut boxes)
+            small_lanes(records, tests, band.samples().count() > 1, setup, &mut boxes)
         }
         _ => (0, 0),
     };
@@ -1058,8 +1065,13 @@ fn shade_small_run<'a, S: Record, F: TriangleFragments<S::Payload>>(
     let Some(level) = level else { return (0, 0) };
     queue.flush(band, fragments);
     let (small, shading) = (&setup.small, &setup.shading);
-    let covered =
-        crate::simd::shade_small_eight(level, small, shading, run.start..end, band, depth_test);
+    let lanes = run.start..end;
+    let covered = if band.samples().count() > 1 {
+        let parts = (small, &setup.samples, shading);
+        crate::simd::shade_small_samples(level, parts, lanes, band, depth_test)
+    } else {
+        crate::simd::shade_small_eight(level, small, shading, lanes, band, depth_test)
+    };
     (end - run.start, covered)
 }
 
@@ -1090,6 +1102,7 @@ pub(crate) fn shade_small_run_lanes<'a, T, F: TriangleFragments<T>>(
 fn small_lanes<S: Record, K>(
     records: &[&S],
     (clip, shared, kernel, kernels): (&PixelRect, impl Fn(&Prepared<S::Payload>) -> bool, &K, bool),
+    multisampled: bool,
     setup: &mut EightSetup,
     boxes: &mut [PixelRect; 8],
 ) -> (u8, u8)
@@ -1101,8 +1114,14 @@ where
     let mut span = [1, 1];
     for (l, &record) in records.iter().enumerate() {
         let Some(p) = record.kept() else { continue };
-        let b = &p.setup.bounds;
-        let fits_queue = p.setup.area2 <= shade::SHARED_QUEUE_AREA2;
+        let samples_box;
+        let b = if multisampled {
+            samples_box = crate::simd::samples_box(&p.setup);
+            &samples_box
+        } else {
+            &p.setup.bounds
+        };
+        let fits_queue = !multisampled && p.setup.area2 <= shade::SHARED_QUEUE_AREA2;
         // The box first, `shared` last (it may compute the coverage rectangle).
         let small = crate::simd::SMALL_BOX;
         if b.x1 - b.x0 < small
@@ -1125,6 +1144,10 @@ where
     }
     let span = span.map(|s| s as usize);
     crate::simd::small_eight(SimdLevel::detected(), &lanes, span, &mut setup.small);
+    if multisampled {
+        let level = SimdLevel::detected();
+        crate::simd::small_samples(level, &mut setup.small, span, &mut setup.samples);
+    }
     (smallest, queue)
 }
 

@@ -389,15 +389,14 @@ impl Pipeline {
         // does (the bunny on one thread: 11.3 ms through the stage, 14.2 ms through the AVX2
         // kernels), so AVX-512 only; the small kernel packs eight pixels of any triangles
         // per step at AVX2 too.
-        let plain = !want_normal && target.samples().count() == 1;
-        let small = (plain && level >= SimdLevel::Avx2 && level.is_available()).then_some(level);
-        let kernel = small.filter(|&l| l == SimdLevel::Avx512);
-        // The front end's small runs take a 4x target too (its small kernel computes a pixel's
-        // colour once, `simd::shade_small_samples`), without an overdraw buffer.
-        let samples_runs = target.samples() == simd::SMALL_SAMPLES && target.overdraw.is_none();
-        let runs = (!want_normal && level >= SimdLevel::Avx2 && level.is_available())
+        let single = target.samples().count() == 1;
+        // The small kernel takes a 4x target too (it computes a pixel's colour once,
+        // `simd::shade_small_samples`), without an overdraw buffer.
+        let small_samples = target.samples() == simd::SMALL_SAMPLES && target.overdraw.is_none();
+        let small = (!want_normal && (single || small_samples))
             .then_some(level)
-            .filter(|_| plain || samples_runs);
+            .filter(|&l| l >= SimdLevel::Avx2 && l.is_available());
+        let kernel = small.filter(|&l| single && l == SimdLevel::Avx512);
         let shade = ShaderStage { shader: fragment_shader, want_normal, kernel, small, level };
         let mut stats = DrawStats { submitted: triangles.len(), ..DrawStats::default() };
         let count = |stats: &mut DrawStats, r: &Result<_, Skipped>| match r {
@@ -474,7 +473,7 @@ impl Pipeline {
                     // Small triangles' kernel colours, where the stage shades in kernels.
                     let colors =
                         |v: [&_; 3], primitive| fragment_shader.interpolated_color(v, primitive);
-                    let colors = runs.map(|_| &colors);
+                    let colors = small.map(|_| &colors);
                     let (counts, covered) = bands.draw(
                         target,
                         front.coverage,

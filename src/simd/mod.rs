@@ -1373,9 +1373,23 @@ fn sample_offsets(eight: &SmallEight, l: usize, s: usize) -> [i32; 3] {
 /// The edge values at a sample are those at its pixel centre plus `A ox + B oy`: exact,
 /// as the edge functions are linear, and the same row masks as the pixel loop's
 /// ([`crate::raster::edge::row_coverage_within`] at the sample's offset). Integer arithmetic,
-/// the same at every level; [`small_run_samples_geometry`] computes it in AVX2 from that level
-/// on.
-pub fn small_samples(eight: &mut SmallEight, span: [usize; 2], out: &mut SmallSamples) {
+/// the same at every level.
+pub fn small_samples(
+    level: SimdLevel,
+    eight: &mut SmallEight,
+    span: [usize; 2],
+    out: &mut SmallSamples,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if level.has_avx2() {
+        // SAFETY: AVX2 support was just checked at run time.
+        return unsafe { avx2::small_samples(eight, span, out) };
+    }
+    small_samples_scalar(eight, span, out);
+}
+
+/// [`small_samples`] a lane and a sample at a time.
+pub fn small_samples_scalar(eight: &mut SmallEight, span: [usize; 2], out: &mut SmallSamples) {
     let (columns, rows) = (span[0].min(SMALL_BOX as usize), span[1].min(SMALL_BOX as usize));
     for l in 0..8 {
         let step_x = std::array::from_fn(|k| i64::from(eight.step_x[k][l]));
@@ -1397,6 +1411,16 @@ pub fn small_samples(eight: &mut SmallEight, span: [usize; 2], out: &mut SmallSa
     }
 }
 
+/// The pixels any of whose [`SMALL_SAMPLES`] the snapped box of `setup` holds: the union of
+/// the sample boxes, as [`crate::shade::shade_triangle`] takes them (before clipping).
+#[must_use]
+pub fn samples_box(setup: &TriangleSetup) -> PixelRect {
+    let extent = setup.extent();
+    let boxes =
+        (0..SMALL_SAMPLES.count()).map(|s| setup::sample_bounds(extent, SMALL_SAMPLES.offset(s)));
+    boxes.reduce(|a, b| a.union(&b)).expect("four samples")
+}
+
 /// [`small_run_geometry`] for a 4x target ([`SMALL_SAMPLES`]): each lane's box the pixels any
 /// of whose samples its snapped box holds (the union of the sample boxes, as
 /// [`crate::shade::shade_triangle`] takes them), at most [`SMALL_BOX`] pixels a side before
@@ -1415,8 +1439,7 @@ pub fn small_run_samples_geometry(
         let reach = SMALL_SAMPLES.reach() as i32;
         // SAFETY: AVX2 support was just checked at run time.
         let span = unsafe { avx2::small_run_geometry(rows, (mask, reach), clip, eight, shading) };
-        // SAFETY: as above.
-        unsafe { avx2::small_samples(eight, span?, samples) };
+        small_samples(level, eight, span?, samples);
         return span;
     }
     small_run_samples_geometry_scalar(rows, mask, clip, (eight, samples, shading))
@@ -1439,10 +1462,7 @@ pub fn small_run_samples_geometry_scalar(
             continue;
         }
         let setup = TriangleSetup::from_snapped(setup::widen(xy), CullMode::None).ok()?;
-        let extent = setup.extent();
-        let boxes = (0..SMALL_SAMPLES.count())
-            .map(|s| setup::sample_bounds(extent, SMALL_SAMPLES.offset(s)));
-        let b = boxes.reduce(|a, b| a.union(&b))?;
+        let b = samples_box(&setup);
         if b.x1 - b.x0 >= SMALL_BOX || b.y1 - b.y0 >= SMALL_BOX {
             return None;
         }
@@ -1454,7 +1474,7 @@ pub fn small_run_samples_geometry_scalar(
         span = [span[0].max(columns), span[1].max(rows)];
     }
     small_eight_scalar(&lanes, span, eight);
-    small_samples(eight, span, samples);
+    small_samples_scalar(eight, span, samples);
     Some(span)
 }
 
