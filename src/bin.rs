@@ -283,7 +283,8 @@ pub struct Sink<'a, S> {
 }
 
 /// Eight small triangles a front end set up straight into the lanes of the small-triangle
-/// kernel ([`crate::simd::shade_small_eight`]), without records: the coverage and shading the
+/// kernel ([`crate::simd::shade_small_eight`]; on a 4x target
+/// [`crate::simd::shade_small_samples`]), without records: the coverage and shading the
 /// band loop would have given that kernel for the same triangles' records (lane `l` the
 /// group's `l`-th triangle; those not drawn have no pixels), drawn after the records before
 /// them. Building each record and reading it back into the same lanes, a triangle at a time,
@@ -1040,7 +1041,8 @@ where
 /// Shades the first triangles of `run` (of `records`, with boxes `boxes`; their coverage in
 /// `setup.small`) that the fragment stage gives a kernel's colour
 /// ([`SpanColor::Perspective`], the 3D pipeline's interpolated vertex colours) at once with
-/// [`crate::simd::shade_small_eight`], after the queue's earlier fragments: returns how many
+/// [`crate::simd::shade_small_eight`] (on a 4x target [`crate::simd::shade_small_samples`]),
+/// after the queue's earlier fragments: returns how many
 /// and their covered pixels (none, nothing drawn, when the first has no such colour). Out of
 /// line: inlined, it grew the tile loop, whose other calls the compiler then inlined
 /// differently (fill, which never takes it, 4% slower on two threads).
@@ -1098,6 +1100,8 @@ pub(crate) fn shade_small_run_lanes<'a, T, F: TriangleFragments<T>>(
 /// `kernels` (the fragment stage may give the small kernel colours,
 /// [`TriangleFragments::small_colors`]), larger. Their coverage is set up in `setup` and
 /// their boxes within `clip` in `boxes`; none where fewer than [`SMALL_EIGHT_MIN`] are.
+/// `multisampled` (a 4x target): the boxes of their samples ([`crate::simd::samples_box`])
+/// and each sample's coverage, and none share a queue.
 #[inline(always)]
 fn small_lanes<S: Record, K>(
     records: &[&S],
