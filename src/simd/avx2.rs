@@ -711,18 +711,9 @@ pub(super) unsafe fn shade_small_eight(
     }
     // SAFETY: `listed <= 8 * 64`: eight entries from it are within `entries`.
     unsafe { _mm256_storeu_si256(entries.as_mut_ptr().add(listed).cast(), _mm256_setzero_si256()) };
-    let load = |v: &[i32; 8]| {
-        // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
-        unsafe { _mm256_loadu_si256(v.as_ptr().cast()) }
-    };
-    // Each box's first pixel, `target.index` in `i32` lanes (each pixel's index is checked
-    // before it is read or written, too).
-    let first = box_starts(s, target, drawn);
-    let edges = [load(&eight.edges[1]), load(&eight.edges[2])];
-    let step_x = [load(&eight.step_x[1]), load(&eight.step_x[2])];
-    let step_y = [load(&eight.step_y[1]), load(&eight.step_y[2])];
-    let bias = [load(&eight.bias[0]), load(&eight.bias[1])];
-    let ids_v = load(&s.id);
+    let lanes = SmallEdges::of(eight, s, target, drawn);
+    // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
+    let ids_v = unsafe { _mm256_loadu_si256(s.id.as_ptr().cast()) };
     let depth = s.depth.each_ref().map(|v| WordPairs::of(v));
     let table = crate::color::srgb8_table();
     let columns = columns_of(&s.color_rows);
@@ -736,25 +727,9 @@ pub(super) unsafe fn shade_small_eight(
         let e = unsafe { _mm256_loadu_si256(entries.as_ptr().add(g).cast()) };
         g += count;
         let tri = _mm256_srli_epi32::<6>(e);
-        let column = _mm256_and_si256(e, _mm256_set1_epi32(7));
-        let row = _mm256_and_si256(_mm256_srli_epi32::<3>(e), _mm256_set1_epi32(7));
-        let at = _mm256_add_epi32(
-            _mm256_add_epi32(_mm256_permutevar8x32_epi32(first, tri), column),
-            _mm256_mullo_epi32(row, stride_v),
-        );
-        // `E_k + r step_y + c step_x - bias` in `i32` (below 2^25 within the box, as
-        // `SmallEight` says), exact in `f64`.
-        let numerator = |k: usize| {
-            let pick = |v: __m256i| _mm256_permutevar8x32_epi32(v, tri);
-            let v = _mm256_add_epi32(pick(edges[k]), _mm256_mullo_epi32(row, pick(step_y[k])));
-            let v = _mm256_add_epi32(v, _mm256_mullo_epi32(column, pick(step_x[k])));
-            let v = _mm256_sub_epi32(v, pick(bias[k]));
-            [
-                _mm256_cvtepi32_pd(_mm256_castsi256_si128(v)),
-                _mm256_cvtepi32_pd(_mm256_extracti128_si256::<1>(v)),
-            ]
-        };
-        let (f1, f2) = (numerator(0), numerator(1));
+        let (at, centre) = lanes.at(tri, e, stride_v);
+        // Exact in `f64`.
+        let (f1, f2) = (f64_halves(centre[0]), f64_halves(centre[1]));
         let picks = [WordPick::of(tri, 0), WordPick::of(tri, 1)];
         let half_z = |h: usize| {
             let c = |k: usize| depth[k].pick(&picks[h]);
@@ -854,19 +829,13 @@ pub(super) unsafe fn shade_small_samples(
     }
     // SAFETY: `listed <= 8 * 64`: eight entries from it are within `entries`.
     unsafe { _mm256_storeu_si256(entries.as_mut_ptr().add(listed).cast(), _mm256_setzero_si256()) };
-    let load = |v: &[i32; 8]| {
-        // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
-        unsafe { _mm256_loadu_si256(v.as_ptr().cast()) }
-    };
-    let first = box_starts(s, target, drawn);
-    let edges = [load(&eight.edges[1]), load(&eight.edges[2])];
-    let step_x = [load(&eight.step_x[1]), load(&eight.step_x[2])];
-    let step_y = [load(&eight.step_y[1]), load(&eight.step_y[2])];
-    let bias = [load(&eight.bias[0]), load(&eight.bias[1])];
+    let lanes = SmallEdges::of(eight, s, target, drawn);
+    let (step_x, step_y) = (lanes.step_x, lanes.step_y);
     // Each sample's numerator offsets, lane by lane (`sample_offsets`): `(step >> 8) o`.
     let offsets: [[__m256i; 2]; N] =
         std::array::from_fn(|n| std::array::from_fn(|k| sample_offset(step_x[k], step_y[k], n)));
-    let ids_v = load(&s.id);
+    // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
+    let ids_v = unsafe { _mm256_loadu_si256(s.id.as_ptr().cast()) };
     let depth = s.depth.each_ref().map(|v| WordPairs::of(v));
     let table = crate::color::srgb8_table();
     let columns = columns_of(&s.color_rows);
@@ -881,32 +850,15 @@ pub(super) unsafe fn shade_small_samples(
         g += count;
         let tri = _mm256_srli_epi32::<10>(e);
         let mask = _mm256_and_si256(_mm256_srli_epi32::<6>(e), _mm256_set1_epi32(15));
-        let column = _mm256_and_si256(e, _mm256_set1_epi32(7));
-        let row = _mm256_and_si256(_mm256_srli_epi32::<3>(e), _mm256_set1_epi32(7));
-        let at = _mm256_add_epi32(
-            _mm256_add_epi32(_mm256_permutevar8x32_epi32(first, tri), column),
-            _mm256_mullo_epi32(row, stride_v),
-        );
+        let (at, centre) = lanes.at(tri, e, stride_v);
         let pick = |v: __m256i| _mm256_permutevar8x32_epi32(v, tri);
-        // The centre's numerators `E_k + r step_y + c step_x - bias` in `i32`.
-        let centre: [__m256i; 2] = std::array::from_fn(|k| {
-            let v = _mm256_add_epi32(pick(edges[k]), _mm256_mullo_epi32(row, pick(step_y[k])));
-            let v = _mm256_add_epi32(v, _mm256_mullo_epi32(column, pick(step_x[k])));
-            _mm256_sub_epi32(v, pick(bias[k]))
-        });
-        let wide = |v: __m256i| {
-            [
-                _mm256_cvtepi32_pd(_mm256_castsi256_si128(v)),
-                _mm256_cvtepi32_pd(_mm256_extracti128_si256::<1>(v)),
-            ]
-        };
         let picks = [WordPick::of(tri, 0), WordPick::of(tri, 1)];
         let c: [[__m256d; 3]; 2] =
             std::array::from_fn(|h| std::array::from_fn(|k| depth[k].pick(&picks[h])));
         // Sample `n`'s depth, as `crate::shade::depth_at` computes it.
         let z: [__m256; N] = std::array::from_fn(|n| {
-            let f1 = wide(_mm256_add_epi32(centre[0], pick(offsets[n][0])));
-            let f2 = wide(_mm256_add_epi32(centre[1], pick(offsets[n][1])));
+            let f1 = f64_halves(_mm256_add_epi32(centre[0], pick(offsets[n][0])));
+            let f2 = f64_halves(_mm256_add_epi32(centre[1], pick(offsets[n][1])));
             let half_z = |h: usize| {
                 let z = _mm256_add_pd(
                     _mm256_add_pd(c[h][0], _mm256_mul_pd(f1[h], c[h][1])),
@@ -987,7 +939,7 @@ pub(super) unsafe fn shade_small_samples(
         if pass == 0 {
             continue;
         }
-        let (f1, f2) = (wide(centre[0]), wide(centre[1]));
+        let (f1, f2) = (f64_halves(centre[0]), f64_halves(centre[1]));
         let rgba = small_colors::<4>(s, (table, &columns), tri, &picks, (f1, f2), pass);
         while pass != 0 {
             let i = pass.trailing_zeros() as usize;
@@ -1005,6 +957,64 @@ pub(super) unsafe fn shade_small_samples(
         }
     }
     covered
+}
+
+/// What both small kernels ([`shade_small_eight`], [`shade_small_samples`]) read of their
+/// lanes: each box's first pixel ([`box_starts`]), and edges 1 and 2's biased values at its
+/// centre, steps and fill-rule biases.
+#[derive(Clone, Copy)]
+struct SmallEdges {
+    first: __m256i,
+    edges: [__m256i; 2],
+    step_x: [__m256i; 2],
+    step_y: [__m256i; 2],
+    bias: [__m256i; 2],
+}
+
+impl SmallEdges {
+    /// The lanes of `eight` and `s` within `target`, those of `drawn` (a bit per lane) to be
+    /// drawn.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn of(eight: &SmallEight, s: &SmallShading, target: &TargetBand<'_>, drawn: i32) -> Self {
+        let load = |v: &[i32; 8]| {
+            // SAFETY: eight `i32`s, 32 bytes; the load needs no alignment.
+            unsafe { _mm256_loadu_si256(v.as_ptr().cast()) }
+        };
+        Self {
+            // Each box's first pixel, `target.index` in `i32` lanes (each pixel's index is
+            // checked before it is read or written, too).
+            first: box_starts(s, target, drawn),
+            edges: [load(&eight.edges[1]), load(&eight.edges[2])],
+            step_x: [load(&eight.step_x[1]), load(&eight.step_x[2])],
+            step_y: [load(&eight.step_y[1]), load(&eight.step_y[2])],
+            bias: [load(&eight.bias[0]), load(&eight.bias[1])],
+        }
+    }
+
+    /// Eight listed pixels, of lanes `tri`, at bits `8 r + c` (the low six bits of `entries`):
+    /// their indices (`stride` a row) and barycentric numerators at their centres, `E_k + r
+    /// step_y + c step_x - bias` in `i32` (below 2^25 within the box, as `SmallEight` says).
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn at(&self, tri: __m256i, entries: __m256i, stride: __m256i) -> (__m256i, [__m256i; 2]) {
+        let column = _mm256_and_si256(entries, _mm256_set1_epi32(7));
+        let row = _mm256_and_si256(_mm256_srli_epi32::<3>(entries), _mm256_set1_epi32(7));
+        let pick = |v: __m256i| _mm256_permutevar8x32_epi32(v, tri);
+        let at = _mm256_add_epi32(
+            _mm256_add_epi32(pick(self.first), column),
+            _mm256_mullo_epi32(row, stride),
+        );
+        let numerators = std::array::from_fn(|k| {
+            let v = _mm256_add_epi32(
+                pick(self.edges[k]),
+                _mm256_mullo_epi32(row, pick(self.step_y[k])),
+            );
+            let v = _mm256_add_epi32(v, _mm256_mullo_epi32(column, pick(self.step_x[k])));
+            _mm256_sub_epi32(v, pick(self.bias[k]))
+        });
+        (at, numerators)
+    }
 }
 
 /// Each box's first pixel, `target.index` in `i32` lanes, for the small kernels at AVX2 and

@@ -1231,6 +1231,19 @@ pub fn small_run_geometry_scalar(
     eight: &mut SmallEight,
     shading: &mut SmallShading,
 ) -> Option<[usize; 2]> {
+    lanes_geometry_scalar(rows, mask, clip, false, eight, shading)
+}
+
+/// [`small_run_geometry_scalar`], the boxes those of the samples where `multisampled`
+/// ([`samples_box`]).
+fn lanes_geometry_scalar(
+    rows: &CornerGroup,
+    mask: u8,
+    clip: &PixelRect,
+    multisampled: bool,
+    eight: &mut SmallEight,
+    shading: &mut SmallShading,
+) -> Option<[usize; 2]> {
     let mut lanes = [SmallLane::default(); 8];
     let mut span = [1, 1];
     for (l, lane) in lanes.iter_mut().enumerate() {
@@ -1239,9 +1252,8 @@ pub fn small_run_geometry_scalar(
             shading.cells[l] = 0;
             continue;
         }
-        let setup = TriangleSetup::from_snapped(setup::widen(xy), crate::setup::CullMode::None);
-        let setup = setup.ok()?;
-        let b = &setup.bounds;
+        let setup = TriangleSetup::from_snapped(setup::widen(xy), CullMode::None).ok()?;
+        let b = if multisampled { samples_box(&setup) } else { setup.bounds };
         if b.x1 - b.x0 >= SMALL_BOX || b.y1 - b.y0 >= SMALL_BOX {
             return None;
         }
@@ -1453,27 +1465,7 @@ pub fn small_run_samples_geometry_scalar(
     clip: &PixelRect,
     (eight, samples, shading): (&mut SmallEight, &mut SmallSamples, &mut SmallShading),
 ) -> Option<[usize; 2]> {
-    let mut lanes = [SmallLane::default(); 8];
-    let mut span = [1, 1];
-    for (l, lane) in lanes.iter_mut().enumerate() {
-        let xy = rows.get(l);
-        if mask & (1 << l) == 0 {
-            shading.cells[l] = 0;
-            continue;
-        }
-        let setup = TriangleSetup::from_snapped(setup::widen(xy), CullMode::None).ok()?;
-        let b = samples_box(&setup);
-        if b.x1 - b.x0 >= SMALL_BOX || b.y1 - b.y0 >= SMALL_BOX {
-            return None;
-        }
-        let rect = b.intersect(clip)?;
-        *lane = SmallLane { xy, clockwise: setup.clockwise, first: [rect.x0, rect.y0] };
-        shading.set_box(l, &rect);
-        shading.inv_area2[l] = 1.0 / setup.area2 as f64;
-        let (columns, rows) = ((rect.x1 - rect.x0 + 1) as usize, (rect.y1 - rect.y0 + 1) as usize);
-        span = [span[0].max(columns), span[1].max(rows)];
-    }
-    small_eight_scalar(&lanes, span, eight);
+    let span = lanes_geometry_scalar(rows, mask, clip, true, eight, shading)?;
     small_samples_scalar(eight, span, samples);
     Some(span)
 }
