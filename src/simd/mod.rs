@@ -1183,6 +1183,27 @@ impl SmallShading {
         self.id[l] = id;
     }
 
+    /// The reference loop's view of `target` for lane `l`, whose colour (see
+    /// [`SmallShading::color`]) is `color`.
+    fn kernel_target<'a>(
+        &self,
+        l: usize,
+        color: &'a SpanColor,
+        depth_test: DepthTest,
+        target: &'a mut crate::target::TargetBand<'_>,
+    ) -> KernelTarget<'a> {
+        KernelTarget {
+            depth_plane: [self.depth[0][l], self.depth[1][l], self.depth[2][l]],
+            color,
+            depth_test,
+            id: self.id[l],
+            depth: &mut *target.depth,
+            color_out: &mut *target.color,
+            ids: target.ids.as_deref_mut(),
+            overdraw: target.overdraw.as_deref_mut(),
+        }
+    }
+
     /// Lane `l`'s colour as [`SmallShading::set`] was given it (a fixed alpha as `byte /
     /// 255`, whose 8-bit value is that byte).
     fn color(&self, l: usize) -> PerspectiveColor {
@@ -1329,17 +1350,7 @@ pub fn shade_small_eight_scalar(
         let (x0, y0) = (shading.x0[l], shading.y0[l]);
         let first = target.index(x0, y0);
         let color = SpanColor::Perspective(shading.color(l));
-        let s = shading;
-        let mut t = KernelTarget {
-            depth_plane: [s.depth[0][l], s.depth[1][l], s.depth[2][l]],
-            color: &color,
-            depth_test,
-            id: s.id[l],
-            depth: &mut *target.depth,
-            color_out: &mut *target.color,
-            ids: target.ids.as_deref_mut(),
-            overdraw: target.overdraw.as_deref_mut(),
-        };
+        let mut t = shading.kernel_target(l, &color, depth_test, target);
         covered += u64::from(inside.count_ones());
         while inside != 0 {
             let bit = inside.trailing_zeros() as i32;
@@ -1523,17 +1534,7 @@ pub fn shade_small_samples_scalar(
             [i64::from(o[1]), i64::from(o[2])]
         });
         let color = SpanColor::Perspective(shading.color(l));
-        let s = shading;
-        let mut t = KernelTarget {
-            depth_plane: [s.depth[0][l], s.depth[1][l], s.depth[2][l]],
-            color: &color,
-            depth_test,
-            id: s.id[l],
-            depth: &mut *target.depth,
-            color_out: &mut *target.color,
-            ids: target.ids.as_deref_mut(),
-            overdraw: None,
-        };
+        let mut t = shading.kernel_target(l, &color, depth_test, target);
         while any != 0 {
             let bit = any.trailing_zeros() as i32;
             any &= any - 1;
