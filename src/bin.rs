@@ -979,10 +979,10 @@ where
         (Eight::Narrow(level), Ok(eight)) => {
             (S::narrow_eight(eight, clip, level, &mut setup.narrow), 0)
         }
-        // Fewer than eight too: a band's piece ends with them (about one record in seven of
-        // the bunny's, whose pieces lose half their triangles to culling).
         // Multisampled, for the small kernel alone (there is no shared queue).
         (Eight::Small, _) if band.samples().count() > 1 && !kernels => (0, 0),
+        // Fewer than eight too: a band's piece ends with them (about one record in seven of
+        // the bunny's, whose pieces lose half their triangles to culling).
         (Eight::Small, _) => {
             let tests = (clip, shared, kernel, kernels);
             small_lanes(records, tests, band.samples().count() > 1, setup, &mut boxes)

@@ -1380,8 +1380,8 @@ pub struct SmallSamples {
     pub inside: [[u64; 8]; 4],
 }
 
-/// Edges 1 and 2's change (the barycentric numerators') from lane `l`'s pixel centres to
-/// sample `s` of [`SMALL_SAMPLES`]: `A ox + B oy`, the edge's coefficients being its steps
+/// Each edge's change (edges 1 and 2's: the barycentric numerators') from lane `l`'s pixel
+/// centres to sample `s` of [`SMALL_SAMPLES`]: `A ox + B oy`, the edge's coefficients being its steps
 /// over a pixel (`256 A`, `256 B`, exact multiples) over 256. Below 2^12 * 2 * 112 in
 /// magnitude for a small triangle.
 #[inline(always)]
