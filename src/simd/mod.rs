@@ -512,6 +512,30 @@ pub struct KernelTarget<'a> {
     pub overdraw: Option<&'a mut [u32]>,
 }
 
+impl<'a> KernelTarget<'a> {
+    /// Lane `l` of eight triangles' depth planes and ids, side by side, with colour `color`
+    /// and `depth_test`, into `target`'s buffers.
+    #[inline(always)]
+    fn lane(
+        (depth, id): (&[[f64; 8]; 3], &[i32; 8]),
+        l: usize,
+        color: &'a SpanColor,
+        depth_test: DepthTest,
+        target: &'a mut crate::target::TargetBand<'_>,
+    ) -> Self {
+        KernelTarget {
+            depth_plane: [depth[0][l], depth[1][l], depth[2][l]],
+            color,
+            depth_test,
+            id: id[l],
+            depth: &mut *target.depth,
+            color_out: &mut *target.color,
+            ids: target.ids.as_deref_mut(),
+            overdraw: target.overdraw.as_deref_mut(),
+        }
+    }
+}
+
 impl KernelTarget<'_> {
     /// One covered pixel `i` at barycentric numerators `(f1, f2)`: the reference loop's
     /// overdraw count, depth test and writes.
@@ -872,16 +896,7 @@ impl NarrowEight {
         depth_test: DepthTest,
         target: &'a mut crate::target::TargetBand<'_>,
     ) -> KernelTarget<'a> {
-        KernelTarget {
-            depth_plane: [self.depth[0][l], self.depth[1][l], self.depth[2][l]],
-            color,
-            depth_test,
-            id: self.id[l],
-            depth: &mut *target.depth,
-            color_out: &mut *target.color,
-            ids: target.ids.as_deref_mut(),
-            overdraw: target.overdraw.as_deref_mut(),
-        }
+        KernelTarget::lane((&self.depth, &self.id), l, color, depth_test, target)
     }
 
     /// Lane `l`'s colour as the span kernels take it.
@@ -1192,16 +1207,7 @@ impl SmallShading {
         depth_test: DepthTest,
         target: &'a mut crate::target::TargetBand<'_>,
     ) -> KernelTarget<'a> {
-        KernelTarget {
-            depth_plane: [self.depth[0][l], self.depth[1][l], self.depth[2][l]],
-            color,
-            depth_test,
-            id: self.id[l],
-            depth: &mut *target.depth,
-            color_out: &mut *target.color,
-            ids: target.ids.as_deref_mut(),
-            overdraw: target.overdraw.as_deref_mut(),
-        }
+        KernelTarget::lane((&self.depth, &self.id), l, color, depth_test, target)
     }
 
     /// Lane `l`'s colour as [`SmallShading::set`] was given it (a fixed alpha as `byte /
