@@ -333,6 +333,10 @@ struct ModelFragment<'a> {
     view_to_world: Mat3,
     /// The light's unit direction.
     light_direction: Vec3,
+    /// The light as [`simd::light_eight`] takes it, where its exponent is whole.
+    whole_light: Option<simd::WholeLight>,
+    /// The level Phong's lanes are lit at.
+    level: SimdLevel,
 }
 
 impl ModelFragment<'_> {
@@ -378,6 +382,33 @@ impl ModelFragment<'_> {
         }
     }
 
+    /// Phong's colours of `fragments` (at most [`GOURAUD_LANES`]) into `out`, as
+    /// [`FragmentShader::shade`] computes each: their normals and directions to the eye lit
+    /// side by side ([`simd::light_eight`] where the exponent is whole, else
+    /// [`GouraudLanes::shade`], both bit for bit `Light::shade_towards` of the normalised
+    /// vectors), the albedo lane by lane. A fragment alone waited on its chain of three
+    /// square roots, three divisions and the highlight's powers. A back face's normal is
+    /// negated before it is normalised rather than after, which gives the same bits but for
+    /// a zero normal's signs of zero: its diffuse term may then differ in the sign of a zero,
+    /// which the specular term, `+0` there, takes away in the sum.
+    fn phong_lanes(&self, fragments: &[Fragment<ModelVaryings>], out: &mut [Option<Vec4>]) {
+        let mut lanes = GouraudLanes::default();
+        for (j, f) in fragments.iter().enumerate() {
+            let n = if f.front_facing { f.varyings.0 } else { -f.varyings.0 };
+            lanes.set(j, n, -f.varyings.3);
+        }
+        let light = &self.options.light;
+        let lit = self
+            .whole_light
+            .as_ref()
+            .and_then(|w| simd::light_eight(self.level, &lanes.n, &lanes.v, w));
+        let (d, s) = lit.unwrap_or_else(|| lanes.shade(light, self.light_direction));
+        for (j, (f, out)) in fragments.iter().zip(out).enumerate() {
+            let albedo = self.albedo(f);
+            *out = Some((albedo.truncate() * d[j] + Vec3::splat(s[j])).extend(albedo.w));
+        }
+    }
+
     fn normal_at(&self, f: &Fragment<ModelVaryings>) -> Vec3 {
         let n = match self.options.lighting {
             Lighting::Flat => self.surface.face_normals[f.primitive as usize],
@@ -401,6 +432,21 @@ impl FragmentShader<ModelVaryings> for ModelFragment<'_> {
             }
         };
         Some(lit)
+    }
+
+    /// Phong's lanes lit side by side ([`ModelFragment::phong_lanes`]), other lighting one
+    /// fragment at a time.
+    fn shade_lanes(&self, fragments: &[Fragment<ModelVaryings>], out: &mut [Option<Vec4>]) {
+        if self.options.lighting == Lighting::Phong && fragments.len() <= GOURAUD_LANES {
+            return self.phong_lanes(fragments, out);
+        }
+        for (f, out) in fragments.iter().zip(out) {
+            *out = self.shade(f);
+        }
+    }
+
+    fn shades_lanes(&self) -> bool {
+        self.options.lighting == Lighting::Phong
     }
 
     fn normal(&self, f: &Fragment<ModelVaryings>) -> Option<Vec3> {
@@ -545,6 +591,8 @@ pub fn render_mesh(
         options,
         view_to_world: Mat3::from_mat4(view).transpose(),
         light_direction,
+        whole_light: light.whole(light_direction),
+        level: SimdLevel::detected(),
     };
     let indices: Vec<u32> = (0..mesh.positions.len() as u32).collect();
     let pipeline = Pipeline::default().with_cull(options.cull).with_depth_test(options.depth_test);
@@ -847,6 +895,75 @@ mod tests {
             }
         }
     }
+    /// Phong's lanes ([`ModelFragment::shade_lanes`]) shade as one fragment at a time, bit
+    /// for bit, at every level: random interpolated normals (zero, tiny, huge and NaN ones
+    /// among them) and view positions (zero among them), front and back faces, one to eight
+    /// lanes, whole exponents and others, a negative zero ambient, vertex colours or none.
+    #[test]
+    fn phong_lanes_shade_as_one_fragment_at_a_time() {
+        use rand::{Rng, SeedableRng, rngs::SmallRng};
+        let mut rng = SmallRng::seed_from_u64(23);
+        let mesh = Mesh::default();
+        let textures = MaterialTextures::default();
+        for round in 0..400 {
+            let value = |rng: &mut SmallRng| rng.random_range(-2.0..2.0f32);
+            let vector = |rng: &mut SmallRng, k: usize| match k % 9 {
+                1 => Vec3::ZERO,
+                4 => Vec3::new(value(rng), value(rng), value(rng)) * 1e-30,
+                6 => Vec3::new(value(rng), value(rng), value(rng)) * 1e30,
+                7 if round % 2 == 0 => Vec3::new(f32::NAN, value(rng), 0.0),
+                _ => Vec3::new(value(rng), value(rng), value(rng)),
+            };
+            let len = rng.random_range(1..=GOURAUD_LANES);
+            let fragments: Vec<Fragment<ModelVaryings>> = (0..len)
+                .map(|k| Fragment {
+                    x: k as i32,
+                    y: 0,
+                    depth: 0.5,
+                    varyings: (
+                        vector(&mut rng, k + round),
+                        Vec2::ZERO,
+                        Vec4::from_array(std::array::from_fn(|_| rng.random())),
+                        vector(&mut rng, k * 2 + round),
+                    ),
+                    front_facing: rng.random(),
+                    primitive: k as u32,
+                })
+                .collect();
+            let light = Light {
+                direction: Vec3::new(value(&mut rng), value(&mut rng), value(&mut rng)),
+                shininess: [0.0, 1.0, 32.0, 1024.0, 7.5, 2000.0][round % 6],
+                ambient: if round % 4 == 0 { -0.0 } else { Light::default().ambient },
+                ..Light::default()
+            };
+            let options = ModelOptions { lighting: Lighting::Phong, light, ..Default::default() };
+            let surface = Surface {
+                mesh: &mesh,
+                normals: std::borrow::Cow::Borrowed(&[]),
+                textures: &textures,
+                colors: None,
+                face_normals: Vec::new(),
+            };
+            let light_direction = light.unit_direction();
+            for level in SimdLevel::available() {
+                let fragment = ModelFragment {
+                    surface: &surface,
+                    options: &options,
+                    view_to_world: Mat3::IDENTITY,
+                    light_direction,
+                    whole_light: light.whole(light_direction),
+                    level,
+                };
+                let mut lanes = [None; GOURAUD_LANES];
+                fragment.shade_lanes(&fragments, &mut lanes[..len]);
+                for (k, (f, lane)) in fragments.iter().zip(&lanes).enumerate() {
+                    let bits = |c: Option<Vec4>| c.map(|c| c.to_array().map(f32::to_bits));
+                    assert_eq!(bits(*lane), bits(fragment.shade(f)), "{round} {k} {level:?}");
+                }
+            }
+        }
+    }
+
     use crate::camera::{self, Projection};
     use crate::mesh::Material;
 
@@ -978,6 +1095,99 @@ mod tests {
             Some((0..n).map(|i| [wave(i, 0.3), wave(i, 0.7), wave(i, 1.1), alpha]).collect());
         with_vertex_normals(&mut mesh);
         mesh
+    }
+
+    /// Phong draws through the pipeline with its lanes ([`FragmentShader::shades_lanes`])
+    /// what it draws one fragment at a time: colour, depth, ids and normals, at 1x, 4x and
+    /// 8x, both backends, every level, on a sphere with back faces drawn (culling off) and a
+    /// camera close enough for perspective.
+    #[test]
+    fn phong_lanes_draw_as_one_fragment_at_a_time() {
+        use crate::render::Backend;
+        use crate::sample::SampleCount;
+        /// The same shader, without lanes.
+        struct OneByOne<'a>(&'a ModelFragment<'a>);
+        impl FragmentShader<ModelVaryings> for OneByOne<'_> {
+            fn shade(&self, f: &Fragment<ModelVaryings>) -> Option<Vec4> {
+                self.0.shade(f)
+            }
+            fn normal(&self, f: &Fragment<ModelVaryings>) -> Option<Vec3> {
+                self.0.normal(f)
+            }
+        }
+        let mesh = coloured_sphere(3000, 0.8);
+        let (centre, radius) = camera::bounding_sphere(&mesh.positions);
+        let projection = Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y };
+        let camera = Camera::framing_sphere(centre, radius, 0.4, 0.3, 1.2, projection);
+        let (width, height) = (96, 64);
+        let ModelView { origin, view, view_proj } =
+            ModelView::new(&camera, width as f32 / height as f32);
+        let normal_matrix = Mat3::from_mat4(view).inverse().transpose();
+        let textures = MaterialTextures::default();
+        let normals = mesh.normals.clone().unwrap();
+        let colors: Vec<Vec4> =
+            mesh.colors.as_ref().unwrap().iter().map(|&c| Vec4::from(c)).collect();
+        let surface = Surface {
+            mesh: &mesh,
+            normals: std::borrow::Cow::Borrowed(&normals),
+            textures: &textures,
+            colors: Some(colors.clone()),
+            face_normals: Vec::new(),
+        };
+        let options = ModelOptions::default();
+        assert_eq!(options.lighting, Lighting::Phong);
+        let light_direction = options.light.unit_direction();
+        let vertex = |&i: &u32| -> (Vec4, ModelVaryings) {
+            let i = i as usize;
+            let p = (Vec3::from(mesh.positions[i]) - origin).extend(1.0);
+            let n = (normal_matrix * Vec3::from(normals[i])).normalize_or_zero();
+            (view_proj * p, (n, Vec2::ZERO, colors[i], (view * p).truncate()))
+        };
+        let indices: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+        for samples in [SampleCount::X1, SampleCount::X4, SampleCount::X8] {
+            for backend in [Backend::Reference, Backend::Tiled] {
+                for level in SimdLevel::available() {
+                    let fragment = ModelFragment {
+                        surface: &surface,
+                        options: &options,
+                        view_to_world: Mat3::from_mat4(view).transpose(),
+                        light_direction,
+                        whole_light: options.light.whole(light_direction),
+                        level,
+                    };
+                    let pipeline = Pipeline::default()
+                        .with_cull(FaceCull::None)
+                        .with_backend(backend)
+                        .with_simd(level);
+                    let draw = |shader: &dyn Fn(&mut Target) -> DrawStats| {
+                        let mut target = Target::multisampled(width, height, samples)
+                            .unwrap()
+                            .with_ids()
+                            .with_normals();
+                        let stats = shader(&mut target);
+                        assert!(stats.fragments > 1000, "the sphere is drawn");
+                        target
+                    };
+                    let lanes = draw(&|t| {
+                        pipeline.draw(t, &vertex, &fragment, &indices, &mesh.triangles).unwrap()
+                    });
+                    let one = OneByOne(&fragment);
+                    let single = draw(&|t| {
+                        pipeline.draw(t, &vertex, &one, &indices, &mesh.triangles).unwrap()
+                    });
+                    let case = format!("{samples:?} {backend:?} {level:?}");
+                    assert_eq!(lanes.color, single.color, "{case}");
+                    let bits = |t: &Target| t.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(&lanes), bits(&single), "{case}");
+                    assert_eq!(lanes.ids, single.ids, "{case}");
+                    let normal_bits = |t: &Target| {
+                        let n = t.normals.as_ref().unwrap();
+                        n.iter().flat_map(|n| n.map(f32::to_bits)).collect::<Vec<_>>()
+                    };
+                    assert_eq!(normal_bits(&lanes), normal_bits(&single), "{case}");
+                }
+            }
+        }
     }
 
     /// Unlit and Gouraud lighting interpolate only the texture coordinate and colour when the

@@ -2438,7 +2438,28 @@ pub(super) unsafe fn gouraud_eight(
         }
         None => [_mm256_setzero_ps(); 3],
     };
-    let (diffuse, specular) = light_lanes(n, to_eye, light);
+    stored(light_lanes(n, to_eye, light))
+}
+
+/// [`super::light_eight`] in AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn light_eight(
+    n: &[[f32; 8]; 3],
+    v: &[[f32; 8]; 3],
+    light: &super::WholeLight,
+) -> ([f32; 8], [f32; 8]) {
+    // SAFETY: each load reads the eight `f32` of one array.
+    let load = |a: &[f32; 8]| unsafe { _mm256_loadu_ps(a.as_ptr()) };
+    stored(light_lanes(n.each_ref().map(load), v.each_ref().map(load), light))
+}
+
+/// Diffuse and specular lanes as arrays.
+#[inline]
+#[target_feature(enable = "avx2")]
+fn stored((diffuse, specular): (__m256, __m256)) -> ([f32; 8], [f32; 8]) {
     let (mut d, mut s) = ([0.0f32; 8], [0.0f32; 8]);
     // SAFETY: each store writes the eight `f32` of one array.
     unsafe {

@@ -292,6 +292,27 @@ pub(crate) fn gouraud_eight(
     None
 }
 
+/// `Light::shade_towards` of eight lanes under `light`, from their normals `n` and
+/// directions to the eye `v` (each normalised here, as `crate::model`'s lanes do a lane at a
+/// time): `(diffuse + ambient, specular)`, the same bits ([`gouraud_eight`]'s lighting
+/// alone, for Phong's fragments). `None` below AVX2, where the caller does.
+#[inline]
+#[must_use]
+pub(crate) fn light_eight(
+    level: SimdLevel,
+    n: &[[f32; 8]; 3],
+    v: &[[f32; 8]; 3],
+    light: &WholeLight,
+) -> Option<([f32; 8], [f32; 8])> {
+    #[cfg(target_arch = "x86_64")]
+    if level.has_avx2() {
+        // SAFETY: AVX2 and FMA support was just checked at run time.
+        return Some(unsafe { avx2::light_eight(n, v, light) });
+    }
+    let _ = (level, n, v, light);
+    None
+}
+
 /// [`srgb8_lanes`] a lane at a time.
 #[must_use]
 pub fn srgb8_lanes_scalar(colors: &[[f32; 4]; 8]) -> [u32; 8] {
