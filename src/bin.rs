@@ -863,19 +863,26 @@ where
     K: Fn(&S::Payload) -> Option<(SimdLevel, &SpanColor)>,
     F: TriangleFragments<S::Payload>,
 {
-    if band.samples().count() == 1
-        && let Some(p) = queued(record, kernel, shared)
-        && let Some(covered) = shade::shade_small_triangle(
-            band,
-            &p.setup,
-            rect,
-            &p.depth,
-            (depth_test, p.id),
-            &p.payload,
-            fragments,
-            queue,
-        )
-    {
+    let small = if band.samples().count() == 1 {
+        queued(record, kernel, shared).and_then(|p| {
+            let at = (depth_test, p.id);
+            shade::shade_small_triangle(
+                band, &p.setup, rect, &p.depth, at, &p.payload, fragments, queue,
+            )
+        })
+    } else if fragments.defers_colour() {
+        // Multisampled, where the stage lets colour wait behind depth.
+        let kept = record.kept().filter(|p| kernel(&p.payload).is_none() && shared(p));
+        kept.and_then(|p| {
+            let (at, data) = ((depth_test, p.id), &p.payload);
+            shade::shade_small_triangle_samples(
+                band, &p.setup, rect, &p.depth, at, data, fragments, queue,
+            )
+        })
+    } else {
+        None
+    };
+    if let Some(covered) = small {
         return covered;
     }
     queue.flush(band, fragments);

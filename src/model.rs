@@ -1097,14 +1097,19 @@ mod tests {
         mesh
     }
 
-    /// Phong draws through the pipeline with its lanes ([`FragmentShader::shades_lanes`])
-    /// what it draws one fragment at a time: colour, depth, ids and normals, at 1x, 4x and
-    /// 8x, both backends, every level, on a sphere with back faces drawn (culling off) and a
-    /// camera close enough for perspective.
+    /// Phong draws through the pipeline with its lanes ([`FragmentShader::shades_lanes`]),
+    /// and on multisampled targets with its small triangles' colour waiting behind their
+    /// depth in a shared queue ([`crate::shade::shade_small_triangle_samples`]), what it
+    /// draws one fragment at a time: colour, depth, ids and normals, at 1x, 4x and 8x, the
+    /// reference and both schedules, every level, with `Less` and with `Always` (where the
+    /// last triangle drawn wins, so colour written out of order shows). The mesh is two
+    /// overlapping spheres, one of large triangles after one of small ones, with back faces
+    /// drawn, seen close enough for perspective.
     #[test]
     fn phong_lanes_draw_as_one_fragment_at_a_time() {
-        use crate::render::Backend;
+        use crate::render::{Backend, Schedule};
         use crate::sample::SampleCount;
+        use crate::shade::DepthTest;
         /// The same shader, without lanes.
         struct OneByOne<'a>(&'a ModelFragment<'a>);
         impl FragmentShader<ModelVaryings> for OneByOne<'_> {
@@ -1115,11 +1120,18 @@ mod tests {
                 self.0.normal(f)
             }
         }
-        let mesh = coloured_sphere(3000, 0.8);
+        let mut mesh = coloured_sphere(3000, 0.8);
+        let large = coloured_sphere(120, 1.0);
+        let base = mesh.positions.len() as u32;
+        let shifted = large.positions.iter().map(|p| [p[0] + 0.5, p[1] * 0.8, p[2] + 0.3]);
+        mesh.positions.extend(shifted);
+        mesh.normals.as_mut().unwrap().extend(large.normals.as_ref().unwrap());
+        mesh.colors.as_mut().unwrap().extend(large.colors.as_ref().unwrap());
+        mesh.triangles.extend(large.triangles.iter().map(|t| t.map(|i| i + base)));
         let (centre, radius) = camera::bounding_sphere(&mesh.positions);
         let projection = Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y };
         let camera = Camera::framing_sphere(centre, radius, 0.4, 0.3, 1.2, projection);
-        let (width, height) = (96, 64);
+        let (width, height) = (200, 150);
         let ModelView { origin, view, view_proj } =
             ModelView::new(&camera, width as f32 / height as f32);
         let normal_matrix = Mat3::from_mat4(view).inverse().transpose();
@@ -1144,47 +1156,60 @@ mod tests {
             (view_proj * p, (n, Vec2::ZERO, colors[i], (view * p).truncate()))
         };
         let indices: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+        let backends = [
+            (Backend::Reference, Schedule::Auto),
+            (Backend::Tiled, Schedule::Binned),
+            (Backend::Tiled, Schedule::Banded),
+        ];
         for samples in [SampleCount::X1, SampleCount::X4, SampleCount::X8] {
-            for backend in [Backend::Reference, Backend::Tiled] {
-                for level in SimdLevel::available() {
-                    let fragment = ModelFragment {
-                        surface: &surface,
-                        options: &options,
-                        view_to_world: Mat3::from_mat4(view).transpose(),
-                        light_direction,
-                        whole_light: options.light.whole(light_direction),
-                        level,
-                    };
-                    let pipeline = Pipeline::default()
-                        .with_cull(FaceCull::None)
-                        .with_backend(backend)
-                        .with_simd(level);
-                    let draw = |shader: &dyn Fn(&mut Target) -> DrawStats| {
-                        let mut target = Target::multisampled(width, height, samples)
-                            .unwrap()
-                            .with_ids()
-                            .with_normals();
-                        let stats = shader(&mut target);
-                        assert!(stats.fragments > 1000, "the sphere is drawn");
-                        target
-                    };
-                    let lanes = draw(&|t| {
-                        pipeline.draw(t, &vertex, &fragment, &indices, &mesh.triangles).unwrap()
-                    });
-                    let one = OneByOne(&fragment);
-                    let single = draw(&|t| {
-                        pipeline.draw(t, &vertex, &one, &indices, &mesh.triangles).unwrap()
-                    });
-                    let case = format!("{samples:?} {backend:?} {level:?}");
-                    assert_eq!(lanes.color, single.color, "{case}");
-                    let bits = |t: &Target| t.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
-                    assert_eq!(bits(&lanes), bits(&single), "{case}");
-                    assert_eq!(lanes.ids, single.ids, "{case}");
-                    let normal_bits = |t: &Target| {
-                        let n = t.normals.as_ref().unwrap();
-                        n.iter().flat_map(|n| n.map(f32::to_bits)).collect::<Vec<_>>()
-                    };
-                    assert_eq!(normal_bits(&lanes), normal_bits(&single), "{case}");
+            for (backend, schedule) in backends {
+                for depth_test in [DepthTest::Less, DepthTest::Always] {
+                    for level in SimdLevel::available() {
+                        let fragment = ModelFragment {
+                            surface: &surface,
+                            options: &options,
+                            view_to_world: Mat3::from_mat4(view).transpose(),
+                            light_direction,
+                            whole_light: options.light.whole(light_direction),
+                            level,
+                        };
+                        let pipeline = Pipeline::default()
+                            .with_cull(FaceCull::None)
+                            .with_backend(backend)
+                            .with_schedule(schedule)
+                            .with_depth_test(depth_test)
+                            .with_simd(level);
+                        let draw = |shader: &dyn Fn(&mut Target) -> DrawStats| {
+                            let mut target = Target::multisampled(width, height, samples)
+                                .unwrap()
+                                .with_ids()
+                                .with_normals();
+                            let stats = shader(&mut target);
+                            assert!(stats.fragments > 10_000, "the spheres are drawn");
+                            target
+                        };
+                        let triangles = &mesh.triangles;
+                        let lanes = draw(&|t| {
+                            pipeline.draw(t, &vertex, &fragment, &indices, triangles).unwrap()
+                        });
+                        let one = OneByOne(&fragment);
+                        let single = draw(&|t| {
+                            pipeline.draw(t, &vertex, &one, &indices, triangles).unwrap()
+                        });
+                        let case = format!(
+                            "{samples:?} {backend:?} {schedule:?} {depth_test:?} {level:?}"
+                        );
+                        assert_eq!(lanes.color, single.color, "{case}");
+                        let bits =
+                            |t: &Target| t.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
+                        assert_eq!(bits(&lanes), bits(&single), "{case}");
+                        assert_eq!(lanes.ids, single.ids, "{case}");
+                        let normal_bits = |t: &Target| {
+                            let n = t.normals.as_ref().unwrap();
+                            n.iter().flat_map(|n| n.map(f32::to_bits)).collect::<Vec<_>>()
+                        };
+                        assert_eq!(normal_bits(&lanes), normal_bits(&single), "{case}");
+                    }
                 }
             }
         }

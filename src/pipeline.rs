@@ -874,6 +874,11 @@ where
         self.shader.shades_lanes()
     }
 
+    #[inline(always)]
+    fn defers_colour(&self) -> bool {
+        self.shader.shades_lanes() && !self.shader.may_discard()
+    }
+
     /// [`TriangleFragments::fragment`] of each lane. With perspective, the weights of all
     /// lanes first: one loop of divisions, which pipeline, rather than three divisions
     /// waiting in each fragment's chain (see ARCHITECTURE.md, `shade`). Affine triangles need

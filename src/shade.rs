@@ -552,6 +552,13 @@ pub trait TriangleFragments<T>: Sync {
         false
     }
 
+    /// Whether a multisampled pixel's colour may be written after its depth, other pixels'
+    /// writes between ([`shade_small_triangle_samples`]): the stage shades lanes and never
+    /// discards. `false` by default.
+    fn defers_colour(&self) -> bool {
+        false
+    }
+
     /// Whether [`TriangleFragments::span_color`] may give any triangle a colour: where it
     /// cannot, the tile loops do not set triangles up for the kernels that would ask it.
     fn span_colors(&self) -> bool {
@@ -1360,6 +1367,9 @@ pub(crate) struct SharedLaneQueue<'a, T> {
     ids: [i32; LANES],
     earlier: u64,
     current: u64,
+    /// On a multisampled target, each lane's samples that passed the depth test (whose
+    /// depth and id are already written: see [`shade_small_triangle_samples`]).
+    masks: [u32; LANES],
 }
 
 /// Triangles at most this large (twice the area in fixed-point units: 4 pixels) take a
@@ -1377,6 +1387,7 @@ impl<'a, T> SharedLaneQueue<'a, T> {
             ids: [0; LANES],
             earlier: 0,
             current: 0,
+            masks: [0; LANES],
         }
     }
 
@@ -1432,9 +1443,134 @@ impl<'a, T> SharedLaneQueue<'a, T> {
         (self.earlier, self.current) = (0, 0);
         let mut out = [None; LANES];
         stage.lanes_of(&self.tris, &self.passed, &mut out);
-        let ids = &self.ids;
-        self.passed.write(target, &out, |l| ids[l]);
+        let n = target.samples().count();
+        if n == 1 {
+            let ids = &self.ids;
+            self.passed.write(target, &out, |l| ids[l]);
+            return;
+        }
+        // Multisampled: depth and ids were written as the samples passed; the colour (and
+        // normal) now, in the lanes' order, which is the triangles'.
+        for (l, out) in out.iter().enumerate().take(self.passed.len) {
+            let Some(out) = out else { continue };
+            let p = target.index(self.passed.x[l], self.passed.y[l]);
+            let mask = self.masks[l];
+            for s in (0..n).filter(|s| mask & (1 << s) != 0) {
+                target.color[p * n + s] = out.color;
+            }
+            if let (Some(normals), Some(nrm)) = (&mut target.normals, out.normal) {
+                normals[p] = nrm;
+            }
+        }
+        self.passed.len = 0;
     }
+
+    /// Queues the multisampled pixel `(x, y)` of triangle `t` (id `id`), with barycentric
+    /// numerators `e1`, `e2` and depth `z` at its centre, whose samples `mask` passed the
+    /// depth test and have had their depth and id written.
+    #[inline(always)]
+    fn sample_pixel<F: TriangleFragments<T>>(
+        &mut self,
+        target: &mut TargetBand<'_>,
+        (x, y, e1, e2, z): (i32, i32, f64, f64, f32),
+        mask: u32,
+        (t, id, stage): (&'a T, i32, &F),
+    ) {
+        let l = self.passed.len;
+        let q = &mut self.passed;
+        (q.x[l], q.y[l], q.e1[l], q.e2[l], q.z[l]) = (x, y, e1, e2, z);
+        q.len += 1;
+        (self.tris[l], self.ids[l], self.masks[l]) = (Some(t), id, mask);
+        if self.passed.len == LANES {
+            self.flush(target, stage);
+        }
+    }
+}
+
+/// [`shade_triangle`] on a multisampled target for a small triangle whose stage
+/// [`TriangleFragments::defers_colour`] (it shades lanes and never discards), with shading
+/// data `t`: each covered sample's depth is tested and, where it passes, written at once
+/// with the id, and the pixel queued in `queue` for its colour (shared with earlier
+/// triangles; the caller flushes it before anything else writes colour, and at the end).
+/// Writing depth first and colour later gives the reference's buffers: depth and ids are
+/// written in the same order, and so is the colour (the queue's order is the triangles'),
+/// which no test reads. A lone triangle of the 800 x 600 bunny (about a pixel) had filled a
+/// lane or two of its own queue. `None`, with nothing done, when the box of its samples
+/// within `clip` is wider or taller than [`raster::edge::NARROW`] pixels: the caller draws
+/// it, after flushing the queue.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn shade_small_triangle_samples<'a, T, F: TriangleFragments<T>>(
+    target: &mut TargetBand<'_>,
+    setup: &TriangleSetup,
+    clip: &PixelRect,
+    depth: &PlaneEquation,
+    (depth_test, id): (DepthTest, i32),
+    t: &'a T,
+    stage: &F,
+    queue: &mut SharedLaneQueue<'a, T>,
+) -> Option<u64> {
+    let samples = target.samples();
+    let n = samples.count();
+    debug_assert!(n > 1, "a multisampled target");
+    let extent = setup.extent();
+    let boxes = (0..n).filter_map(|s| sample_bounds(extent, samples.offset(s)).intersect(clip));
+    let Some(r) = boxes.reduce(|a, b| a.union(&b)) else { return Some(0) };
+    let narrow = raster::edge::NARROW;
+    if r.x1 - r.x0 + 1 > narrow || r.y1 - r.y0 + 1 > narrow {
+        return None;
+    }
+    let edges = setup.edges();
+    let numerators = setup.numerators_of(&edges);
+    let mut offsets = [[0i64; 2]; MAX_SAMPLES];
+    let mut rows = [[0i64; 3]; MAX_SAMPLES];
+    let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
+    for s in 0..n {
+        let [ox, oy] = samples.offset(s);
+        offsets[s] = numerators.offset([ox, oy]);
+        rows[s] = EdgeFunction::values(&edges, x + ox, y + oy);
+    }
+    let (step_x, step_y) = EdgeFunction::pixel_steps(&edges);
+    let columns = (r.x1 - r.x0 + 1) as usize;
+    let mut covered = 0u64;
+    for py in r.y0..=r.y1 {
+        let mut by_sample = 0u64;
+        for (s, row) in rows.iter_mut().enumerate().take(n) {
+            let mask = raster::edge::row_coverage_within(*row, step_x, columns);
+            by_sample |= u64::from(mask) << (8 * s);
+            *row = [row[0] + step_y[0], row[1] + step_y[1], row[2] + step_y[2]];
+        }
+        let mut by_pixel = raster::edge::transpose_bits(by_sample);
+        while by_pixel != 0 {
+            let c = by_pixel.trailing_zeros() / 8;
+            let mask = (by_pixel >> (8 * c)) as u32 & 0xFF;
+            by_pixel &= !(0xFF << (8 * c));
+            let px = r.x0 + c as i32;
+            covered += u64::from(mask.count_ones());
+            let p = target.index(px, py);
+            if let Some(o) = &mut target.overdraw {
+                o[p] += mask.count_ones();
+            }
+            let (c1, c2) = numerators.at(fixed::pixel_centre(px), fixed::pixel_centre(py));
+            let mut passed = 0u32;
+            for s in (0..n).filter(|s| mask & (1 << s) != 0) {
+                let [o1, o2] = offsets[s];
+                let z = depth_at(depth, (c1 + o1) as f64, (c2 + o2) as f64);
+                if depth_test.passes(z, target.depth[p * n + s]) {
+                    target.depth[p * n + s] = z;
+                    if let Some(ids) = &mut target.ids {
+                        ids[p * n + s] = id;
+                    }
+                    passed |= 1 << s;
+                }
+            }
+            if passed != 0 {
+                let (e1, e2) = (c1 as f64, c2 as f64);
+                let centre = (px, py, e1, e2, depth_at(depth, e1, e2));
+                queue.sample_pixel(target, centre, passed, (t, id, stage));
+            }
+        }
+    }
+    Some(covered)
 }
 
 /// [`shade_triangle`] at 1x without a span kernel, for a small triangle (see
