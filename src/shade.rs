@@ -703,11 +703,7 @@ pub fn shade_triangle(
         );
     }
     if algorithm == Algorithm::EdgeMasks {
-        // The pixels any sample of which may be covered: the union of the sample boxes (of
-        // one snapped box, found once).
-        let extent = setup.extent();
-        let boxes = (0..n).filter_map(|s| sample_bounds(extent, samples.offset(s)).intersect(clip));
-        let Some(r) = boxes.reduce(|a, b| a.union(&b)) else { return 0 };
+        let Some(r) = samples_rect(setup, samples, clip) else { return 0 };
         // Tall boxes by columns, narrow ones too: the row masks cost every row of a sliver
         // (40,000-triangle cylinder at 4x, two threads: 134-135 -> 118-119 ms).
         if kernel.is_none() && raster::column::is_tall(&r) {
@@ -736,29 +732,16 @@ pub fn shade_triangle(
             let numerators = setup.numerators_of(&edges);
             let mut pixels =
                 SamplePixels::new(setup, numerators, samples, depth, (depth_test, id), fragment);
-            let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
-            let mut rows = [[0i64; 3]; MAX_SAMPLES];
-            for (s, row) in rows.iter_mut().enumerate().take(n) {
-                let [ox, oy] = samples.offset(s);
-                *row = EdgeFunction::values(&edges, x + ox, y + oy);
-            }
-            let (step_x, step_y) = EdgeFunction::pixel_steps(&edges);
-            let columns = columns as usize;
-            if columns <= 4 {
+            let mut rows = SampleRows::new(&edges, samples, &r);
+            if rows.columns <= 4 {
                 for py in r.y0..=r.y1 {
-                    // Sample s's row mask in byte s (at most 8 columns and 8 samples): in
-                    // registers (an array of masks, read back bit by bit, was stored narrow
-                    // and loaded wide, which store forwarding fails).
-                    let mut by_sample = 0u64;
-                    for (s, row) in rows.iter_mut().enumerate().take(n) {
-                        let mask = raster::edge::row_coverage_within(*row, step_x, columns);
-                        by_sample |= u64::from(mask) << (8 * s);
-                        *row = [row[0] + step_y[0], row[1] + step_y[1], row[2] + step_y[2]];
-                    }
-                    sample_mask_pixels(target, &mut pixels, by_sample, (r.x0, py));
+                    sample_mask_pixels(rows.next_row(), |px, mask| {
+                        pixels.pixel(target, r.x0 + px, py, mask);
+                    });
                 }
                 return pixels.finish(target);
             }
+            let SampleRows { mut rows, step_x, step_y, columns, .. } = rows;
             // Wider boxes: each sample's masks of a run of rows at once ([`simd::row_masks`]:
             // the bunny at 4x, one thread, 30.5-30.8 -> 28.0-28.1 ms; for boxes up to four
             // wide the vectors' setup cost more than it saved, the grid's 4% more
@@ -776,7 +759,9 @@ pub fn shade_triangle(
                 #[allow(clippy::needless_range_loop)]
                 for j in 0..len {
                     let by_sample = (0..n).fold(0u64, |m, s| m | u64::from(masks[s][j]) << (8 * s));
-                    sample_mask_pixels(target, &mut pixels, by_sample, (r.x0, py));
+                    sample_mask_pixels(by_sample, |px, mask| {
+                        pixels.pixel(target, r.x0 + px, py, mask);
+                    });
                     py += 1;
                 }
             }
@@ -788,22 +773,72 @@ pub fn shade_triangle(
     sample_spans(target, tiled_fallback(algorithm), clip, kernel, pixels)
 }
 
-/// The pixels of row `py` from `x0` on with any sample covered, left to right, with their
-/// sample masks, given sample `s`'s row mask in byte `s` of `by_sample`: the 8 x 8 bit
-/// transpose puts each pixel's sample mask in byte `c`.
+/// The pixels any sample of which may be covered, within `clip`: the union of the sample
+/// boxes (of one snapped box, found once).
 #[inline(always)]
-fn sample_mask_pixels<S: FragmentStage>(
-    target: &mut TargetBand<'_>,
-    pixels: &mut SamplePixels<'_, S>,
-    by_sample: u64,
-    (x0, py): (i32, i32),
-) {
+fn samples_rect(
+    setup: &TriangleSetup,
+    samples: SampleCount,
+    clip: &PixelRect,
+) -> Option<PixelRect> {
+    let extent = setup.extent();
+    let boxes = (0..samples.count())
+        .filter_map(|s| sample_bounds(extent, samples.offset(s)).intersect(clip));
+    boxes.reduce(|a, b| a.union(&b))
+}
+
+/// Each sample's edge values at the first pixel of a row of a box at most
+/// [`raster::edge::NARROW`] pixels wide, stepped a row at a time.
+struct SampleRows {
+    rows: [[i64; 3]; MAX_SAMPLES],
+    step_x: [i64; 3],
+    step_y: [i64; 3],
+    n: usize,
+    columns: usize,
+}
+
+impl SampleRows {
+    /// The rows of box `r` (the first at its top) for edges `edges` and `samples`.
+    #[inline(always)]
+    fn new(edges: &[EdgeFunction; 3], samples: SampleCount, r: &PixelRect) -> Self {
+        let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
+        let mut rows = [[0i64; 3]; MAX_SAMPLES];
+        for (s, row) in rows.iter_mut().enumerate().take(samples.count()) {
+            let [ox, oy] = samples.offset(s);
+            *row = EdgeFunction::values(edges, x + ox, y + oy);
+        }
+        let (step_x, step_y) = EdgeFunction::pixel_steps(edges);
+        let columns = (r.x1 - r.x0 + 1) as usize;
+        Self { rows, step_x, step_y, n: samples.count(), columns }
+    }
+
+    /// The row's coverage, sample `s`'s mask in byte `s` (at most 8 columns and 8 samples),
+    /// then a step down. In registers: an array of masks, read back bit by bit, was stored
+    /// narrow and loaded wide, which store forwarding fails.
+    #[inline(always)]
+    fn next_row(&mut self) -> u64 {
+        let (step_x, step_y) = (self.step_x, self.step_y);
+        let mut by_sample = 0u64;
+        for (s, row) in self.rows.iter_mut().enumerate().take(self.n) {
+            let mask = raster::edge::row_coverage_within(*row, step_x, self.columns);
+            by_sample |= u64::from(mask) << (8 * s);
+            *row = [row[0] + step_y[0], row[1] + step_y[1], row[2] + step_y[2]];
+        }
+        by_sample
+    }
+}
+
+/// `pixel(c, mask)` for the pixels of a row with any sample covered, left to right (`c` from
+/// the row's first), with their sample masks, given sample `s`'s row mask in byte `s` of
+/// `by_sample`: the 8 x 8 bit transpose puts each pixel's sample mask in byte `c`.
+#[inline(always)]
+fn sample_mask_pixels(by_sample: u64, mut pixel: impl FnMut(i32, u32)) {
     let mut by_pixel = raster::edge::transpose_bits(by_sample);
     while by_pixel != 0 {
         let c = by_pixel.trailing_zeros() / 8;
         let mask = (by_pixel >> (8 * c)) as u32 & 0xFF;
         by_pixel &= !(0xFF << (8 * c));
-        pixels.pixel(target, x0 + c as i32, py, mask);
+        pixel(c as i32, mask);
     }
 }
 
@@ -1512,9 +1547,7 @@ pub(crate) fn shade_small_triangle_samples<'a, T, F: TriangleFragments<T>>(
     let samples = target.samples();
     let n = samples.count();
     debug_assert!(n > 1, "a multisampled target");
-    let extent = setup.extent();
-    let boxes = (0..n).filter_map(|s| sample_bounds(extent, samples.offset(s)).intersect(clip));
-    let Some(r) = boxes.reduce(|a, b| a.union(&b)) else { return Some(0) };
+    let Some(r) = samples_rect(setup, samples, clip) else { return Some(0) };
     let narrow = raster::edge::NARROW;
     if r.x1 - r.x0 + 1 > narrow || r.y1 - r.y0 + 1 > narrow {
         return None;
@@ -1522,29 +1555,14 @@ pub(crate) fn shade_small_triangle_samples<'a, T, F: TriangleFragments<T>>(
     let edges = setup.edges();
     let numerators = setup.numerators_of(&edges);
     let mut offsets = [[0i64; 2]; MAX_SAMPLES];
-    let mut rows = [[0i64; 3]; MAX_SAMPLES];
-    let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
-    for s in 0..n {
-        let [ox, oy] = samples.offset(s);
-        offsets[s] = numerators.offset([ox, oy]);
-        rows[s] = EdgeFunction::values(&edges, x + ox, y + oy);
+    for (s, o) in offsets.iter_mut().enumerate().take(n) {
+        *o = numerators.offset(samples.offset(s));
     }
-    let (step_x, step_y) = EdgeFunction::pixel_steps(&edges);
-    let columns = (r.x1 - r.x0 + 1) as usize;
+    let mut rows = SampleRows::new(&edges, samples, &r);
     let mut covered = 0u64;
     for py in r.y0..=r.y1 {
-        let mut by_sample = 0u64;
-        for (s, row) in rows.iter_mut().enumerate().take(n) {
-            let mask = raster::edge::row_coverage_within(*row, step_x, columns);
-            by_sample |= u64::from(mask) << (8 * s);
-            *row = [row[0] + step_y[0], row[1] + step_y[1], row[2] + step_y[2]];
-        }
-        let mut by_pixel = raster::edge::transpose_bits(by_sample);
-        while by_pixel != 0 {
-            let c = by_pixel.trailing_zeros() / 8;
-            let mask = (by_pixel >> (8 * c)) as u32 & 0xFF;
-            by_pixel &= !(0xFF << (8 * c));
-            let px = r.x0 + c as i32;
+        sample_mask_pixels(rows.next_row(), |c, mask| {
+            let px = r.x0 + c;
             covered += u64::from(mask.count_ones());
             let p = target.index(px, py);
             if let Some(o) = &mut target.overdraw {
@@ -1568,7 +1586,7 @@ pub(crate) fn shade_small_triangle_samples<'a, T, F: TriangleFragments<T>>(
                 let centre = (px, py, e1, e2, depth_at(depth, e1, e2));
                 queue.sample_pixel(target, centre, passed, (t, id, stage));
             }
-        }
+        });
     }
     Some(covered)
 }
