@@ -895,10 +895,11 @@ mod tests {
             }
         }
     }
+
     /// Phong's lanes ([`ModelFragment::shade_lanes`]) shade as one fragment at a time, bit
     /// for bit, at every level: random interpolated normals (zero, tiny, huge and NaN ones
-    /// among them) and view positions (zero among them), front and back faces, one to eight
-    /// lanes, whole exponents and others, a negative zero ambient, vertex colours or none.
+    /// among them), view positions (zero among them) and colours, front and back faces, one
+    /// to eight lanes, whole exponents and others, a negative zero ambient.
     #[test]
     fn phong_lanes_shade_as_one_fragment_at_a_time() {
         use rand::{Rng, SeedableRng, rngs::SmallRng};

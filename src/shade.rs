@@ -1394,7 +1394,9 @@ impl<S: FragmentStage> LaneQueue<S> {
 /// bits (a hash of its index): in `current` while its triangle is drawn, folded into
 /// `earlier` when the next small triangle starts. A pixel whose bit is set in `earlier` is
 /// checked against the lanes themselves, so a collision costs a comparison, not a flush (a
-/// triangle never reaches a pixel twice, so its own lanes need no check).
+/// triangle never reaches a pixel twice, so its own lanes need no check). On a multisampled
+/// target only the colour waits ([`shade_small_triangle_samples`]), so there is no conflict:
+/// the bits are not used there.
 pub(crate) struct SharedLaneQueue<'a, T> {
     passed: PassedLanes,
     /// Lane `l`'s triangle: its shading data and id (`Some` for the lanes in use).
