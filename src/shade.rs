@@ -553,8 +553,8 @@ pub trait TriangleFragments<T>: Sync {
     }
 
     /// Whether a multisampled pixel's colour may be written after its depth, other pixels'
-    /// writes between ([`shade_small_triangle_samples`]): the stage shades lanes and never
-    /// discards. `false` by default.
+    /// writes between (the tiled backend's small triangles then share one queue for their
+    /// colour): the stage shades lanes and never discards. `false` by default.
     fn defers_colour(&self) -> bool {
         false
     }
@@ -1061,17 +1061,20 @@ struct SamplePixels<'a, S> {
     fragment: S,
     /// Covered samples so far.
     covered: u64,
-    /// Pixels with a sample that passed the depth test, waiting to be shaded [`LANES`] at a
-    /// time ([`FragmentStage::lanes`]): their centres, the samples that passed and every
-    /// covered sample's depth. Their writes may wait, as [`LaneQueue`]'s: the triangle
-    /// reaches each pixel once, and [`SamplePixels::finish`] writes the last.
-    queue: PassedLanes,
+    /// For a stage that [`FragmentStage::shades_lanes`], the pixels waiting for it; other
+    /// stages shade each pixel as it comes (queued, the Gouraud bunny at 4x took 2.6% more
+    /// instructions and about 5% longer) and pay nothing for the queue's arrays.
+    queue: Option<SampleQueue>,
+}
+
+/// Pixels with a sample that passed the depth test, waiting to be shaded [`LANES`] at a time
+/// ([`FragmentStage::lanes`]): their centres, the samples that passed and every covered
+/// sample's depth. Their writes may wait, as [`LaneQueue`]'s: the triangle reaches each
+/// pixel once, and [`SamplePixels::finish`] writes the last.
+struct SampleQueue {
+    centres: PassedLanes,
     passed: [u32; LANES],
     z: [[f32; MAX_SAMPLES]; LANES],
-    /// Whether pixels are queued (for a stage that [`FragmentStage::shades_lanes`]) rather
-    /// than shaded one at a time as they come: for the others, the queue made the Gouraud
-    /// bunny at 4x 2.6% more instructions and about 5% slower.
-    gather: bool,
 }
 
 impl<'a, S: FragmentStage> SamplePixels<'a, S> {
@@ -1090,22 +1093,12 @@ impl<'a, S: FragmentStage> SamplePixels<'a, S> {
         for (s, o) in offsets.iter_mut().enumerate().take(n) {
             *o = numerators.offset(samples.offset(s));
         }
-        let gather = fragment.shades_lanes();
-        Self {
-            setup,
-            numerators,
-            n,
-            offsets,
-            depth,
-            depth_test,
-            id,
-            fragment,
-            covered: 0,
-            gather,
-            queue: PassedLanes::default(),
+        let queue = fragment.shades_lanes().then(|| SampleQueue {
+            centres: PassedLanes::default(),
             passed: [0; LANES],
             z: [[0.0; MAX_SAMPLES]; LANES],
-        }
+        });
+        Self { setup, numerators, n, offsets, depth, depth_test, id, fragment, covered: 0, queue }
     }
 
     /// Pixel `(px, py)` with covered samples `mask`.
@@ -1132,19 +1125,18 @@ impl<'a, S: FragmentStage> SamplePixels<'a, S> {
             return;
         }
         let (e1, e2) = (c1 as f64, c2 as f64);
-        if !self.gather {
-            let z_centre = depth_at(self.depth, e1, e2);
+        let z_centre = depth_at(self.depth, e1, e2);
+        let Some(q) = &mut self.queue else {
             let Some(out) = self.fragment.fragment(px, py, e1, e2, z_centre) else { return };
-            self.write(target, p, passed, &z, &out);
+            write_samples(target, (p, self.n, self.id), passed, &z, &out);
             return;
-        }
-        let l = self.queue.len;
-        let q = &mut self.queue;
-        (q.x[l], q.y[l], q.e1[l], q.e2[l]) = (px, py, e1, e2);
-        q.z[l] = depth_at(self.depth, e1, e2);
-        (self.passed[l], self.z[l]) = (passed, z);
-        q.len += 1;
-        if q.len == LANES {
+        };
+        let l = q.centres.len;
+        let c = &mut q.centres;
+        (c.x[l], c.y[l], c.e1[l], c.e2[l], c.z[l]) = (px, py, e1, e2, z_centre);
+        c.len += 1;
+        (q.passed[l], q.z[l]) = (passed, z);
+        if c.len == LANES {
             self.flush(target);
         }
     }
@@ -1152,47 +1144,47 @@ impl<'a, S: FragmentStage> SamplePixels<'a, S> {
     /// Shades the queued pixels and writes their passing samples (depth, colour, id) and
     /// normal, where they are not discarded.
     fn flush(&mut self, target: &mut TargetBand<'_>) {
-        let len = self.queue.len;
+        let Some(q) = &mut self.queue else { return };
+        let len = q.centres.len;
         if len == 0 {
             return;
         }
         let mut out = [None; LANES];
-        self.fragment.lanes(&self.queue, &mut out);
+        self.fragment.lanes(&q.centres, &mut out);
         for (l, out) in out.iter().enumerate().take(len) {
             let Some(out) = out else { continue };
-            let p = target.index(self.queue.x[l], self.queue.y[l]);
-            self.write(target, p, self.passed[l], &self.z[l], out);
+            let p = target.index(q.centres.x[l], q.centres.y[l]);
+            write_samples(target, (p, self.n, self.id), q.passed[l], &q.z[l], out);
         }
-        self.queue.len = 0;
-    }
-
-    /// Writes pixel `p`'s samples `passed` (depth `z`, colour and id) and its normal.
-    #[inline(always)]
-    fn write(
-        &self,
-        target: &mut TargetBand<'_>,
-        p: usize,
-        passed: u32,
-        z: &[f32; MAX_SAMPLES],
-        out: &FragmentOutput,
-    ) {
-        let n = self.n;
-        for s in (0..n).filter(|s| passed & (1 << s) != 0) {
-            target.depth[p * n + s] = z[s];
-            target.color[p * n + s] = out.color;
-            if let Some(ids) = &mut target.ids {
-                ids[p * n + s] = self.id;
-            }
-        }
-        if let (Some(normals), Some(nrm)) = (&mut target.normals, out.normal) {
-            normals[p] = nrm;
-        }
+        q.centres.len = 0;
     }
 
     /// Writes what is still queued; returns the covered samples.
     fn finish(&mut self, target: &mut TargetBand<'_>) -> u64 {
         self.flush(target);
         self.covered
+    }
+}
+
+/// Writes pixel `p`'s samples `passed` (of `n`; depths `z`) with colour `out` and id `id`,
+/// and its normal.
+#[inline(always)]
+fn write_samples(
+    target: &mut TargetBand<'_>,
+    (p, n, id): (usize, usize, i32),
+    passed: u32,
+    z: &[f32; MAX_SAMPLES],
+    out: &FragmentOutput,
+) {
+    for s in (0..n).filter(|s| passed & (1 << s) != 0) {
+        target.depth[p * n + s] = z[s];
+        target.color[p * n + s] = out.color;
+        if let Some(ids) = &mut target.ids {
+            ids[p * n + s] = id;
+        }
+    }
+    if let (Some(normals), Some(nrm)) = (&mut target.normals, out.normal) {
+        normals[p] = nrm;
     }
 }
 
