@@ -744,6 +744,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
                 name: "texture".into(),
                 diffuse: [1.0; 3],
                 diffuse_texture: Some(path.clone()),
+                texture_statement: None,
             }];
             mesh.triangle_materials = Some(vec![0; mesh.triangles.len()]);
         }

@@ -222,8 +222,12 @@ impl MaterialTextures {
                 match texture {
                     Ok(t) => Some(Arc::clone(t)),
                     Err(e) => {
+                        let at = m
+                            .texture_statement
+                            .as_ref()
+                            .map_or_else(String::new, |(f, l)| format!("{}:{l}: ", f.display()));
                         warnings.push(format!(
-                            "material `{}`: texture not used, its diffuse colour instead: {e}",
+                            "{at}material `{}`: texture not used, its diffuse colour instead: {e}",
                             m.name
                         ));
                         None

@@ -1125,6 +1125,7 @@ fn sample_warns_about_a_texture_that_does_not_decode() {
     for (command, err) in [("render", render), ("sample", sample)] {
         assert!(err.contains("warning") && err.contains("t.png"), "{command}: {err}");
         assert!(err.contains("material `tex`"), "{command}: the warning names it: {err}");
+        assert!(err.contains("m.mtl:3: material"), "{command}: and its `map_Kd` line: {err}");
     }
 }
 

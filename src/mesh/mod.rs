@@ -26,11 +26,20 @@ pub struct Material {
     pub diffuse: [f32; 3],
     /// Diffuse texture (`map_Kd`), resolved relative to the material file.
     pub diffuse_texture: Option<PathBuf>,
+    /// The material library and line whose `map_Kd` named `diffuse_texture`, when it came
+    /// from one: loading checks only the texture's header, so a body that fails to decode is
+    /// found when drawing, and its warning names this line.
+    pub texture_statement: Option<(PathBuf, usize)>,
 }
 
 impl Default for Material {
     fn default() -> Self {
-        Self { name: String::new(), diffuse: [0.8, 0.8, 0.8], diffuse_texture: None }
+        Self {
+            name: String::new(),
+            diffuse: [0.8, 0.8, 0.8],
+            diffuse_texture: None,
+            texture_statement: None,
+        }
     }
 }
 

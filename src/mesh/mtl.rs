@@ -191,9 +191,13 @@ pub fn apply(mesh: &mut Mesh, obj: &MaterialStatements, obj_path: &Path) -> Resu
         };
         material.diffuse = found.diffuse;
         material.diffuse_texture = None;
+        material.texture_statement = None;
         if let Some(texture) = &found.diffuse_texture {
             match check_texture(texture) {
-                Ok(path) => material.diffuse_texture = Some(path),
+                Ok(path) => {
+                    material.diffuse_texture = Some(path);
+                    material.texture_statement = Some((library.clone(), *texture_line));
+                }
                 Err(why) => mesh.warnings.push(format!(
                     "{}:{texture_line}: texture {} of material `{}` {why}; using its diffuse \
                      colour",
