@@ -256,32 +256,20 @@ impl Target {
 
     /// The colour image: at 1x the colour buffer itself; with multisampling, each pixel's
     /// samples averaged in linear light (colour decoded from sRGB, averaged, encoded again;
-    /// alpha averaged as is).
+    /// alpha averaged as is). Pixels are resolved in parallel on the current rayon pool.
     #[must_use]
     pub fn resolve(&self) -> Vec<[u8; 4]> {
         let n = self.samples.count();
         if n == 1 {
             return self.color.clone();
         }
+        let mut image = Vec::with_capacity(self.pixel_count());
         self.color
-            .chunks_exact(n)
-            .map(|px| {
-                let mut sum = [0.0f32; 4];
-                for c in px {
-                    for k in 0..3 {
-                        sum[k] += srgb_to_linear(c[k]);
-                    }
-                    sum[3] += f32::from(c[3]);
-                }
-                let k = n as f32;
-                [
-                    linear_to_srgb8(sum[0] / k),
-                    linear_to_srgb8(sum[1] / k),
-                    linear_to_srgb8(sum[2] / k),
-                    (sum[3] / k).round() as u8,
-                ]
-            })
-            .collect()
+            .par_chunks_exact(n)
+            .with_min_len(1024)
+            .map(resolve_pixel)
+            .collect_into_vec(&mut image);
+        image
     }
 
     /// Sample `s` of every pixel of a per-sample buffer, as a per-pixel image.
@@ -472,6 +460,37 @@ impl Target {
     }
 }
 
+/// One pixel of [`Target::resolve`]. Most pixels of a multisampled image are covered by one
+/// triangle or none, their samples all one colour, and such a pixel resolves to that colour:
+/// the average of `n` copies of a decoded value is that value within a rounding or two, and
+/// every decoded value lies half an 8-bit step from where the encoder rounds to a neighbour
+/// (`uniform_pixels_resolve_to_their_colour` checks every value at every sample count). So
+/// the average is computed only at edges (at 1080p and 4x it had taken 100 ms, three times
+/// the frame).
+fn resolve_pixel(samples: &[[u8; 4]]) -> [u8; 4] {
+    let first = samples[0];
+    if samples.iter().all(|&c| c == first) { first } else { average_in_linear_light(samples) }
+}
+
+/// Samples averaged in linear light: colour decoded from sRGB, averaged and encoded again,
+/// alpha averaged as is.
+fn average_in_linear_light(samples: &[[u8; 4]]) -> [u8; 4] {
+    let mut sum = [0.0f32; 4];
+    for c in samples {
+        for k in 0..3 {
+            sum[k] += srgb_to_linear(c[k]);
+        }
+        sum[3] += f32::from(c[3]);
+    }
+    let k = samples.len() as f32;
+    [
+        linear_to_srgb8(sum[0] / k),
+        linear_to_srgb8(sum[1] / k),
+        linear_to_srgb8(sum[2] / k),
+        (sum[3] / k).round() as u8,
+    ]
+}
+
 #[cfg(test)]
 impl Target {
     /// A `width x height` target (with ids and overdraw if `extra`) whose depths are random
@@ -496,6 +515,27 @@ impl Target {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The shortcut of `resolve_pixel`: a pixel whose samples are all one colour averages to
+    /// that colour, for every 8-bit value in every channel (colour and alpha) at every sample
+    /// count; and pixels that differ in one sample still go through the average.
+    #[test]
+    fn uniform_pixels_resolve_to_their_colour() {
+        for samples in [SampleCount::X4, SampleCount::X8] {
+            let n = samples.count();
+            for v in 0..=255u8 {
+                let pixel = vec![[v; 4]; n];
+                assert_eq!(average_in_linear_light(&pixel), [v; 4], "{v} at {n}x");
+            }
+            let mut target = Target::multisampled(3, 1, samples).unwrap();
+            target.color.fill([255, 0, 0, 255]);
+            target.color[n] = [0, 0, 255, 0];
+            target.color[2 * n..].fill([0, 128, 0, 255]);
+            let red_blue = average_in_linear_light(&target.color[n..2 * n]);
+            assert_ne!(red_blue, [255, 0, 0, 255]);
+            assert_eq!(target.resolve(), vec![[255, 0, 0, 255], red_blue, [0, 128, 0, 255]]);
+        }
+    }
 
     /// The fallible buffer constructors give the buffers the infallible ones give, and where
     /// one cannot be had, an error naming it.
