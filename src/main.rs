@@ -1625,11 +1625,12 @@ fn draw_timed(
     })?;
     report(&stats);
     if let (Some(fastest), Some(&median)) = (times.first(), times.get(times.len() / 2)) {
+        let count = |n: usize, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
         println!(
-            "{} frames, {} threads: median {median:.2} ms, min {fastest:.2} ms per frame; \
+            "{}, {}: median {median:.2} ms, min {fastest:.2} ms per frame; \
              {:.1} Mtri/s, {:.3} G frag/s{}",
-            times.len(),
-            rayon::current_num_threads(),
+            count(times.len(), "frame"),
+            count(rayon::current_num_threads(), "thread"),
             stats.submitted as f64 / median / 1e3,
             stats.fragments as f64 / median / 1e6,
             target.last_schedule().map_or(String::new(), |s| format!("; {}", s.name()))

@@ -734,11 +734,11 @@ pub fn shade_triangle(
                 SamplePixels::new(setup, numerators, samples, depth, (depth_test, id), fragment);
             let mut rows = SampleRows::new(&edges, samples, &r);
             if rows.columns <= 4 {
-                for py in r.y0..=r.y1 {
-                    sample_mask_pixels(rows.next_row(), |px, mask| {
-                        pixels.pixel(target, r.x0 + px, py, mask);
+                rows.each_row((r.y1 - r.y0 + 1) as usize, |j, by_sample| {
+                    sample_mask_pixels(by_sample, |px, mask| {
+                        pixels.pixel(target, r.x0 + px, r.y0 + j as i32, mask);
                     });
-                }
+                });
                 return pixels.finish(target);
             }
             let SampleRows { mut rows, step_x, step_y, columns, .. } = rows;
@@ -825,6 +825,48 @@ impl SampleRows {
             *row = [row[0] + step_y[0], row[1] + step_y[1], row[2] + step_y[2]];
         }
         by_sample
+    }
+
+    /// [`SampleRows::next_row`] of each of the next `rows` rows, top down: `row(j, by_sample)`.
+    /// A box up to four pixels wide and [`raster::edge::NARROW`] tall whose every edge value
+    /// fits in `i32` (bounded by the first row's magnitudes plus three steps right and eight
+    /// down) steps its four columns side by side ([`simd::EdgeColumns`]; the same signs, so
+    /// the same masks): the `i64` masks, a pixel at a time, had been a tenth of the Phong
+    /// bunny's 4x frame at 800 x 600.
+    #[inline(always)]
+    fn each_row(&mut self, rows: usize, mut row: impl FnMut(usize, u64)) {
+        let n = self.n;
+        let fits = |k: usize| {
+            let largest = self.rows[..n].iter().fold(0, |m, r| m.max(r[k].abs()));
+            largest + 3 * self.step_x[k].abs() + 8 * self.step_y[k].abs() <= i64::from(i32::MAX)
+        };
+        let narrow = self.columns <= 4
+            && rows <= raster::edge::NARROW as usize
+            && fits(0)
+            && fits(1)
+            && fits(2);
+        let (step_x, step_y) = (self.step_x.map(|v| v as i32), self.step_y.map(|v| v as i32));
+        let mut columns = [simd::EdgeColumns::new([0; 3], [0; 3]); MAX_SAMPLES];
+        if narrow {
+            for (c, r) in columns.iter_mut().zip(&self.rows).take(n) {
+                *c = simd::EdgeColumns::new(r.map(|v| v as i32), step_x);
+            }
+        }
+        let keep = (1 << self.columns) - 1;
+        // One call of `row` (two had it compiled out of line, a call per pixel).
+        for j in 0..rows {
+            let by_sample = if narrow {
+                let mut by_sample = 0u64;
+                for (s, c) in columns.iter_mut().enumerate().take(n) {
+                    by_sample |= u64::from(c.inside() & keep) << (8 * s);
+                    c.step(step_y);
+                }
+                by_sample
+            } else {
+                self.next_row()
+            };
+            row(j, by_sample);
+        }
     }
 }
 
@@ -1554,8 +1596,9 @@ pub(crate) fn shade_small_triangle_samples<'a, T, F: TriangleFragments<T>>(
     }
     let mut rows = SampleRows::new(&edges, samples, &r);
     let mut covered = 0u64;
-    for py in r.y0..=r.y1 {
-        sample_mask_pixels(rows.next_row(), |c, mask| {
+    rows.each_row((r.y1 - r.y0 + 1) as usize, |j, by_sample| {
+        let py = r.y0 + j as i32;
+        sample_mask_pixels(by_sample, |c, mask| {
             let px = r.x0 + c;
             covered += u64::from(mask.count_ones());
             let p = target.index(px, py);
@@ -1563,16 +1606,21 @@ pub(crate) fn shade_small_triangle_samples<'a, T, F: TriangleFragments<T>>(
                 o[p] += mask.count_ones();
             }
             let (c1, c2) = numerators.at(fixed::pixel_centre(px), fixed::pixel_centre(py));
+            // Every sample's depth tested and written back, its own where it fails or is not
+            // covered: no branch on the masks, which these triangles' edges make
+            // unpredictable.
             let mut passed = 0u32;
-            for s in (0..n).filter(|s| mask & (1 << s) != 0) {
+            let depths = &mut target.depth[p * n..p * n + n];
+            for (s, stored) in depths.iter_mut().enumerate() {
                 let [o1, o2] = offsets[s];
                 let z = depth_at(depth, (c1 + o1) as f64, (c2 + o2) as f64);
-                if depth_test.passes(z, target.depth[p * n + s]) {
-                    target.depth[p * n + s] = z;
-                    if let Some(ids) = &mut target.ids {
-                        ids[p * n + s] = id;
-                    }
-                    passed |= 1 << s;
+                let pass = mask >> s & 1 != 0 && depth_test.passes(z, *stored);
+                *stored = if pass { z } else { *stored };
+                passed |= u32::from(pass) << s;
+            }
+            if let Some(ids) = &mut target.ids {
+                for (s, stored) in ids[p * n..p * n + n].iter_mut().enumerate() {
+                    *stored = if passed >> s & 1 != 0 { id } else { *stored };
                 }
             }
             if passed != 0 {
@@ -1581,7 +1629,7 @@ pub(crate) fn shade_small_triangle_samples<'a, T, F: TriangleFragments<T>>(
                 queue.sample_pixel(target, centre, passed, (t, id, stage));
             }
         });
-    }
+    });
     Some(covered)
 }
 
@@ -1763,6 +1811,65 @@ mod tests {
     use crate::sample::SampleCount;
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
+
+    /// `SampleRows::each_row` gives the `i64` row masks of `next_row` (each sample's
+    /// `row_coverage_within`), whichever way it steps: random small triangles anywhere in the
+    /// fixed-point range whose sample boxes are 1 to 8 pixels wide and tall, at 4x and 8x,
+    /// some cut by a clip rectangle; and large triangles clipped to such a box, whose edge
+    /// values there do not fit in `i32`, so the `i64` steps take over.
+    #[test]
+    fn sample_rows_match_the_i64_masks() {
+        let mut rng = SmallRng::seed_from_u64(47);
+        let (mut narrow, mut wide) = (0, 0);
+        for round in 0..20_000 {
+            let samples = [SampleCount::X4, SampleCount::X8][round % 2];
+            let far = [0.0, 5000.0, 30000.0][round % 3];
+            let (cx, cy) = (rng.random_range(-far..=far), rng.random_range(-far..=far));
+            let large = round % 7 == 0;
+            let size = if large {
+                rng.random_range(2000.0..30000.0)
+            } else {
+                rng.random_range(0.3..9.0f32)
+            };
+            let xy: [[i64; 2]; 3] = std::array::from_fn(|_| {
+                let x = cx + rng.random_range(0.0..size);
+                let y = cy + rng.random_range(0.0..size);
+                [(x * 256.0).round() as i64, (y * 256.0).round() as i64]
+            });
+            let Ok(setup) = TriangleSetup::from_snapped(xy, crate::CullMode::None) else {
+                continue;
+            };
+            let mut clip = PixelRect::of_target(1, 1);
+            (clip.x0, clip.y0, clip.x1, clip.y1) = (-40000, -40000, 40000, 40000);
+            if large {
+                // A box of up to 8 x 8 pixels somewhere in the triangle's box.
+                let (x0, y0) =
+                    (cx as i32 + rng.random_range(0..2000), cy as i32 + rng.random_range(0..2000));
+                (clip.x0, clip.y0) = (x0, y0);
+                (clip.x1, clip.y1) = (x0 + rng.random_range(0..8), y0 + rng.random_range(0..8));
+            } else if round % 5 == 0 {
+                clip.x0 = (cx as i32) + rng.random_range(0..4);
+            }
+            let Some(r) = samples_rect(&setup, samples, &clip) else { continue };
+            let (columns, rows) = (r.x1 - r.x0 + 1, (r.y1 - r.y0 + 1) as usize);
+            if columns > raster::edge::NARROW || rows > raster::edge::NARROW as usize {
+                continue;
+            }
+            let edges = setup.edges();
+            let mut reference = SampleRows::new(&edges, samples, &r);
+            let want: Vec<u64> = (0..rows).map(|_| reference.next_row()).collect();
+            let mut got = vec![0; rows];
+            SampleRows::new(&edges, samples, &r).each_row(rows, |j, m| got[j] = m);
+            assert_eq!(got, want, "{xy:?} {samples:?} {r:?}");
+            let huge = reference.rows.iter().flatten().any(|v| v.abs() > i64::from(i32::MAX));
+            if huge {
+                wide += 1
+            } else if columns <= 4 {
+                narrow += 1
+            }
+        }
+        assert!(narrow > 2000 && wide > 200, "both ways taken: {narrow}, {wide}");
+    }
 
     /// `depth_bounds` holds every pixel's depth over random rectangles of random triangles
     /// (small to the edge of the fixed-point range, slivers, steep, flat and nearly flat depth

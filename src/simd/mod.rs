@@ -355,6 +355,83 @@ pub fn floor_i32x4(v: [f32; 4]) -> [i32; 4] {
     v.map(|x| if x.is_nan() { i32::MIN } else { x.clamp(-LIMIT, LIMIT).floor() as i32 })
 }
 
+/// One sample's three edge values at four consecutive pixels of a row, in `i32`, for the
+/// coverage of boxes up to four pixels wide (`shade`'s sample rows, where they fit): on
+/// x86_64 one SSE2 register per edge, so a row's mask is two ORs and a sign mask, where the
+/// scalar loop (which the compiler did not vectorise) built it bit by bit. Integer
+/// arithmetic: every path gives the same masks.
+#[derive(Clone, Copy)]
+pub struct EdgeColumns {
+    #[cfg(target_arch = "x86_64")]
+    edges: [std::arch::x86_64::__m128i; 3],
+    #[cfg(not(target_arch = "x86_64"))]
+    edges: [[i32; 4]; 3],
+}
+
+impl EdgeColumns {
+    /// The values `e[k] + c * step_x[k]` for columns `c` 0 to 3 (the caller checks they fit).
+    #[inline(always)]
+    #[must_use]
+    pub fn new(e: [i32; 3], step_x: [i32; 3]) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::_mm_setr_epi32;
+            let edges = std::array::from_fn(|k| {
+                let (v, s) = (e[k], step_x[k]);
+                // SAFETY: SSE2 is part of the x86_64 baseline; registers only, no memory.
+                unsafe { _mm_setr_epi32(v, v + s, v + 2 * s, v + 3 * s) }
+            });
+            Self { edges }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let edges =
+                std::array::from_fn(|k| std::array::from_fn(|c| e[k] + c as i32 * step_x[k]));
+            Self { edges }
+        }
+    }
+
+    /// Bit `c` set iff column `c` is inside all three edges (every value `>= 0`).
+    #[inline(always)]
+    #[must_use]
+    pub fn inside(&self) -> u32 {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_castsi128_ps, _mm_movemask_ps, _mm_or_si128};
+            let [a, b, c] = self.edges;
+            // SAFETY: SSE and SSE2 are part of the x86_64 baseline; registers only.
+            let signs = unsafe {
+                let any = _mm_or_si128(_mm_or_si128(a, b), c);
+                _mm_movemask_ps(_mm_castsi128_ps(any)) as u32
+            };
+            !signs & 0xF
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let [a, b, c] = &self.edges;
+            (0..4).fold(0, |m, i| m | u32::from((a[i] | b[i] | c[i]) >= 0) << i)
+        }
+    }
+
+    /// The same columns a row down (`step_y[k]` added to edge `k`; the caller checks the
+    /// values still fit).
+    #[inline(always)]
+    pub fn step(&mut self, step_y: [i32; 3]) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_add_epi32, _mm_set1_epi32};
+            for (edge, s) in self.edges.iter_mut().zip(step_y) {
+                // SAFETY: SSE2 is part of the x86_64 baseline; registers only.
+                *edge = unsafe { _mm_add_epi32(*edge, _mm_set1_epi32(s)) };
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        for (edge, s) in self.edges.iter_mut().zip(step_y) {
+            *edge = edge.map(|v| v + s);
+        }
+    }
+}
+
 /// Four values clamped to `[low, 1]` (NaN to `low`), as their bits: the front of the sRGB
 /// encoder ([`crate::color::linear_to_srgb8_rgb`]) for three channels at once, four SSE2
 /// instructions where the scalar clamp with its NaN test takes a dozen a channel. `low` is
