@@ -3,8 +3,8 @@
 //! (the 3D front end, eight vertices or triangles at once), index ranges (the 3D pipeline's pass
 //! over a mesh's indices), row masks (coverage of a run of rows of a narrow box), and small
 //! SSE2 helpers (four floors, the sRGB encoder's clamp, four columns of edge values, cache
-//! prefetch hints): the only module
-//! with `unsafe` and `core::arch`. Each has a scalar path it is tested against.
+//! prefetch hints): the only module with `unsafe` and `core::arch`. Each has a scalar path it
+//! is tested against.
 //!
 //! The shading kernels shade a 1x span, or a whole narrow triangle, of a window-space
 //! triangle with flat or smooth colour: the same arithmetic as the reference per-pixel loop in
