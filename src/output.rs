@@ -12,9 +12,10 @@ use crate::target::Target;
 /// How hard PNG encoding works to make the file small.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum PngCompression {
-    /// `fdeflate`, made for PNG: a 1080p render encodes in a few milliseconds, its file a
-    /// quarter to a half larger than `Balanced`'s. The default, because encoding with
-    /// `Balanced` took five times as long as drawing the frame.
+    /// `fdeflate`, made for PNG: about seven times faster than `Balanced` (an 800 x 600
+    /// render 3 against 45 ms, a 1080p one 29 against 195 ms), its file a quarter to a half
+    /// larger. The default, because encoding with `Balanced` took longer than drawing the
+    /// frame, at 1080p five times as long.
     #[default]
     Fast,
     /// zlib level 6, as most tools write PNG.
