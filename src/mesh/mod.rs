@@ -123,6 +123,15 @@ pub(crate) fn read_lines<E>(
     }
 }
 
+/// The statement of an OBJ or MTL line `raw` (number `line`): the text before any `#`,
+/// trimmed. Only that text need be UTF-8: exporters write names in other encodings (Latin-1)
+/// into comments, and a file is not refused for them.
+pub(crate) fn statement_text(raw: &[u8], line: usize) -> Result<&str, (usize, String)> {
+    let raw = raw.iter().position(|&b| b == b'#').map_or(raw, |k| &raw[..k]);
+    let text = std::str::from_utf8(raw).map_err(|_| (line, "not valid UTF-8".to_string()))?;
+    Ok(text.trim())
+}
+
 /// Converts a colour in [0, 1] (clamped) to `u8`, rounding to nearest.
 #[must_use]
 pub fn unorm8(c: f32) -> u8 {

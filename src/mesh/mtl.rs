@@ -61,8 +61,7 @@ fn statement(
     line: usize,
     dir: &Path,
 ) -> Result<(), (usize, String)> {
-    let text = std::str::from_utf8(raw).map_err(|_| (line, "not valid UTF-8".to_string()))?;
-    let text = text.split('#').next().unwrap_or("").trim();
+    let text = super::statement_text(raw, line)?;
     let mut tokens = text.split_ascii_whitespace();
     let Some(keyword) = tokens.next() else {
         return Ok(());
@@ -257,7 +256,7 @@ mod tests {
 
     #[test]
     fn parses_kd_and_map_kd_with_options() {
-        let src = b"# lib\nnewmtl a\nKd 1 0.5 0.25\nmap_kd -s 1 1 1 -o 0 0 tex/a.png\n\
+        let src = b"# lib by Jos\xe9\nnewmtl a\nKd 1 0.5 0.25\nmap_kd -s 1 1 1 -o 0 0 tex/a.png\n\
                     newmtl b c\nKd 0.3\nKs 1 1 1\nnewmtl d\nKd 2 -1 0.5\n";
         let lib = parse(src, Path::new("models")).unwrap();
         assert_eq!(lib.materials.len(), 3);

@@ -322,8 +322,7 @@ struct Statements {
 impl Statements {
     /// One line's statement to `elements`.
     fn line(&mut self, raw: &[u8], line: usize, elements: &mut impl Elements) -> Result<(), Fail> {
-        let text = std::str::from_utf8(raw).map_err(|_| (line, "not valid UTF-8".to_string()))?;
-        let text = text.split('#').next().unwrap_or("").trim();
+        let text = super::statement_text(raw, line)?;
         let mut tokens = text.split_ascii_whitespace();
         let Some(keyword) = tokens.next() else { return Ok(()) };
         match keyword {
@@ -476,6 +475,14 @@ fn parse_corner(arg: &str, counts: [usize; 3], line: usize) -> Result<Corner, (u
 
 /// 1-based or negative (relative) OBJ index to 0-based.
 fn resolve(s: &str, count: usize, line: usize) -> Result<u32, (usize, String)> {
+    // Nearly every index is a plain positive number: up to nine digits fit in `u32` with
+    // no overflow to check. The general parse below gives the same for them.
+    if (1..=9).contains(&s.len()) && s.bytes().all(|b| b.is_ascii_digit()) {
+        let i = s.bytes().fold(0u32, |v, b| v * 10 + u32::from(b - b'0'));
+        if i > 0 {
+            return Ok(i - 1);
+        }
+    }
     let i: i64 = s.parse().map_err(|_| (line, format!("expected an index, found `{s}`")))?;
     let zero_based = match i {
         0 => return Err((line, "index 0 is invalid: OBJ indices start at 1".into())),
@@ -741,6 +748,22 @@ mod tests {
         assert_eq!(last[2].position, 2);
     }
 
+    /// A comment need not be UTF-8 (a Latin-1 name after `#`), and every spelling of an
+    /// index resolves as the general parse does: leading zeros, `+`, nine and ten digits.
+    #[test]
+    fn comments_and_index_spellings() {
+        let src = b"# made by Jos\xe9\nv 0 0 0 # caf\xe9\nv 1 0 0\nv 0 1 0\n\
+                    f 001 +2 3\nf 1 2 -1\n";
+        let m = parse(src).unwrap();
+        let faces: Vec<Vec<u32>> =
+            m.faces().map(|f| f.iter().map(|c| c.position).collect()).collect();
+        assert_eq!(faces, [[0, 1, 2], [0, 1, 2]]);
+        for s in ["1", "007", "999999999", "1000000000", "4294967295", "+12"] {
+            let general = s.parse::<i64>().unwrap() - 1;
+            assert_eq!(resolve(s, 0, 1).unwrap(), u32::try_from(general).unwrap(), "{s}");
+        }
+    }
+
     #[test]
     fn errors_name_the_line() {
         let cases: &[(&[u8], usize, &str)] = &[
@@ -756,6 +779,9 @@ mod tests {
             (b"v 0 0 0 0\n", 1, "w = 0"),
             (b"vn 0 0\n", 1, "`vn` takes"),
             (b"v 0 0 0\n\xff\n", 2, "UTF-8"),
+            (b"v 0 0 0 # caf\xe9\nf 1 1 \xe9\n", 2, "UTF-8"),
+            (b"v 0 0 0\nf 1 1 99999999999\n", 2, "too large"),
+            (b"v 0 0 0\nf 1 1 00\n", 2, "index 0"),
         ];
         for (src, line, needle) in cases {
             let (l, msg) = parse(src).unwrap_err();
