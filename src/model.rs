@@ -809,6 +809,59 @@ fn face_normals(mesh: &Mesh, view: &Mat4, origin: Vec3) -> Vec<Vec3> {
 mod tests {
     use super::*;
 
+    /// Vertex normals: vertices at one position (a texture seam splits them) share the
+    /// normal of the welded mesh, bit for bit; renumbering the vertices gives each the same
+    /// bits (the slots' numbering does not matter); a triangle past the vertices is ignored;
+    /// a lone triangle's corners get its unit normal, and area weighting lets a large face
+    /// outweigh a small one.
+    #[test]
+    fn vertex_normals_weld_positions_and_ignore_numbering() {
+        use rand::{Rng, SeedableRng, rngs::SmallRng};
+        let mut rng = SmallRng::seed_from_u64(5);
+        for _ in 0..50 {
+            let n = rng.random_range(3..60);
+            let welded: Vec<[f32; 3]> =
+                (0..n).map(|_| std::array::from_fn(|_| rng.random_range(-3.0..3.0))).collect();
+            let triangles: Vec<[u32; 3]> = (0..rng.random_range(1..120))
+                .map(|_| std::array::from_fn(|_| rng.random_range(0..n as u32)))
+                .collect();
+            // Split: every corner its own vertex, at its position.
+            let split_positions: Vec<[f32; 3]> =
+                triangles.iter().flatten().map(|&i| welded[i as usize]).collect();
+            let split_triangles: Vec<[u32; 3]> =
+                (0..triangles.len() as u32).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect();
+            let want = vertex_normals(&welded, &triangles);
+            let got = vertex_normals(&split_positions, &split_triangles);
+            for (corner, &i) in triangles.iter().flatten().enumerate() {
+                assert_eq!(got[corner].map(f32::to_bits), want[i as usize].map(f32::to_bits));
+            }
+            // Renumbered: vertex k becomes perm[k].
+            let mut perm: Vec<u32> = (0..n as u32).collect();
+            for k in (1..n).rev() {
+                perm.swap(k, rng.random_range(0..=k));
+            }
+            let mut renumbered = vec![[0.0; 3]; n];
+            for (k, &p) in perm.iter().enumerate() {
+                renumbered[p as usize] = welded[k];
+            }
+            let mut tris: Vec<[u32; 3]> =
+                triangles.iter().map(|t| t.map(|i| perm[i as usize])).collect();
+            tris.push([0, 1, n as u32]);
+            let again = vertex_normals(&renumbered, &tris);
+            for k in 0..n {
+                assert_eq!(again[perm[k] as usize].map(f32::to_bits), want[k].map(f32::to_bits));
+            }
+        }
+        let lone =
+            vertex_normals(&[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]], &[[0, 1, 2]]);
+        assert_eq!(lone, vec![[0.0, 0.0, 1.0]; 3]);
+        // Two faces at vertex 0: a large one facing +z, a small one facing +x.
+        let positions =
+            [[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, 4.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let n = vertex_normals(&positions, &[[0, 1, 2], [0, 3, 4]]);
+        assert!(n[0][2] > 0.99 && n[0][0] > 0.0 && n[0][0] < 0.1, "{:?}", n[0]);
+    }
+
     /// Materials naming one file share one decoded texture, and one that cannot be read
     /// warns for each material naming it.
     #[test]
