@@ -511,14 +511,6 @@ fn plain_corner(bytes: &[u8]) -> Option<Corner> {
 
 /// 1-based or negative (relative) OBJ index to 0-based.
 fn resolve(s: &str, count: usize, line: usize) -> Result<u32, (usize, String)> {
-    // Nearly every index is a plain positive number: up to nine digits fit in `u32` with
-    // no overflow to check. The general parse below gives the same for them.
-    if (1..=9).contains(&s.len()) && s.bytes().all(|b| b.is_ascii_digit()) {
-        let i = s.bytes().fold(0u32, |v, b| v * 10 + u32::from(b - b'0'));
-        if i > 0 {
-            return Ok(i - 1);
-        }
-    }
     let i: i64 = s.parse().map_err(|_| (line, format!("expected an index, found `{s}`")))?;
     let zero_based = match i {
         0 => return Err((line, "index 0 is invalid: OBJ indices start at 1".into())),
@@ -818,8 +810,9 @@ mod tests {
         }
     }
 
-    /// A comment need not be UTF-8 (a Latin-1 name after `#`), and every spelling of an
-    /// index resolves as the general parse does: leading zeros, `+`, nine and ten digits.
+    /// A comment need not be UTF-8 (a Latin-1 name after `#`), and corners spelled with
+    /// leading zeros, `+` and relative indices resolve as before; so do nine and ten digits
+    /// (one-pass and general parse).
     #[test]
     fn comments_and_index_spellings() {
         let src = b"# made by Jos\xe9\nv 0 0 0 # caf\xe9\nv 1 0 0\nv 0 1 0\n\
@@ -829,8 +822,8 @@ mod tests {
             m.faces().map(|f| f.iter().map(|c| c.position).collect()).collect();
         assert_eq!(faces, [[0, 1, 2], [0, 1, 2]]);
         for s in ["1", "007", "999999999", "1000000000", "4294967295", "+12"] {
-            let general = s.parse::<i64>().unwrap() - 1;
-            assert_eq!(resolve(s, 0, 1).unwrap(), u32::try_from(general).unwrap(), "{s}");
+            let want = u32::try_from(s.parse::<i64>().unwrap() - 1).unwrap();
+            assert_eq!(parse_corner(s, [0; 3], 1).unwrap().position, want, "{s}");
         }
     }
 
