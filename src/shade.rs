@@ -1618,12 +1618,13 @@ pub(crate) fn shade_small_triangle_samples<'a, T, F: TriangleFragments<T>>(
                 *stored = if pass { z } else { *stored };
                 passed |= u32::from(pass) << s;
             }
-            if let Some(ids) = &mut target.ids {
-                for (s, stored) in ids[p * n..p * n + n].iter_mut().enumerate() {
-                    *stored = if passed >> s & 1 != 0 { id } else { *stored };
-                }
-            }
             if passed != 0 {
+                // Ids only where a sample passed: a hidden pixel's ids stay unread.
+                if let Some(ids) = &mut target.ids {
+                    for (s, stored) in ids[p * n..p * n + n].iter_mut().enumerate() {
+                        *stored = if passed >> s & 1 != 0 { id } else { *stored };
+                    }
+                }
                 let (e1, e2) = (c1 as f64, c2 as f64);
                 let centre = (px, py, e1, e2, depth_at(depth, e1, e2));
                 queue.sample_pixel(target, centre, passed, (t, id, stage));
