@@ -322,11 +322,10 @@ struct Statements {
 impl Statements {
     /// One line's statement to `elements`.
     fn line(&mut self, raw: &[u8], line: usize, elements: &mut impl Elements) -> Result<(), Fail> {
-        let text = super::statement_text(raw, line)?;
-        let mut tokens = text.split_ascii_whitespace();
+        let mut tokens = super::statement_words(raw, line)?;
         let Some(keyword) = tokens.next() else { return Ok(()) };
         match keyword {
-            "v" => {
+            b"v" => {
                 let (f, k) = floats::<6>(tokens, line)?;
                 let (xyz, w, color) = match k {
                     3 => ([f[0], f[1], f[2]], 1.0, None),
@@ -344,7 +343,7 @@ impl Statements {
                 self.count(0, line)?;
                 elements.vertex(xyz, w, color)
             }
-            "vt" => {
+            b"vt" => {
                 let (f, k) = floats::<3>(tokens, line)?;
                 if !(1..=3).contains(&k) {
                     return Err(Fail::Parse(
@@ -355,7 +354,7 @@ impl Statements {
                 self.count(1, line)?;
                 elements.texcoord([f[0], if k > 1 { f[1] } else { 0.0 }])
             }
-            "vn" => {
+            b"vn" => {
                 let (f, k) = floats::<3>(tokens, line)?;
                 if k != 3 {
                     return Err(Fail::Parse(line, format!("`vn` takes x y z, found {k} numbers")));
@@ -363,34 +362,43 @@ impl Statements {
                 self.count(2, line)?;
                 elements.normal(f)
             }
-            "f" => {
-                let n = tokens.clone().count();
+            b"f" => {
+                self.corners.clear();
+                while let Some(arg) = tokens.next() {
+                    match parse_corner(arg, self.counts, line) {
+                        Ok(corner) => self.corners.push(corner),
+                        // Too few corners is the error to give, even with a bad one.
+                        Err(e) if self.corners.len() + 1 + tokens.count() >= 3 => {
+                            return Err(e.into());
+                        }
+                        Err(_) => break,
+                    }
+                }
+                let n = self.corners.len();
                 if n < 3 {
+                    let n = super::statement_words(raw, line)?.count() - 1;
                     let message = format!("a face needs 3 or more corners, found {n}");
                     return Err(Fail::Parse(line, message));
                 }
-                self.corners.clear();
-                for arg in tokens {
-                    let corner = parse_corner(arg, self.counts, line)?;
+                for corner in &self.corners {
                     let refs = [Some(corner.position), corner.texcoord, corner.normal];
                     for (slot, r) in self.max_ref.iter_mut().zip(refs) {
                         if let Some(r) = r.filter(|&r| r >= slot.0) {
                             *slot = (r, line);
                         }
                     }
-                    self.corners.push(corner);
                 }
                 elements.face(&self.corners, line, self.material)
             }
-            "mtllib" => {
-                let args: Vec<&str> = tokens.collect();
+            b"mtllib" => {
+                let args: Vec<_> = tokens.map(String::from_utf8_lossy).collect();
                 if !args.is_empty() {
                     self.materials.libraries.push((args.join(" "), line as u32));
                 }
                 Ok(())
             }
-            "usemtl" => {
-                let name = tokens.collect::<Vec<&str>>().join(" ");
+            b"usemtl" => {
+                let name = tokens.map(String::from_utf8_lossy).collect::<Vec<_>>().join(" ");
                 self.material = (!name.is_empty()).then(|| {
                     let next = self.material_index.len() as u32;
                     *self.material_index.entry(name.clone()).or_insert_with(|| {
@@ -436,15 +444,16 @@ impl Statements {
 /// Parses every token as a number, keeping the first `N`: returns them and how many there
 /// were (the statements' messages count them all).
 fn floats<'a, const N: usize>(
-    tokens: impl Iterator<Item = &'a str>,
+    tokens: impl Iterator<Item = &'a [u8]>,
     line: usize,
 ) -> Result<([f32; N], usize), Fail> {
     let mut values = [0.0; N];
     let mut count = 0;
     for a in tokens {
-        let x = a
-            .parse::<f32>()
-            .map_err(|_| Fail::Parse(line, format!("expected a number, found `{a}`")))?;
+        let x = number(a).ok_or_else(|| {
+            let a = String::from_utf8_lossy(a);
+            Fail::Parse(line, format!("expected a number, found `{a}`"))
+        })?;
         if let Some(slot) = values.get_mut(count) {
             *slot = x;
         }
@@ -455,10 +464,10 @@ fn floats<'a, const N: usize>(
 
 /// Parses `v`, `v/vt`, `v//vn` or `v/vt/vn`; `counts` are the element counts so far (for
 /// negative indices).
-fn parse_corner(arg: &str, counts: [usize; 3], line: usize) -> Result<Corner, (usize, String)> {
-    match plain_corner(arg.as_bytes()) {
+fn parse_corner(arg: &[u8], counts: [usize; 3], line: usize) -> Result<Corner, (usize, String)> {
+    match plain_corner(arg) {
         Some(corner) => Ok(corner),
-        None => parse_any_corner(arg, counts, line),
+        None => parse_any_corner(&String::from_utf8_lossy(arg), counts, line),
     }
 }
 
@@ -489,24 +498,66 @@ fn parse_any_corner(arg: &str, counts: [usize; 3], line: usize) -> Result<Corner
 fn plain_corner(bytes: &[u8]) -> Option<Corner> {
     let mut fields = [None; 3];
     let (mut k, mut value, mut digits) = (0, 0u32, 0);
-    for &b in bytes.iter().chain(std::iter::once(&b'/')) {
-        if b.is_ascii_digit() {
+    for &b in bytes {
+        let digit = b.wrapping_sub(b'0');
+        if digit < 10 {
             if digits == 9 {
                 return None;
             }
-            (value, digits) = (value * 10 + u32::from(b - b'0'), digits + 1);
-            continue;
-        }
-        if b != b'/' || k == 3 {
+            (value, digits) = (value * 10 + u32::from(digit), digits + 1);
+        } else if b == b'/' && k < 2 {
+            if digits > 0 {
+                fields[k] = Some(value.checked_sub(1)?);
+            }
+            (k, value, digits) = (k + 1, 0, 0);
+        } else {
             return None;
         }
-        if digits > 0 {
-            fields[k] = Some(value.checked_sub(1)?);
-        }
-        (k, value, digits) = (k + 1, 0, 0);
+    }
+    if digits > 0 {
+        fields[k] = Some(value.checked_sub(1)?);
     }
     let [position, texcoord, normal] = fields;
     Some(Corner { position: position?, texcoord, normal })
+}
+
+/// `token` as an `f32`: the value `str::parse` gives, or `None` where it fails. Nearly every
+/// OBJ number is a plain decimal of a few digits (`-0.037830`): its digits as an integer
+/// `m` up to `2^24` and `10^k` up to `10^10` are both exact in `f32`, so `m / 10^k` is
+/// rounded once, as the parse rounds (Clinger's fast path), and the sign is exact. Anything
+/// else (more digits, an exponent, `inf`) goes to `str::parse`, which had been an eighth of
+/// loading the Stanford bunny: over 200 instructions a number.
+fn number(token: &[u8]) -> Option<f32> {
+    const POWERS: [f32; 11] = [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10];
+    let (negative, digits) = match token {
+        [b'-', rest @ ..] => (true, rest),
+        [b'+', rest @ ..] => (false, rest),
+        _ => (false, token),
+    };
+    // Up to 19 digits, `m` cannot overflow; the bounds are checked once, after.
+    let (mut m, mut n, mut point) = (0u64, 0usize, None);
+    for &b in digits {
+        let digit = b.wrapping_sub(b'0');
+        if digit < 10 {
+            m = m.wrapping_mul(10).wrapping_add(u64::from(digit));
+            n += 1;
+        } else if b == b'.' && point.is_none() {
+            point = Some(n);
+        } else {
+            return parse_number(token);
+        }
+    }
+    let k = n - point.unwrap_or(n);
+    if n == 0 || n > 19 || m > 1 << 24 || k >= POWERS.len() {
+        return parse_number(token);
+    }
+    let x = m as f32 / POWERS[k];
+    Some(if negative { -x } else { x })
+}
+
+/// `str::parse` of `token`, for [`number`]'s other spellings.
+fn parse_number(token: &[u8]) -> Option<f32> {
+    std::str::from_utf8(token).ok()?.parse().ok()
 }
 
 /// 1-based or negative (relative) OBJ index to 0-based.
@@ -810,6 +861,40 @@ mod tests {
         }
     }
 
+    /// The fast path of [`number`] gives `str::parse`'s bits on every spelling it takes, and
+    /// the others reach the parse: random decimals of 1 to 12 digits (a rounding case needs
+    /// more than `f32`'s 24 bits), with signs, leading zeros, points anywhere, exponents and
+    /// stray characters.
+    #[test]
+    fn numbers_parse_as_str_parse() {
+        let mut rng = SmallRng::seed_from_u64(11);
+        let alphabet = b"0123456789012345678901234567890123456789..-+eE x";
+        for round in 0..400_000 {
+            let len = rng.random_range(1..14);
+            let mut bytes: Vec<u8> =
+                (0..len).map(|_| alphabet[rng.random_range(0..alphabet.len())]).collect();
+            if round % 2 == 0 {
+                // Mostly well-formed: an optional sign, digits, one point.
+                bytes.retain(u8::is_ascii_digit);
+                if !bytes.is_empty() {
+                    let at = rng.random_range(0..=bytes.len());
+                    bytes.insert(at, b'.');
+                }
+                if rng.random_bool(0.5) {
+                    bytes.insert(0, b'-');
+                }
+            }
+            let text = String::from_utf8(bytes).unwrap();
+            let want = text.parse::<f32>().ok().map(f32::to_bits);
+            assert_eq!(number(text.as_bytes()).map(f32::to_bits), want, "{text:?}");
+        }
+        for (text, want) in [("-0.0", Some(-0.0f32)), ("16777217", Some(16_777_216.0)), ("x", None)]
+        {
+            assert_eq!(number(text.as_bytes()).map(f32::to_bits), want.map(f32::to_bits));
+        }
+        assert!(number(b"nan").unwrap().is_nan());
+    }
+
     /// A comment need not be UTF-8 (a Latin-1 name after `#`), and corners spelled with
     /// leading zeros, `+` and relative indices resolve as before; so do nine and ten digits
     /// (one-pass and general parse).
@@ -823,7 +908,7 @@ mod tests {
         assert_eq!(faces, [[0, 1, 2], [0, 1, 2]]);
         for s in ["1", "007", "999999999", "1000000000", "4294967295", "+12"] {
             let want = u32::try_from(s.parse::<i64>().unwrap() - 1).unwrap();
-            assert_eq!(parse_corner(s, [0; 3], 1).unwrap().position, want, "{s}");
+            assert_eq!(parse_corner(s.as_bytes(), [0; 3], 1).unwrap().position, want, "{s}");
         }
     }
 
