@@ -22,6 +22,36 @@ use trirast::scene::{self, Demo};
 use trirast::texture::{Filter, Wrap};
 use trirast::{Algorithm, CullMode, DepthTest, Error, RenderOptions, Shading, Target};
 
+/// `println!` that cannot panic. A reader that closes the pipe early (`trirast info m.obj |
+/// head -1`) ends the command quietly, as it ends other command-line tools; any other failure
+/// to write (a full disk) is an error. `println!` panicked on both.
+macro_rules! say {
+    ($($arg:tt)*) => {
+        say(format_args!($($arg)*))
+    };
+}
+
+/// `eprintln!` that cannot panic: messages that cannot be written (standard error closed or
+/// full) are dropped, so that they do not stop the work they report on.
+macro_rules! note {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
+/// [`say!`]'s line to standard output.
+fn say(line: std::fmt::Arguments) {
+    use std::io::Write as _;
+    if let Err(e) = writeln!(std::io::stdout(), "{line}") {
+        if e.kind() != std::io::ErrorKind::BrokenPipe {
+            note!("trirast: error: writing to standard output: {e}");
+            std::process::exit(1);
+        }
+        std::process::exit(0);
+    }
+}
+
 #[derive(Parser)]
 #[command(name = "trirast", version, about = "An exact software triangle rasterizer")]
 struct Cli {
@@ -426,7 +456,7 @@ fn check_switches() -> Result<(), Error> {
             return Err(usage(format!("TRIRAST_SIMD={value}: scalar, avx2 or avx512")));
         };
         if !level.is_available() {
-            eprintln!(
+            note!(
                 "trirast: warning: TRIRAST_SIMD={}: this CPU lacks it; using {:?}",
                 value.to_string_lossy(),
                 SimdLevel::detect()
@@ -653,7 +683,7 @@ fn warn_of_scale(positions: &[[f32; 3]], what: &str) {
     let finite = positions.iter().flatten().filter(|c| c.is_finite());
     let reach = finite.clone().fold(0.0f32, |m, c| m.max(c.abs()));
     if reach > 1e18 {
-        eprintln!(
+        note!(
             "trirast: warning: a {what} lies {reach:.1e} units along an axis; past about 1e19 \
              the view's single-precision arithmetic overflows and the picture may be wrong"
         );
@@ -667,7 +697,7 @@ fn warn_of_scale(positions: &[[f32; 3]], what: &str) {
     }
     let extent = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max);
     if extent > 0.0 && extent < 1e-18 {
-        eprintln!(
+        note!(
             "trirast: warning: the model spans {extent:.1e} units; below about 1e-19 the \
              view's single-precision arithmetic underflows and it may not be framed"
         );
@@ -712,7 +742,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("trirast: error: {e}");
+            note!("trirast: error: {e}");
             ExitCode::FAILURE
         }
     }
@@ -762,7 +792,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     let mut texture = None;
     if let Some(path) = &args.texture {
         if mesh.texcoords.is_none() {
-            eprintln!("trirast: warning: the mesh has no texture coordinates; --texture ignored");
+            note!("trirast: warning: the mesh has no texture coordinates; --texture ignored");
         } else {
             texture = Some(trirast::texture::Texture::load(path)?);
             mesh.materials = vec![trirast::mesh::Material {
@@ -780,7 +810,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     check_outputs(&outputs, &textures, args.turntable)?;
     warn_about(&mesh);
     if mesh.positions.is_empty() {
-        eprintln!("trirast: warning: the file has no faces: nothing to draw");
+        note!("trirast: warning: the file has no faces: nothing to draw");
     }
     // The camera's up with --eye and --target (Y, unless --up says otherwise).
     let up = Vec3::from(args.up.unwrap_or([0.0, 1.0, 0.0]));
@@ -874,7 +904,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
             // Named as the files are (the progress bar alone left them to be guessed).
             let last = frame_path(&args.output, frames - 1, frames);
             let first = frame_path(&args.output, 0, frames);
-            eprintln!("wrote {frames} frames, {} to {}", first.display(), last.display());
+            note!("wrote {frames} frames, {} to {}", first.display(), last.display());
             Ok(())
         }
     }
@@ -945,7 +975,7 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
             }
             let triangles = trirast::mesh::window_triangles(&trirast::mesh::obj::read(path)?);
             if triangles.is_empty() {
-                eprintln!("trirast: warning: {} has no faces: nothing to draw", path.display());
+                note!("trirast: warning: {} has no faces: nothing to draw", path.display());
             }
             (triangles, Shading::Smooth)
         }
@@ -1140,7 +1170,7 @@ fn write_outputs(args: &RenderArgs, target: &Target, frame: Option<u32>) -> Resu
         trirast::output::write_npy_shaped(&named(p), n.as_flattened(), &shape)?;
     }
     if frame.is_none() {
-        eprintln!("wrote {}", png.display());
+        note!("wrote {}", png.display());
     }
     Ok(())
 }
@@ -1184,7 +1214,7 @@ fn export(scenes: &[SceneArg], dense_triangles: usize, dir: &Path) -> Result<(),
     }
     for scene in bench_scenes(scenes) {
         let json = trirast::bench::export(scene, dense_triangles, dir)?;
-        println!("{}: {}", scene.name(), json.display());
+        say!("{}: {}", scene.name(), json.display());
     }
     Ok(())
 }
@@ -1213,11 +1243,11 @@ fn bench(
     // What the kernels run on, so that figures from different machines can be told apart.
     let simd = trirast::simd::SimdLevel::detect();
     if !json {
-        println!(
+        say!(
             "SIMD level: {simd:?} (TRIRAST_SIMD=scalar|avx2|avx512 forces one; \
              TRIRAST_SCHEDULE=binned|banded forces a schedule)"
         );
-        println!(
+        say!(
             "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10} {:>10} {:>9} {:>9} {:>8}  schedule",
             "scene",
             "triangles",
@@ -1242,7 +1272,7 @@ fn bench(
             let r =
                 pool.install(|| bench::run(scene, frames, threads, samples, dense_triangles))?;
             if json {
-                println!(
+                say!(
                     "{{\"scene\":\"{}\",\"source\":{},\"triangles\":{},\"pixels\":{},\"fragments\":{},\"threads\":{},\"msaa\":{},\"simd\":\"{simd:?}\",\"median_ms\":{:.3},\"min_ms\":{:.3},\"mtri_per_s\":{:.2},\"gfrag_per_s\":{:.3},\"peak_memory_mb\":{},\"schedule\":{}}}",
                     r.scene,
                     bench::json_string(&r.source),
@@ -1263,7 +1293,7 @@ fn bench(
                     Some(b) if r.msaa > 1 => format!("  ({:.2}x the 1x time)", r.median_ms / b),
                     _ => String::new(),
                 };
-                println!(
+                say!(
                     "{:<6} {:>11} {:>10} {:>12} {:>4} {:>4} {:>10.2} {:>10.2} {:>9.1} {:>9.3} {:>8}  {:<6}{cost}",
                     r.scene,
                     r.triangles,
@@ -1279,7 +1309,7 @@ fn bench(
                     r.schedule.map_or("-", Schedule::name)
                 );
                 if r.source != "generated" && r.msaa == 1 {
-                    println!("       ({})", r.source);
+                    say!("       ({})", r.source);
                 }
             }
             baseline.get_or_insert(r.median_ms);
@@ -1297,13 +1327,21 @@ fn splat_bench(points: &[usize], threads: Option<usize>, frames: usize) -> Resul
         .map_err(|e| usage(format!("cannot start {threads} threads: {e}")))?;
     let counts =
         if points.is_empty() { trirast::bench::SPLAT_COUNTS.to_vec() } else { points.to_vec() };
-    println!(
+    say!(
         "{:>10} {:>10} {:>10} {:>12} {:>8} {:>8} {:>10} {:>9} {:>4}",
-        "points", "nodes", "build ms", "bytes", "B/node", "B/point", "median ms", "splats", "thr"
+        "points",
+        "nodes",
+        "build ms",
+        "bytes",
+        "B/node",
+        "B/point",
+        "median ms",
+        "splats",
+        "thr"
     );
     for n in counts {
         let r = pool.install(|| trirast::bench::run_splats(n, frames))?;
-        println!(
+        say!(
             "{:>10} {:>10} {:>10.0} {:>12} {:>8.2} {:>8.2} {:>10.2} {:>9} {:>4}",
             r.points,
             r.nodes,
@@ -1333,10 +1371,10 @@ fn shown(warnings: &[String]) -> (&[String], usize) {
 fn print_warnings(warnings: &[String]) {
     let (first, more) = shown(warnings);
     for w in first {
-        eprintln!("trirast: warning: {w}");
+        note!("trirast: warning: {w}");
     }
     if more > 0 {
-        eprintln!("trirast: warning: ... and {more} more warning(s), not shown");
+        note!("trirast: warning: ... and {more} more warning(s), not shown");
     }
 }
 
@@ -1345,7 +1383,7 @@ fn print_warnings(warnings: &[String]) {
 fn warn_about(mesh: &Mesh) {
     print_warnings(&mesh.warnings);
     if mesh.triangles.is_empty() && !mesh.positions.is_empty() {
-        eprintln!(
+        note!(
             "trirast: warning: the file has {} vertices but no faces; for a point cloud use \
              `trirast splat`",
             mesh.positions.len()
@@ -1399,7 +1437,7 @@ fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Er
         )));
     }
     trirast::splat::cloud::write_ply(output, &cloud)?;
-    eprintln!(
+    note!(
         "sampled {} points in {:.0} ms; wrote {}",
         cloud.positions.len(),
         start.elapsed().as_secs_f64() * 1e3,
@@ -1419,7 +1457,7 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
             reading(file, |report| trirast::splat::cloud::read_ply_reporting(file, report))?;
         let start = std::time::Instant::now();
         let tree = trirast::splat::SplatTree::build(&cloud)?;
-        eprintln!(
+        note!(
             "built the hierarchy of {} points ({} nodes) in {:.0} ms",
             cloud.positions.len(),
             tree.nodes.len(),
@@ -1445,7 +1483,7 @@ fn pack(file: &Path, output: &Path) -> Result<(), Error> {
     warn_of_scale(&leaf_centres(&tree), "point");
     trirast::splat::format::write(output, &tree)?;
     let bytes = std::fs::metadata(output).map_err(|e| Error::io(output, e))?.len();
-    eprintln!(
+    note!(
         "wrote {}: {} nodes, {} points, {} bytes ({:.2} bytes per node, {:.2} per point)",
         output.display(),
         tree.nodes.len(),
@@ -1531,16 +1569,18 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
         } else {
             " (coarser than --threshold: budget reached)"
         };
-        eprintln!(
+        note!(
             "level {level} px: {} splats ({} points), {} nodes culled, {ms:.1} ms{note}",
-            stats.drawn, stats.leaves_drawn, stats.culled,
+            stats.drawn,
+            stats.leaves_drawn,
+            stats.culled,
         );
     }
     trirast::output::write_png_with(&args.output, &target, args.png_compression.into())?;
     if let Some(p) = &args.depth {
         trirast::output::write_npy(p, &target.depth, width, height)?;
     }
-    eprintln!("wrote {}", args.output.display());
+    note!("wrote {}", args.output.display());
     Ok(())
 }
 
@@ -1551,26 +1591,26 @@ fn info(path: &Path) -> Result<(), Error> {
         (std::array::from_fn(|k| lo[k].min(p[k])), std::array::from_fn(|k| hi[k].max(p[k])))
     });
     warn_about(&mesh);
-    println!("file:       {}", path.display());
-    println!("vertices:   {}", mesh.positions.len());
-    println!("triangles:  {}", mesh.triangles.len());
-    println!("polygons:   {}", mesh.polygon_count);
+    say!("file:       {}", path.display());
+    say!("vertices:   {}", mesh.positions.len());
+    say!("triangles:  {}", mesh.triangles.len());
+    say!("polygons:   {}", mesh.polygon_count);
     if lo[0] <= hi[0] {
         let (centre, radius) = camera::bounding_sphere(&mesh.positions);
-        println!("bounds:     min {lo:?} max {hi:?}");
-        println!("sphere:     centre {:?} radius {radius}", centre.to_array());
+        say!("bounds:     min {lo:?} max {hi:?}");
+        say!("sphere:     centre {:?} radius {radius}", centre.to_array());
     } else {
         // Not the empty fold's infinities, nor the unit sphere framing falls back to.
-        println!("bounds:     none (no finite vertex)");
+        say!("bounds:     none (no finite vertex)");
     }
     let yes = |b: bool| if b { "yes" } else { "no" };
-    println!("normals:    {}", yes(mesh.normals.is_some()));
-    println!("texcoords:  {}", yes(mesh.texcoords.is_some()));
-    println!("colours:    {}", yes(mesh.colors.is_some()));
-    println!("materials:  {}", mesh.materials.len());
+    say!("normals:    {}", yes(mesh.normals.is_some()));
+    say!("texcoords:  {}", yes(mesh.texcoords.is_some()));
+    say!("colours:    {}", yes(mesh.colors.is_some()));
+    say!("materials:  {}", mesh.materials.len());
     for m in &mesh.materials {
         let texture = m.diffuse_texture.as_ref().map(|t| t.display().to_string());
-        println!(
+        say!(
             "  {:?}: diffuse {:?}, texture {}",
             m.name,
             m.diffuse,
@@ -1579,10 +1619,10 @@ fn info(path: &Path) -> Result<(), Error> {
     }
     let (first, more) = shown(&mesh.warnings);
     for w in first {
-        println!("warning:    {w}");
+        say!("warning:    {w}");
     }
     if more > 0 {
-        println!("warning:    ... and {more} more, not shown");
+        say!("warning:    ... and {more} more, not shown");
     }
     Ok(())
 }
@@ -1606,7 +1646,7 @@ fn demo(
     let clear = trirast::target::DEFAULT_CLEAR_COLOR;
     draw_timed(&mut target, None, clear, |t| trirast::draw(t, &s.triangles, &options))?;
     trirast::output::write_png(output, &target)?;
-    eprintln!("wrote {}", output.display());
+    note!("wrote {}", output.display());
     Ok(())
 }
 
@@ -1626,7 +1666,7 @@ fn draw_timed(
     report(&stats);
     if let (Some(fastest), Some(&median)) = (times.first(), times.get(times.len() / 2)) {
         let count = |n: usize, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
-        println!(
+        say!(
             "{}, {}: median {median:.2} ms, min {fastest:.2} ms per frame; \
              {:.1} Mtri/s, {:.3} G frag/s{}",
             count(times.len(), "frame"),
@@ -1641,7 +1681,7 @@ fn draw_timed(
 
 fn report(stats: &trirast::DrawStats) {
     if stats.non_finite > 0 {
-        eprintln!(
+        note!(
             "trirast: warning: dropped {} triangle(s) whose coordinates are NaN or infinite, \
              in the file or after the camera's transform (single precision: about 3.4e38 at \
              most)",
@@ -1657,10 +1697,14 @@ fn report(stats: &trirast::DrawStats) {
     } else {
         ""
     };
-    eprintln!(
+    note!(
         "{} triangles: {} rasterized{clipped}, {} culled or clipped away, {} degenerate; {} \
          fragments",
-        stats.submitted, stats.rasterized, stats.culled, stats.degenerate, stats.fragments
+        stats.submitted,
+        stats.rasterized,
+        stats.culled,
+        stats.degenerate,
+        stats.fragments
     );
 }
 

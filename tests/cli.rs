@@ -1185,6 +1185,45 @@ fn info_reports_counts_bounds_and_warnings() {
     assert!(text.contains("bounds:     none") && !text.contains("inf"), "{text}");
 }
 
+/// Output that cannot be written is not a panic: a full standard output is an error that
+/// says so, a full standard error (warnings, "wrote ...") does not stop the picture being
+/// written, and a reader closing the pipe ends the command quietly.
+#[test]
+fn unwritable_standard_streams_are_not_panics() {
+    use std::process::Stdio;
+    let dir = TempDir::new("streams");
+    let obj = "mtllib gone.mtl\nv 0 0 0\nv 20 0 0\nv 0 20 0\nf 1 2 3\n";
+    dir.write("tri.obj", obj);
+    let run = |args: &[&str], stdout: Stdio, stderr: Stdio| {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_trirast"));
+        command.args(args).current_dir(&dir.0).stdout(stdout).stderr(stderr);
+        command.output().expect("failed to start the trirast binary")
+    };
+    if Path::new("/dev/full").exists() {
+        let full = || Stdio::from(fs::File::create("/dev/full").unwrap());
+        let out = run(&["info", "tri.obj"], full(), Stdio::piped());
+        let err = stderr_of(&out);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(err.contains("writing to standard output") && !err.contains("panicked"), "{err}");
+        let out = run(&["render", "tri.obj", "-o", "t.png"], Stdio::null(), full());
+        assert!(out.status.success(), "{}", out.status);
+        assert!(dir.path("t.png").exists());
+    }
+    // The pipe is closed before the command writes, or it writes into the pipe's buffer:
+    // either way it succeeds without a word.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_trirast"))
+        .args(["info", "tri.obj"])
+        .current_dir(&dir.0)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{}: {}", out.status, stderr_of(&out));
+    assert!(!stderr_of(&out).contains("panicked"));
+}
+
 /// A budget that stops refinement at a level of single points says so, not that the budget
 /// was reached: there was nothing left to refine (a one-point cloud said "budget reached").
 #[test]
