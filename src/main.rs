@@ -1105,8 +1105,37 @@ fn check_outputs(
                 dir.display()
             )));
         }
+        let first = frames.map_or_else(|| path.to_path_buf(), |total| frame_path(path, 0, total));
+        can_write(option, path, &first)?;
     }
     Ok(())
+}
+
+/// Whether the file `path` names (`first`, the first frame's name for a turntable) can be
+/// written, found out before the work: a directory (`-o out/`, which a turntable had turned
+/// into `out_000.png` beside it) or a place that refuses files (`/proc`, a read-only
+/// directory) had been reported only once the picture was drawn, with some outputs already
+/// written. The file is opened as it will be written, without truncating it; one made by
+/// this is removed again. A device or FIFO is not opened (a FIFO would wait for a reader).
+fn can_write(option: &str, path: &Path, first: &Path) -> Result<(), Error> {
+    let names_a_directory = path.as_os_str().as_encoded_bytes().ends_with(b"/");
+    if names_a_directory || path.is_dir() || first.is_dir() {
+        let message = format!("{option} {} names a directory: give a file name", path.display());
+        return Err(usage(message));
+    }
+    let existing = std::fs::metadata(first).ok();
+    if existing.as_ref().is_some_and(|m| !m.is_file()) {
+        return Ok(());
+    }
+    let opened = std::fs::OpenOptions::new().write(true).create(true).truncate(false).open(first);
+    match opened {
+        Ok(_) if existing.is_none() => {
+            let _ = std::fs::remove_file(first);
+            Ok(())
+        }
+        Ok(_) => Ok(()),
+        Err(e) => Err(usage(format!("{option} {}: cannot be written: {e}", first.display()))),
+    }
 }
 
 /// Whether writing `output` (or, for a turntable of `frames`, its numbered files

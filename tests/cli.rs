@@ -901,25 +901,38 @@ fn absurd_counts_and_angles_are_usage_errors() {
 }
 
 /// Output files are checked before anything is rendered: two options naming one file (the
-/// second overwrote the first, which then held an `.npy` under a `.png` name) and a missing
-/// directory (found only after some files were written) are usage errors, and nothing is
-/// written.
+/// second overwrote the first, which then held an `.npy` under a `.png` name), a missing
+/// directory (found only after some files were written), an output that is a directory (a
+/// turntable had written beside it) and one that cannot be made are usage errors, and
+/// nothing is written.
 #[test]
 fn clashing_or_unreachable_outputs_are_refused_before_rendering() {
     let dir = TempDir::new("outputs");
-    let cases: [&[&str]; 5] = [
+    fs::create_dir(dir.path("sub")).unwrap();
+    let cases: [&[&str]; 9] = [
         &["render", "--size", "64x48", "-o", "a.png", "--depth", "a.png"],
         &["demo", "-o", "a.jpg"],
         &["render", "--size", "64x48", "-o", "a.png", "--ids", "d.npy", "--overdraw", "./d.npy"],
         &["render", "--size", "64x48", "-o", "a.png", "--ids", "missing/ids.npy"],
         &["render", "--size", "64x48", "-o", "missing/a.png"],
+        &["render", "--size", "64x48", "-o", "a.png", "--depth", "sub"],
+        &["render", "--size", "64x48", "-o", "a.png", "--ids", "sub/"],
+        &["render", "--size", "64x48", "--turntable", "3", "-o", "new/"],
+        &["demo", "-o", "sub"],
     ];
     for args in cases {
         let err = run_err(&dir.0, args);
-        let refused = ["both name", "no directory", "written as"];
+        let refused = ["both name", "no directory", "written as", "names a directory"];
         assert!(refused.iter().any(|r| err.contains(r)), "{args:?}: {err}");
         assert!(!dir.path("a.png").exists(), "{args:?}: nothing is written");
     }
+    if Path::new("/proc/self").is_dir() {
+        let args = ["render", "--size", "64x48", "-o", "a.png", "--depth", "/proc/d.npy"];
+        let err = run_err(&dir.0, args);
+        assert!(err.contains("--depth /proc/d.npy: cannot be written"), "{err}");
+        assert!(!dir.path("a.png").exists());
+    }
+    assert!(!dir.path("new_000.png").exists());
     run_ok(&dir.0, ["render", "--size", "64x48", "-o", "a.png", "--depth", "a.npy"]);
     assert!(dir.path("a.png").exists() && dir.path("a.npy").exists());
 }
