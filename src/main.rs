@@ -40,6 +40,17 @@ macro_rules! note {
     }};
 }
 
+/// `text` with its control characters (but line breaks and tabs) escaped: messages quote
+/// what a file holds, and an escape sequence in a malformed line had reached the terminal.
+fn printable(text: &str) -> std::borrow::Cow<'_, str> {
+    let control = |c: char| c.is_control() && c != '\n' && c != '\t';
+    if !text.chars().any(control) {
+        return text.into();
+    }
+    let escaped = |c: char| if control(c) { c.escape_default().to_string() } else { c.into() };
+    text.chars().map(escaped).collect::<String>().into()
+}
+
 /// [`say!`]'s line to standard output.
 fn say(line: std::fmt::Arguments) {
     use std::io::Write as _;
@@ -59,16 +70,21 @@ struct Cli {
     command: Command,
 }
 
+/// Every command takes negative numbers as values (`--fov -30`, `--background -1,0,0`), so
+/// that the value's own check explains what is wrong; clap had read them as unknown options.
 #[derive(Subcommand)]
 enum Command {
     /// Render a mesh (.obj, .ply, .stl), or the built-in default scene when no file is given.
+    #[command(allow_negative_numbers = true)]
     Render(Box<RenderArgs>),
     /// Print a mesh's vertex, triangle and polygon counts, bounds and attributes.
+    #[command(allow_negative_numbers = true)]
     Info {
         /// Mesh file.
         file: PathBuf,
     },
     /// Time the built-in benchmark scenes (bunny, soup, grid, fill, dense).
+    #[command(allow_negative_numbers = true)]
     Bench {
         /// Scenes to run (default: all five).
         #[arg(value_enum)]
@@ -96,6 +112,7 @@ enum Command {
     },
     /// Time the splat hierarchy: build, bytes per point, ms per frame at 1920x1080, for the
     /// lectures' 130,712 / 1,017,149 / 14,835,967 points sampled from the bunny.
+    #[command(allow_negative_numbers = true)]
     SplatBench {
         /// Point counts, each 1 to 2^30 (default: the three above).
         #[arg(long, value_delimiter = ',', value_parser = parse_points)]
@@ -108,6 +125,7 @@ enum Command {
         frames: usize,
     },
     /// Sample points from a mesh (area-weighted, with normals and colours) into a PLY cloud.
+    #[command(allow_negative_numbers = true)]
     Sample {
         /// Mesh file (.obj, .ply, .stl).
         file: PathBuf,
@@ -122,6 +140,7 @@ enum Command {
         seed: u64,
     },
     /// Build the splat hierarchy of a point cloud and write it as a compact .tsplat file.
+    #[command(allow_negative_numbers = true)]
     Pack {
         /// Point cloud (.ply).
         file: PathBuf,
@@ -130,8 +149,10 @@ enum Command {
         output: PathBuf,
     },
     /// Render a point cloud (.ply, or a packed .tsplat) as splats.
+    #[command(allow_negative_numbers = true)]
     Splat(Box<SplatArgs>),
     /// Draw one of the lectures' 2D demonstrations.
+    #[command(allow_negative_numbers = true)]
     Demo {
         /// Which demonstration.
         #[arg(value_enum, default_value_t = DemoArg::Smooth)]
@@ -140,7 +161,7 @@ enum Command {
         #[arg(short, long, default_value = "demo.png")]
         output: PathBuf,
         /// Image size, WIDTHxHEIGHT.
-        #[arg(long, default_value = "512x512", value_parser = parse_size)]
+        #[arg(long, default_value = "512x512", value_parser = parse_size, allow_hyphen_values = true)]
         size: (u32, u32),
         /// Coverage algorithm.
         #[arg(long, value_enum, default_value_t = AlgorithmArg::Edge)]
@@ -157,7 +178,7 @@ struct RenderArgs {
     #[arg(long, value_enum, default_value_t = ProjectionArg::Perspective)]
     projection: ProjectionArg,
     /// Image size, WIDTHxHEIGHT.
-    #[arg(long, default_value = "800x600", value_parser = parse_size)]
+    #[arg(long, default_value = "800x600", value_parser = parse_size, allow_hyphen_values = true)]
     size: (u32, u32),
     /// Output colour PNG (with --turntable, frames are named OUTPUT_000.png, ...).
     #[arg(short, long, default_value = "trirast.png")]
@@ -216,7 +237,7 @@ struct RenderArgs {
     #[arg(long, value_enum)]
     wrap: Option<WrapArg>,
     /// Background colour as R,G,B (0-255).
-    #[arg(long, value_parser = parse_rgb)]
+    #[arg(long, value_parser = parse_rgb, allow_hyphen_values = true)]
     background: Option<[u8; 3]>,
     /// A diffuse texture (PNG or JPEG) for a mesh with texture coordinates, replacing its
     /// materials.
@@ -252,7 +273,7 @@ struct SplatArgs {
     #[arg(long, value_enum, default_value_t = PngCompressionArg::Fast)]
     png_compression: PngCompressionArg,
     /// Image size, WIDTHxHEIGHT.
-    #[arg(long, default_value = "800x600", value_parser = parse_size)]
+    #[arg(long, default_value = "800x600", value_parser = parse_size, allow_hyphen_values = true)]
     size: (u32, u32),
     /// Stop refining at nodes whose points spread over less than this many pixels on screen
     /// (0 draws every point; a finite number, 0 or more).
@@ -272,7 +293,7 @@ struct SplatArgs {
     #[arg(long, value_enum, default_value_t = ShapeArg::Round)]
     shape: ShapeArg,
     /// Background colour as R,G,B (0-255).
-    #[arg(long, value_parser = parse_rgb)]
+    #[arg(long, value_parser = parse_rgb, allow_hyphen_values = true)]
     background: Option<[u8; 3]>,
 }
 
@@ -370,7 +391,10 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let (w, h) = s
         .split_once(['x', 'X'])
         .ok_or_else(|| format!("expected WIDTHxHEIGHT, e.g. 640x480, found `{s}`"))?;
-    let side = |t: &str| t.trim().parse::<u32>().map_err(|_| format!("`{t}` is not a size"));
+    let side = |t: &str| {
+        let message = || format!("expected WIDTHxHEIGHT in whole pixels, found `{s}`");
+        t.trim().parse::<u32>().map_err(|_| message())
+    };
     Ok((side(w)?, side(h)?))
 }
 
@@ -742,7 +766,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            note!("trirast: error: {e}");
+            note!("trirast: error: {}", printable(&e.to_string()));
             ExitCode::FAILURE
         }
     }
@@ -1400,7 +1424,7 @@ fn shown(warnings: &[String]) -> (&[String], usize) {
 fn print_warnings(warnings: &[String]) {
     let (first, more) = shown(warnings);
     for w in first {
-        note!("trirast: warning: {w}");
+        note!("trirast: warning: {}", printable(w));
     }
     if more > 0 {
         note!("trirast: warning: ... and {more} more warning(s), not shown");
@@ -1648,7 +1672,7 @@ fn info(path: &Path) -> Result<(), Error> {
     }
     let (first, more) = shown(&mesh.warnings);
     for w in first {
-        say!("warning:    {w}");
+        say!("warning:    {}", printable(w));
     }
     if more > 0 {
         say!("warning:    ... and {more} more, not shown");

@@ -593,6 +593,34 @@ fn malformed_obj_names_the_file_and_line() {
     }
 }
 
+/// A message quoting a file's bytes escapes their control characters: an escape sequence in a
+/// malformed line had reached the terminal as it was.
+#[test]
+fn quoted_control_characters_are_escaped() {
+    let dir = TempDir::new("control");
+    dir.write("ansi.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 \u{1b}[31mRED\u{7}\n");
+    let err = run_err(&dir.0, ["info", "ansi.obj"]);
+    assert!(err.contains("ansi.obj:4:") && err.contains(r"`\u{1b}[31mRED\u{7}`"), "{err}");
+    assert!(!err.contains('\u{1b}') && !err.contains('\u{7}'), "{err:?}");
+}
+
+/// Negative values reach the checks of their options, which say what is accepted; clap had
+/// taken `-30` in `--fov -30` for an unknown option.
+#[test]
+fn negative_values_are_checked_as_values() {
+    let dir = TempDir::new("negative");
+    for (args, says) in [
+        (&["render", "--fov", "-30"][..], "--fov takes 1 to 170 degrees"),
+        (&["render", "--background", "-1,0,0"][..], "colour components are whole numbers"),
+        (&["render", "--size", "-5x10"][..], "expected WIDTHxHEIGHT"),
+        (&["demo", "--size", "10x10x10"][..], "found `10x10x10`"),
+        (&["sample", "m.obj", "--points", "-1"][..], "--points takes 1 to"),
+    ] {
+        let err = run_err(&dir.0, args);
+        assert!(err.contains(says) && !err.contains("unexpected argument"), "{args:?}: {err}");
+    }
+}
+
 #[test]
 fn face_index_past_the_end_is_an_error() {
     let dir = TempDir::new("past-end");
