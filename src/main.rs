@@ -608,6 +608,26 @@ fn check_target_memory(
     Err(Error::MemoryUnavailable { what, needed, available })
 }
 
+/// Refuses, before it starts, work that needs `needed` bytes more than the system can give
+/// ([`memory_available`]): `sample --points 1073741824` had grown past 15 GB on a 24 GB
+/// machine before it was stopped.
+fn check_memory(what: impl FnOnce() -> String, needed: u128) -> Result<(), Error> {
+    match memory_available() {
+        Some(available) if needed > available => {
+            Err(Error::MemoryUnavailable { what: what(), needed, available })
+        }
+        _ => Ok(()),
+    }
+}
+
+/// Peak bytes a point of building a splat hierarchy takes beyond its cloud, rounded up from
+/// what was measured (`trirast splat` of clouds of 1 and 2 million points: 192).
+const BUILD_BYTES_PER_POINT: u128 = 200;
+
+/// Peak bytes a point of writing a `.tsplat` file takes beyond its hierarchy, rounded up from
+/// what was measured (`trirast pack`, 1 and 2 million points: 114).
+const ENCODE_BYTES_PER_POINT: u128 = 120;
+
 /// Bytes this process can still have without being stopped or pushing others out: Linux's
 /// estimate of allocatable memory (`MemAvailable`, reclaimable caches included) plus free
 /// swap, less where a control group above the process sets a lower limit, or the process's
@@ -1480,6 +1500,9 @@ fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Er
     warn_about(&mesh);
     let textures = MaterialTextures::load(&mesh);
     print_warnings(&textures.warnings);
+    // The cloud: position, normal, colour and radius a point.
+    let needed = points as u128 * (12 + 12 + 3 + 4);
+    check_memory(|| format!("a cloud of {points} points"), needed)?;
     let start = std::time::Instant::now();
     let cloud = trirast::splat::cloud::sample_mesh(&mesh, &textures, points, seed)?;
     if cloud.positions.is_empty() {
@@ -1508,6 +1531,9 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
     } else {
         let cloud =
             reading(file, |report| trirast::splat::cloud::read_ply_reporting(file, report))?;
+        let points = cloud.positions.len();
+        let needed = points as u128 * BUILD_BYTES_PER_POINT;
+        check_memory(|| format!("the hierarchy of {points} points"), needed)?;
         let start = std::time::Instant::now();
         let tree = trirast::splat::SplatTree::build(&cloud)?;
         note!(
@@ -1534,6 +1560,9 @@ fn pack(file: &Path, output: &Path) -> Result<(), Error> {
     let tree = load_splats(file)?;
     // Said where the cloud is packed, as `splat` says it again where it is drawn.
     warn_of_scale(&leaf_centres(&tree), "point");
+    let points = tree.leaf_count();
+    let needed = points as u128 * ENCODE_BYTES_PER_POINT;
+    check_memory(|| format!("packing {points} points"), needed)?;
     trirast::splat::format::write(output, &tree)?;
     let bytes = std::fs::metadata(output).map_err(|e| Error::io(output, e))?.len();
     note!(
@@ -1803,9 +1832,13 @@ mod tests {
         assert_eq!(meminfo_available("MemAvailable: 5 kB\n"), Some(5 * 1024));
         assert_eq!(meminfo_available("MemTotal: 5 kB\nMemAvailableX: 7 kB\n"), None);
         assert_eq!(meminfo_available("MemAvailable: many kB\n"), None);
-        // On Linux the live figure is read at all.
+        // On Linux the live figure is read at all, and work no machine has memory for is
+        // refused by it.
         if cfg!(target_os = "linux") {
             assert!(memory_available().is_some());
+            let refused = check_memory(|| "a cloud".into(), u128::MAX).unwrap_err().to_string();
+            assert!(refused.starts_with("a cloud needs"), "{refused}");
+            assert!(check_memory(|| "a cloud".into(), 1).is_ok());
         }
         let limits = "Max cpu time              unlimited            unlimited            seconds\n\
                       Max address space         6000000000           unlimited            bytes\n";
