@@ -15,7 +15,9 @@
 //!   again, along its Newell normal and then the other axes, until earcut uses every corner,
 //!   and takes the fan if it never does;
 //! - polygons through one point more than twice are not simple, and earcut's time on them
-//!   grows with the cube of their length: faces take the fan, 2D polygons give nothing.
+//!   grows with the cube of their length: faces take the fan, 2D polygons give nothing; so
+//!   do polygons of more than 1024 corners whose sides cross, and of more than 16,384 that
+//!   the Delaunay triangulation refuses (earcut's time on them grows with the square).
 //!
 //! [`fill_polygon`] is the exact 2D fill. It snaps the vertices to the rasterizer's 1/256-pixel
 //! grid *first* and triangulates the snapped integers with exact predicates, so the triangles
@@ -52,6 +54,14 @@ const MAX_CORNERS_AT_ONE_POINT: usize = 2;
 /// bulk load takes `O(n log n)`. Below this, earcut's worst case is a few milliseconds, and
 /// faces keep the triangles they always had.
 const CDT_ABOVE_CORNERS: usize = 1024;
+
+/// Rings of more corners than this that the constrained Delaunay triangulation refuses get no
+/// triangles (faces take the fan) rather than earcut's. They are not simple: two corners on
+/// one point (a pinch or a bridge), sides that touch, overlap or cross. Earcut's time on such
+/// rings grows with the square of their corners (random faces of 20,000 corners took 0.7 s
+/// to load, 200,000 corners 34-47 s), while a simple ring of any size takes the Delaunay
+/// path in `O(n log n)`.
+const EARCUT_AT_MOST_CORNERS: usize = 16_384;
 
 /// Half the side of the square [`EarcutI32`] accepts: coordinates must lie in `[-2^19, 2^19]`.
 const EARCUT_I32_HALF_RANGE: i64 = 1 << 19;
@@ -267,12 +277,15 @@ pub fn triangulate_snapped(rings: &[Vec<[i32; 2]>]) -> Vec<[usize; 3]> {
             hi[k] = hi[k].max(i64::from(p[k]));
         }
     }
-    if data.len() > CDT_ABOVE_CORNERS
-        && let Some(tris) = cdt_rings(&as_f64(&data), &holes, area > 0)
-    {
-        // Spade's orientation tests are exact (adaptive precision), so these triangles tile
-        // the snapped polygon as earcut's integer ones do.
-        return tris.into_iter().map(|t| t.map(|i| map[i])).collect();
+    if data.len() > CDT_ABOVE_CORNERS {
+        match cdt_rings(&as_f64(&data), &holes, area > 0) {
+            // Spade's orientation tests are exact (adaptive precision), so these triangles
+            // tile the snapped polygon as earcut's integer ones do.
+            Ok(tris) => return tris.into_iter().map(|t| t.map(|i| map[i])).collect(),
+            Err(Refusal::Crossing) => return Vec::new(),
+            Err(Refusal::Other) if data.len() > EARCUT_AT_MOST_CORNERS => return Vec::new(),
+            Err(Refusal::Other) => {}
+        }
     }
     let mut flat = Vec::new();
     if (0..2).all(|k| hi[k] - lo[k] <= 2 * EARCUT_I32_HALF_RANGE) {
@@ -505,12 +518,28 @@ fn flatten<T: Copy>(
 /// Triangulates the rings of `data` (the outer ring, then one from each start in `holes`):
 /// through [`cdt_rings`] above [`CDT_ABOVE_CORNERS`] corners where it can, else earcut.
 fn triangulate_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Vec<[usize; 3]> {
-    if data.len() > CDT_ABOVE_CORNERS
-        && let Some(tris) = cdt_rings(data, holes, ccw)
-    {
-        return tris;
+    if data.len() > CDT_ABOVE_CORNERS {
+        match cdt_rings(data, holes, ccw) {
+            Ok(tris) => return tris,
+            Err(Refusal::Crossing) => return Vec::new(),
+            Err(Refusal::Other) if data.len() > EARCUT_AT_MOST_CORNERS => return Vec::new(),
+            Err(Refusal::Other) => {}
+        }
     }
     earcut_f64(data, holes, ccw)
+}
+
+/// Why [`cdt_rings`] gave no triangulation.
+#[derive(Debug, PartialEq)]
+enum Refusal {
+    /// Two sides cross. The rings bound no polygon, so no triangulation is the right one, and
+    /// earcut's time on such a ring grows with the square of its corners (a random face of
+    /// 200,000 corners took 47 s to load): above [`CDT_ABOVE_CORNERS`] there are no
+    /// triangles, as for rings through one point three times (faces take the fan).
+    Crossing,
+    /// Any other reason (a corner twice, sides that touch or overlap, coordinates spade
+    /// refuses), for earcut to decide.
+    Other,
 }
 
 /// The triangles inside the rings of `data` (laid out as for earcut), wound positively if
@@ -526,12 +555,12 @@ fn triangulate_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Vec<[usiz
 /// below 2^-142), parities that disagree (sides that overlap, which spade merges, or a corner
 /// on another side), or a count other than the `n + 2h - 2` triangles every triangulation of
 /// `n` corners and `h` holes has.
-fn cdt_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Option<Vec<[usize; 3]>> {
+fn cdt_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Result<Vec<[usize; 3]>, Refusal> {
     let rings = rings_without_repeats(data, holes);
     if rings.iter().any(|r| r.len() < 3)
         || most_at_one_point(data, rings.iter().flatten().copied()) > 1
     {
-        return None;
+        return Err(Refusal::Other);
     }
     // The corners kept, and the sides between them as spade's indices into `kept`.
     let (mut kept, mut sides) = (Vec::with_capacity(data.len()), Vec::with_capacity(data.len()));
@@ -547,9 +576,12 @@ fn cdt_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Option<Vec<[usize
         ConstrainedDelaunayTriangulation::<Point2<f64>>::try_bulk_load_cdt(points, sides, |_| {
             conflict = true
         })
-        .ok()?;
-    if conflict || cdt.num_vertices() != n {
-        return None;
+        .map_err(|_| Refusal::Other)?;
+    if conflict {
+        return Err(Refusal::Crossing);
+    }
+    if cdt.num_vertices() != n {
+        return Err(Refusal::Other);
     }
     // Each face's parity, spread from the faces on the hull (the outer face is outside).
     let mut inside: Vec<Option<bool>> = vec![None; cdt.num_all_faces()];
@@ -573,7 +605,7 @@ fn cdt_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Option<Vec<[usize
                     inside[other.fix().index()] = Some(across);
                     stack.extend(other.as_inner().map(|f| f.fix()));
                 }
-                Some(parity) if parity != across => return None,
+                Some(parity) if parity != across => return Err(Refusal::Other),
                 Some(_) => {}
             }
         }
@@ -587,7 +619,7 @@ fn cdt_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Option<Vec<[usize
             if ccw { [a, b, c] } else { [a, c, b] }
         })
         .collect();
-    (tris.len() + 2 == n + 2 * holes.len()).then_some(tris)
+    (tris.len() + 2 == n + 2 * holes.len()).then_some(tris).ok_or(Refusal::Other)
 }
 
 /// Runs earcut in `f64` and winds the triangles counter-clockwise (y up) iff `ccw`.
@@ -848,6 +880,32 @@ mod tests {
     /// The Delaunay path takes what it can triangulate over every corner, skips repeats as
     /// earcut does, and hands everything else back for earcut to decide.
     #[test]
+    fn large_rings_that_are_not_simple_skip_earcut() {
+        let face = |ring: &[[f64; 2]]| -> Vec<[f32; 3]> {
+            ring.iter().map(|p| [p[0] as f32, p[1] as f32, 0.0]).collect()
+        };
+        // Sides that cross: a comb with two far corners swapped.
+        let mut crossed = comb(2000);
+        crossed.swap(10, 1990);
+        assert_eq!(cdt_rings(&crossed, &[], true), Err(Refusal::Crossing));
+        assert!(triangulate_polygon(&[crossed.clone()]).is_empty());
+        assert_eq!(triangulate_face(&face(&crossed)), fan(crossed.len()));
+        let snapped: Vec<[i32; 2]> = crossed.iter().map(|p| p.map(|v| (v * 4.0) as i32)).collect();
+        assert!(triangulate_snapped(&[snapped]).is_empty());
+        // A pinch (one corner twice), which spade refuses: earcut's up to its bound, the fan
+        // above it.
+        for (n, earcut) in [(4000, true), (EARCUT_AT_MOST_CORNERS + 2, false)] {
+            let mut pinched = comb(n);
+            pinched.insert(n / 4, pinched[3 * n / 4 + 1]);
+            assert_eq!(cdt_rings(&pinched, &[], true).ok(), None);
+            let tris = triangulate_polygon(&[pinched.clone()]);
+            assert_eq!(!tris.is_empty(), earcut, "{n}");
+            let drawn = triangulate_face(&face(&pinched));
+            assert_eq!(drawn == fan(pinched.len()), !earcut, "{n}");
+        }
+    }
+
+    #[test]
     fn delaunay_path_takes_simple_rings_and_refuses_the_rest() {
         let ring = comb(2000);
         let expected = shoelace(&ring);
@@ -883,21 +941,41 @@ mod tests {
         // ring, a ring of fewer than three distinct corners, coordinates spade refuses.
         let mut pinched = ring.clone();
         pinched.insert(500, ring[1500]);
-        assert_eq!(cdt_rings(&pinched, &[], true), None);
+        assert_eq!(
+            cdt_rings(&pinched, &[], true).ok(),
+            None,
+            "{:?}",
+            cdt_rings(&pinched, &[], true)
+        );
         let mut crossed = ring.clone();
         crossed.swap(10, 1990);
-        assert_eq!(cdt_rings(&crossed, &[], true), None);
+        assert_eq!(cdt_rings(&crossed, &[], true), Err(Refusal::Crossing));
         // A corner of the top touching a side of the bottom at that side's midpoint.
         let mut touching = ring.clone();
         touching[500] = [499.5, -0.375];
-        assert_eq!(cdt_rings(&touching, &[], true), None);
+        assert_eq!(
+            cdt_rings(&touching, &[], true).ok(),
+            None,
+            "{:?}",
+            cdt_rings(&touching, &[], true)
+        );
         let mut outside = ring.clone();
         outside.extend([[10.0, 20.0], [11.0, 20.0], [10.5, 21.0]]);
-        assert_eq!(cdt_rings(&outside, &[ring.len()], true), None);
-        assert_eq!(cdt_rings(&[[0.0, 0.0], [0.0, 0.0], [1.0, 1.0]], &[], true), None);
+        assert_eq!(
+            cdt_rings(&outside, &[ring.len()], true).ok(),
+            None,
+            "{:?}",
+            cdt_rings(&outside, &[ring.len()], true)
+        );
+        assert_eq!(
+            cdt_rings(&[[0.0, 0.0], [0.0, 0.0], [1.0, 1.0]], &[], true).ok(),
+            None,
+            "{:?}",
+            cdt_rings(&[[0.0, 0.0], [0.0, 0.0], [1.0, 1.0]], &[], true)
+        );
         let mut huge = ring.clone();
         huge[3] = [1e300, 0.0];
-        assert_eq!(cdt_rings(&huge, &[], true), None);
+        assert_eq!(cdt_rings(&huge, &[], true).ok(), None, "{:?}", cdt_rings(&huge, &[], true));
         // Random rings (crossing themselves everywhere, on a coarse grid: many collinear and
         // repeated corners) are refused or triangulated, never a panic.
         use rand::{Rng, SeedableRng};
@@ -912,7 +990,7 @@ mod tests {
                         random.push(cell.map(|v| v as f64));
                     }
                 }
-                if let Some(tris) = cdt_rings(&random, &[], true) {
+                if let Ok(tris) = cdt_rings(&random, &[], true) {
                     assert_eq!(tris.len(), random.len() - 2);
                 }
                 let _ = triangulate_polygon(&[random]);
