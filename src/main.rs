@@ -1017,7 +1017,9 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
                     path.display()
                 )));
             }
-            let triangles = trirast::mesh::window_triangles(&trirast::mesh::obj::read(path)?);
+            let obj = trirast::mesh::obj::read(path)?;
+            print_warnings(&obj.warnings);
+            let triangles = trirast::mesh::window_triangles(&obj);
             if triangles.is_empty() {
                 note!("trirast: warning: {} has no faces: nothing to draw", path.display());
             }

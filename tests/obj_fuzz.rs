@@ -190,7 +190,11 @@ fn check(input: &[u8]) -> bool {
 fn same_as_streamed(input: &[u8], parsed: &Result<ObjMesh, (usize, String)>) {
     let streamed = obj::parse_mesh(input, Path::new("f.obj"));
     match (parsed, streamed) {
-        (Ok(obj), Ok((mesh, materials))) => {
+        (Ok(obj), Ok((mut mesh, materials))) => {
+            // The same warnings, one naming the file, the other the line only.
+            let named: Vec<String> =
+                obj.warnings.iter().map(|w| format!("f.obj{}", &w[4..])).collect();
+            assert_eq!(std::mem::take(&mut mesh.warnings), named, "warnings");
             assert_eq!(format!("{mesh:?}"), format!("{:?}", obj::to_mesh(obj)), "streamed mesh");
             assert_eq!(materials, obj.materials, "material statements");
         }

@@ -74,6 +74,8 @@ pub struct ObjMesh {
     /// For each face, the `usemtl` in force as an index into `materials.names` (`None` before
     /// the first `usemtl`).
     pub face_materials: Vec<Option<u32>>,
+    /// Problems that did not stop reading (statements of unknown kinds), for the user to see.
+    pub warnings: Vec<String>,
 }
 
 impl ObjMesh {
@@ -98,7 +100,10 @@ impl ObjMesh {
 /// Reads and parses an OBJ file as written (see [`parse`]).
 pub fn read(path: &Path) -> Result<ObjMesh, Error> {
     let mut obj = ObjMesh { face_starts: vec![0], ..ObjMesh::default() };
-    obj.materials = read_statements(open(path, &|_| {})?, &mut obj).map_err(|f| f.at(path))?;
+    let (materials, unknown) =
+        read_statements(open(path, &|_| {})?, &mut obj).map_err(|f| f.at(path))?;
+    obj.materials = materials;
+    obj.warnings.extend(unknown.map(|u| u.warning(path.display())));
     Ok(obj)
 }
 
@@ -112,7 +117,8 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, Error> {
 
 /// [`read_mesh`], telling `report` how many bytes of the OBJ file it has read so far.
 pub(crate) fn read_mesh_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<Mesh, Error> {
-    let (mut mesh, materials) = build_mesh(open(path, report)?).map_err(|f| f.at(path))?;
+    let (mut mesh, materials, unknown) = build_mesh(open(path, report)?).map_err(|f| f.at(path))?;
+    mesh.warnings.extend(unknown.map(|u| u.warning(path.display())));
     super::mtl::apply(&mut mesh, &materials, path)?;
     Ok(mesh)
 }
@@ -130,12 +136,14 @@ fn open<'a>(
 /// Parses OBJ text as written; an error is `(line, message)`.
 pub fn parse(bytes: &[u8]) -> Result<ObjMesh, (usize, String)> {
     let mut obj = ObjMesh { face_starts: vec![0], ..ObjMesh::default() };
-    obj.materials = read_statements(bytes, &mut obj).map_err(|fail| match fail {
+    let (materials, unknown) = read_statements(bytes, &mut obj).map_err(|fail| match fail {
         Fail::Parse(line, message) => (line, message),
         // Not reached: a slice reads without error, and `ObjMesh` grows as usual.
         Fail::Io(e) => (0, e.to_string()),
         Fail::Error(e) => (0, e.to_string()),
     })?;
+    obj.materials = materials;
+    obj.warnings.extend(unknown.map(|u| u.warning("line")));
     Ok(obj)
 }
 
@@ -143,7 +151,9 @@ pub fn parse(bytes: &[u8]) -> Result<ObjMesh, (usize, String)> {
 /// the materials: the mesh [`to_mesh`] makes of [`parse`]'s result (it is the reference this
 /// is tested against), and the material statements. `path` only names the file in errors.
 pub fn parse_mesh(bytes: &[u8], path: &Path) -> Result<(Mesh, MaterialStatements), Error> {
-    build_mesh(bytes).map_err(|f| f.at(path))
+    let (mut mesh, materials, unknown) = build_mesh(bytes).map_err(|f| f.at(path))?;
+    mesh.warnings.extend(unknown.map(|u| u.warning(path.display())));
+    Ok((mesh, materials))
 }
 
 /// Converts parsed OBJ data to an indexed [`Mesh`]. When the file has `usemtl`, `materials`
@@ -295,10 +305,71 @@ impl Elements for ObjMesh {
 fn read_statements(
     input: impl BufRead,
     elements: &mut impl Elements,
-) -> Result<MaterialStatements, Fail> {
+) -> Result<(MaterialStatements, Option<Unknown>), Fail> {
     let mut statements = Statements::default();
     super::read_lines(input, Fail::Io, |text, line| statements.line(text, line, elements))?;
-    statements.finish()
+    let unknown = statements.unknown.take();
+    Ok((statements.finish()?, unknown))
+}
+
+/// Statements of the OBJ format this reader skips: grouping and smoothing (`o`, `g`, `s`,
+/// `mg`), lines and points (`l`, `p`), free-form geometry and its attributes, and display
+/// statements. Any other keyword is not OBJ (a typo such as `F`, or another format under an
+/// `.obj` name: a PLY file had read as an empty mesh without a word), and is warned of.
+const SKIPPED: [&[u8]; 33] = [
+    b"o",
+    b"g",
+    b"s",
+    b"mg",
+    b"l",
+    b"p",
+    b"vp",
+    b"cstype",
+    b"deg",
+    b"bmat",
+    b"step",
+    b"curv",
+    b"curv2",
+    b"surf",
+    b"parm",
+    b"trim",
+    b"hole",
+    b"scrv",
+    b"sp",
+    b"end",
+    b"con",
+    b"call",
+    b"csh",
+    b"bevel",
+    b"c_interp",
+    b"d_interp",
+    b"lod",
+    b"shadow_obj",
+    b"trace_obj",
+    b"ctech",
+    b"stech",
+    b"maplib",
+    b"usemap",
+];
+
+/// The first statement of a kind the reader does not know (see [`SKIPPED`]), and how many
+/// more lines held one.
+struct Unknown {
+    line: usize,
+    keyword: String,
+    more: usize,
+}
+
+impl Unknown {
+    /// The warning, its line after `file`.
+    fn warning(&self, file: impl std::fmt::Display) -> String {
+        let more = match self.more {
+            0 => String::new(),
+            1 => " (and 1 more line of unknown statements)".to_string(),
+            n => format!(" (and {n} more lines of unknown statements)"),
+        };
+        format!("{file}:{}: unknown statement `{}` ignored{more}", self.line, self.keyword)
+    }
 }
 
 /// The statement parser both readers share: relative indices, the references checked at the
@@ -317,6 +388,8 @@ struct Statements {
     materials: MaterialStatements,
     /// The corners of the face being read.
     corners: Vec<Corner>,
+    /// The statements of unknown kinds.
+    unknown: Option<Unknown>,
 }
 
 impl Statements {
@@ -408,7 +481,21 @@ impl Statements {
                 });
                 Ok(())
             }
-            _ => Ok(()),
+            _ if SKIPPED.contains(&keyword) => Ok(()),
+            _ => {
+                match &mut self.unknown {
+                    Some(unknown) => unknown.more += 1,
+                    None => {
+                        let mut keyword = String::from_utf8_lossy(keyword).into_owned();
+                        if let Some((cut, _)) = keyword.char_indices().nth(24) {
+                            keyword.truncate(cut);
+                            keyword.push_str("...");
+                        }
+                        self.unknown = Some(Unknown { line, keyword, more: 0 });
+                    }
+                }
+                Ok(())
+            }
         }
     }
 
@@ -802,10 +889,10 @@ fn push_attribute<T: Copy + Default>(
 }
 
 /// [`parse_mesh`] on any buffered input.
-fn build_mesh(input: impl BufRead) -> Result<(Mesh, MaterialStatements), Fail> {
+fn build_mesh(input: impl BufRead) -> Result<(Mesh, MaterialStatements, Option<Unknown>), Fail> {
     let mut builder = MeshBuilder::default();
-    let materials = read_statements(input, &mut builder)?;
-    Ok((builder.finish(&materials.names)?, materials))
+    let (materials, unknown) = read_statements(input, &mut builder)?;
+    Ok((builder.finish(&materials.names)?, materials, unknown))
 }
 
 #[cfg(test)]
@@ -893,6 +980,28 @@ mod tests {
             assert_eq!(number(text.as_bytes()).map(f32::to_bits), want.map(f32::to_bits));
         }
         assert!(number(b"nan").unwrap().is_nan());
+    }
+
+    /// A statement of a kind OBJ does not have is a warning naming its line and how many more
+    /// there were (a PLY file under an `.obj` name read as an empty mesh without a word); the
+    /// OBJ statements this reader skips are not.
+    #[test]
+    fn unknown_statements_are_warned_of() {
+        let text = b"ply\nformat ascii 1.0\nv 0 0 0\nv 1 0 0\nv 0 1 0\nF 1 2 3\nf 1 2 3\n";
+        let (mesh, _) = parse_mesh(text, Path::new("m.obj")).unwrap();
+        let want = "m.obj:1: unknown statement `ply` ignored (and 2 more lines of unknown \
+                    statements)";
+        assert_eq!(mesh.warnings, [want]);
+        assert_eq!(mesh.triangles.len(), 1);
+        assert_eq!(parse(text).unwrap().warnings, [want.replace("m.obj", "line")]);
+        let long = format!("v 0 0 0\n{}\n", "x".repeat(100));
+        let (mesh, _) = parse_mesh(long.as_bytes(), Path::new("m.obj")).unwrap();
+        assert_eq!(
+            mesh.warnings,
+            [format!("m.obj:2: unknown statement `{}...` ignored", "x".repeat(24))]
+        );
+        let skipped = b"o a\ng b\ns 1\nl 1 2\np 1\nmaplib x\nusemap x\ncstype bezier\nv 0 0 0\n";
+        assert!(parse_mesh(skipped, Path::new("m.obj")).unwrap().0.warnings.is_empty());
     }
 
     /// A comment need not be UTF-8 (a Latin-1 name after `#`), and corners spelled with
