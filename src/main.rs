@@ -1013,7 +1013,7 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
             let is_obj = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj"));
             if !is_obj {
                 return Err(usage(format!(
-                    "{}: --projection window reads .obj files (`v x y z [r g b]`)",
+                    "{}: --projection window reads .obj files (`v x y z [w] [r g b]`)",
                     path.display()
                 )));
             }

@@ -287,6 +287,20 @@ mod tests {
         }
     }
 
+    /// `v x y z w r g b` gives a window vertex both its `1 / w` and its colour (`w` and the
+    /// colour had excluded each other, so `--shading perspective` changed nothing of a
+    /// coloured scene); `w` alone leaves it white, the colour alone sets `w` to 1.
+    #[test]
+    fn window_vertices_take_w_and_colour_together() {
+        let text = b"v 0 0 0.5 2 1 0 0\nv 10 0 0.5 4\nv 0 10 0.5 0 0 1\nf 1 2 3\n";
+        let [a, b, c] = window_triangles(&obj::parse(text).unwrap())[0];
+        assert_eq!((a.inv_w, a.color), (0.5, [255, 0, 0, 255]));
+        assert_eq!((b.inv_w, b.color), (0.25, [255; 4]));
+        assert_eq!((c.inv_w, c.color), (1.0, [0, 0, 255, 255]));
+        let err = obj::parse(b"v 0 0 0 1 2 3 4 5\n").unwrap_err();
+        assert_eq!(err, (1, "`v` takes x y z [w] or x y z [w] r g b, found 8 numbers".into()));
+    }
+
     /// A concave face is drawn as its polygon: its triangles tile the dart (each wound like
     /// the face, their areas adding up to its area), where the fan covered the notch too. A
     /// NaN corner is in every triangle of its face, so the rasterizer drops them all.

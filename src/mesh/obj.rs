@@ -2,7 +2,8 @@
 //!
 //! Hand-written rather than taken from `tobj` for two reasons that matter here: errors must name
 //! the line, and triangles must be numbered in file order (tobj regroups faces by object and
-//! material). Supported: `v x y z [w]` and `v x y z r g b`, `vt`, `vn`, and faces of any size
+//! material). Supported: `v x y z [w]` and `v x y z [w] r g b` (the colour extension; with
+//! `w`, for window-space scenes drawn in perspective), `vt`, `vn`, and faces of any size
 //! whose corners are `v`, `v/vt`, `v//vn` or `v/vt/vn`, with negative (relative) indices.
 //! `mtllib` and `usemtl` are recorded; [`read_mesh`] resolves them through [`super::mtl`].
 //! Other statements (`o`, `g`, `s`, `l`, `p`, ...) are skipped.
@@ -57,7 +58,7 @@ pub struct ObjMesh {
     pub positions: Vec<[f32; 3]>,
     /// `w` of each `v` (1 when absent).
     pub w: Vec<f32>,
-    /// Optional `v x y z r g b` colour of each position, in [0, 1].
+    /// Optional `v x y z [w] r g b` colour of each position, in [0, 1].
     pub colors: Vec<Option<[f32; 3]>>,
     /// `vt` coordinates.
     pub texcoords: Vec<[f32; 2]>,
@@ -399,14 +400,15 @@ impl Statements {
         let Some(keyword) = tokens.next() else { return Ok(()) };
         match keyword {
             b"v" => {
-                let (f, k) = floats::<6>(tokens, line)?;
+                let (f, k) = floats::<7>(tokens, line)?;
                 let (xyz, w, color) = match k {
                     3 => ([f[0], f[1], f[2]], 1.0, None),
                     4 => ([f[0], f[1], f[2]], f[3], None),
                     6 => ([f[0], f[1], f[2]], 1.0, Some([f[3], f[4], f[5]])),
+                    7 => ([f[0], f[1], f[2]], f[3], Some([f[4], f[5], f[6]])),
                     k => {
                         let message =
-                            format!("`v` takes x y z [w] or x y z r g b, found {k} numbers");
+                            format!("`v` takes x y z [w] or x y z [w] r g b, found {k} numbers");
                         return Err(Fail::Parse(line, message));
                     }
                 };
