@@ -309,6 +309,10 @@ fn read_statements(
 ) -> Result<(MaterialStatements, Option<Unknown>), Fail> {
     let mut statements = Statements::default();
     super::read_lines(input, Fail::Io, |text, line| statements.line(text, line, elements))?;
+    if !statements.continued.is_empty() {
+        // The file ends on a continuation: the statement is what came before it.
+        statements.line(b"", 0, elements)?;
+    }
     let unknown = statements.unknown.take();
     Ok((statements.finish()?, unknown))
 }
@@ -391,11 +395,59 @@ struct Statements {
     corners: Vec<Corner>,
     /// The statements of unknown kinds.
     unknown: Option<Unknown>,
+    /// The lines of a statement continued by a `\` at their ends, joined, and the line it
+    /// starts on (which errors name).
+    continued: Vec<u8>,
+    continued_from: usize,
 }
 
 impl Statements {
-    /// One line's statement to `elements`.
+    /// One line to `elements`: its statement, or part of one continued onto the next line
+    /// by a `\` at its end (outside a comment), as the OBJ format allows.
     fn line(&mut self, raw: &[u8], line: usize, elements: &mut impl Elements) -> Result<(), Fail> {
+        let may_continue = raw.last().is_some_and(|&b| b == b'\\' || b.is_ascii_whitespace());
+        if may_continue || !self.continued.is_empty() {
+            return self.continued_line(raw, line, elements);
+        }
+        self.statement(raw, line, elements)
+    }
+
+    /// [`Self::line`] of a line continued or continuing (rare, and kept out of its way).
+    #[cold]
+    fn continued_line(
+        &mut self,
+        raw: &[u8],
+        line: usize,
+        elements: &mut impl Elements,
+    ) -> Result<(), Fail> {
+        if let Some(part) = raw.trim_ascii_end().strip_suffix(b"\\")
+            && memchr::memchr(b'#', part).is_none()
+        {
+            if self.continued.is_empty() {
+                self.continued_from = line;
+            }
+            self.continued.extend_from_slice(part);
+            self.continued.push(b' ');
+            return Ok(());
+        }
+        if self.continued.is_empty() {
+            return self.statement(raw, line, elements);
+        }
+        let mut text = std::mem::take(&mut self.continued);
+        text.extend_from_slice(raw);
+        let done = self.statement(&text, self.continued_from, elements);
+        text.clear();
+        self.continued = text;
+        done
+    }
+
+    /// One statement to `elements`; `line` is where it starts.
+    fn statement(
+        &mut self,
+        raw: &[u8],
+        line: usize,
+        elements: &mut impl Elements,
+    ) -> Result<(), Fail> {
         let mut tokens = super::statement_words(raw, line)?;
         let Some(keyword) = tokens.next() else { return Ok(()) };
         match keyword {
@@ -1004,6 +1056,25 @@ mod tests {
         );
         let skipped = b"o a\ng b\ns 1\nl 1 2\np 1\nmaplib x\nusemap x\ncstype bezier\nv 0 0 0\n";
         assert!(parse_mesh(skipped, Path::new("m.obj")).unwrap().0.warnings.is_empty());
+    }
+
+    /// A `\\` at the end of a line continues its statement on the next (the OBJ format's
+    /// continuation, which had been read as an index `\\`); errors name the statement's first
+    /// line; a comment's `\\` continues nothing.
+    #[test]
+    fn statements_continue_past_a_backslash() {
+        let text = b"v 0 0 \\\n  0\nv 1 0 0\nv 0 1 0 # c \\\nf 1 \\\r\n2 \\\n 3\n";
+        let obj = parse(text).unwrap();
+        assert_eq!(obj.positions, [[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        assert_eq!(obj.corners.iter().map(|c| c.position).collect::<Vec<_>>(), [0, 1, 2]);
+        let (mesh, _) = parse_mesh(text, Path::new("m.obj")).unwrap();
+        assert_eq!(mesh.triangles, [[0, 1, 2]]);
+        assert_eq!(parse(b"v 0 0 0\nv 1 \\\nx 0\n").unwrap_err().0, 2);
+        let unfinished = parse(b"v 0 0 0\nv 1 0 \\").unwrap_err();
+        assert_eq!(
+            unfinished,
+            (2, "`v` takes x y z [w] or x y z [w] r g b, found 2 numbers".into())
+        );
     }
 
     /// A comment need not be UTF-8 (a Latin-1 name after `#`), and corners spelled with
