@@ -453,12 +453,21 @@ fn check_rayon_threads() -> Result<(), Error> {
     // The second is rayon's older name for the first, still read.
     for name in ["RAYON_NUM_THREADS", "RAYON_RS_NUM_CPUS"] {
         let Some(value) = std::env::var_os(name) else { continue };
-        if let Some(n) = value.to_str().and_then(|v| v.parse::<usize>().ok())
-            && n > MAX_THREADS
-        {
-            return Err(usage(format!(
-                "{name}={n}: at most {MAX_THREADS} worker threads (0 or unset: all cores)"
-            )));
+        // Rayon takes a value it cannot read (and empty) as unset: every core. Other programs
+        // share the variable, so that is a warning, not an error.
+        let text = value.to_str().unwrap_or("?");
+        match text.parse::<usize>() {
+            _ if text.is_empty() => {}
+            Ok(n) if n > MAX_THREADS => {
+                return Err(usage(format!(
+                    "{name}={n}: at most {MAX_THREADS} worker threads (0 or unset: all cores)"
+                )));
+            }
+            Ok(_) => {}
+            Err(_) => note!(
+                "trirast: warning: {name}={}: not a number of threads; using all cores",
+                printable(&value.to_string_lossy())
+            ),
         }
     }
     Ok(())
@@ -481,9 +490,9 @@ fn check_switches() -> Result<(), Error> {
         };
         if !level.is_available() {
             note!(
-                "trirast: warning: TRIRAST_SIMD={}: this CPU lacks it; using {:?}",
+                "trirast: warning: TRIRAST_SIMD={}: this CPU lacks it; using {}",
                 value.to_string_lossy(),
-                SimdLevel::detect()
+                SimdLevel::detect().name()
             );
         }
     }

@@ -874,11 +874,13 @@ fn impossible_thread_counts_are_usage_errors() {
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(err.contains("RAYON_NUM_THREADS=100000"), "{err}");
     assert!(!dir.path("out.png").exists(), "nothing is rendered");
-    // What rayon takes as "all cores" (0, not a number) still runs.
+    // What rayon takes as "all cores" (0, not a number) still runs, the second with a word.
     for value in ["0", "lots"] {
         let args = ["render", "--size", "64x48", "-o", "out.png"];
         let out = trirast_with_env(&dir.0, args, ("RAYON_NUM_THREADS", value));
-        assert!(out.status.success(), "RAYON_NUM_THREADS={value}: {}", stderr_of(&out));
+        let err = stderr_of(&out);
+        assert!(out.status.success(), "RAYON_NUM_THREADS={value}: {err}");
+        assert_eq!(err.contains("not a number of threads; using all cores"), value == "lots");
     }
     // The comparison switches refuse what they do not know (they ignored it, so a comparison
     // measured the default twice) and take what they do.

@@ -80,6 +80,16 @@ impl SimdLevel {
         }
     }
 
+    /// The level's name, as [`Self::from_name`] reads it (and `TRIRAST_SIMD` takes it).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Scalar => "scalar",
+            Self::Avx2 => "avx2",
+            Self::Avx512 => "avx512",
+        }
+    }
+
     /// Whether this CPU can run the level. Every kernel call asks, so the answer is the
     /// best level, detected once, compared: the four feature tests each time were a
     /// seventieth of a frame of small triangles.
