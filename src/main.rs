@@ -802,6 +802,10 @@ fn main() -> ExitCode {
 }
 
 fn render(args: &RenderArgs) -> Result<(), Error> {
+    if args.per_sample && args.ids.is_none() && args.depth.is_none() {
+        // It changes only those two files: alone it had been accepted and did nothing.
+        return Err(usage("--per-sample shapes the --ids and --depth files: give one".into()));
+    }
     let outputs = [
         ("--output", Some(args.output.as_path()), Written::Png),
         ("--depth", args.depth.as_deref(), Written::Npy),

@@ -1062,7 +1062,7 @@ fn options_are_honoured_or_refused() {
     let (once, timed) = (read_png(&dir.path("once.png")), read_png(&dir.path("timed.png")));
     assert!(once.rgba == timed.rgba, "timing changes the image");
 
-    let refused: [(&[&str], &str); 13] = [
+    let refused: [(&[&str], &str); 14] = [
         (&["render", "--projection", "window", "--turntable", "3"], "--turntable"),
         (&["render", "--projection", "window", "--view", "10,10"], "--view"),
         (&["render", "--projection", "window", "--eye", "1,1,1", "--target", "0,0,0"], "--eye"),
@@ -1076,6 +1076,7 @@ fn options_are_honoured_or_refused() {
         (&["render", "--turntable", "3", "--eye", "1,1,1", "--target", "0,0,0"], "--eye"),
         (&["render", "--view", "10,10", "--eye", "1,1,1", "--target", "0,0,0"], "--eye"),
         (&["render", "uv.obj", "--texture", "no-such.png"], "no-such.png"),
+        (&["render", "--per-sample", "--overdraw", "o.npy"], "--per-sample"),
     ];
     for (args, named) in refused {
         let err = run_err(&dir.0, [args, &["--size", "32x24", "-o", "x.png"]].concat());
