@@ -297,6 +297,8 @@ mod tests {
         assert_eq!((a.inv_w, a.color), (0.5, [255, 0, 0, 255]));
         assert_eq!((b.inv_w, b.color), (0.25, [255; 4]));
         assert_eq!((c.inv_w, c.color), (1.0, [0, 0, 255, 255]));
+        let err = obj::parse(b"v 0 0 0 1e-39\n").unwrap_err();
+        assert_eq!(err, (1, "`v` has w = 1e-39, too small for 1 / w in f32".into()));
         let err = obj::parse(b"v 0 0 0 1 2 3 4 5\n").unwrap_err();
         assert_eq!(err, (1, "`v` takes x y z [w] or x y z [w] r g b, found 8 numbers".into()));
     }

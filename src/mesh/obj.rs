@@ -467,6 +467,12 @@ impl Statements {
                 if w == 0.0 {
                     return Err(Fail::Parse(line, "`v` has w = 0".into()));
                 }
+                if w.is_finite() && !w.recip().is_finite() {
+                    // A window vertex's 1 / w: the rasterizer would drop its triangles as if
+                    // the file had said `inf`.
+                    let message = format!("`v` has w = {w:e}, too small for 1 / w in f32");
+                    return Err(Fail::Parse(line, message));
+                }
                 self.count(0, line)?;
                 elements.vertex(xyz, w, color)
             }
