@@ -22,9 +22,10 @@ use trirast::scene::{self, Demo};
 use trirast::texture::{Filter, Wrap};
 use trirast::{Algorithm, CullMode, DepthTest, Error, RenderOptions, Shading, Target};
 
-/// `println!` that cannot panic. A reader that closes the pipe early (`trirast info m.obj |
-/// head -1`) ends the command quietly, as it ends other command-line tools; any other failure
-/// to write (a full disk) is an error. `println!` panicked on both.
+/// `println!` that cannot panic. What a reader that closed the pipe early (`trirast info m.obj
+/// | head -1`) did not want is dropped, as other command-line tools drop it; any other failure
+/// to write (a full disk) is said once and makes the command fail once its work (a picture to
+/// write) is done. `println!` panicked on both, leaving the picture unwritten.
 macro_rules! say {
     ($($arg:tt)*) => {
         say(format_args!($($arg)*))
@@ -54,14 +55,16 @@ fn printable(text: &str) -> std::borrow::Cow<'_, str> {
 /// [`say!`]'s line to standard output.
 fn say(line: std::fmt::Arguments) {
     use std::io::Write as _;
-    if let Err(e) = writeln!(std::io::stdout(), "{line}") {
-        if e.kind() != std::io::ErrorKind::BrokenPipe {
-            note!("trirast: error: writing to standard output: {e}");
-            std::process::exit(1);
-        }
-        std::process::exit(0);
+    if let Err(e) = writeln!(std::io::stdout(), "{line}")
+        && e.kind() != std::io::ErrorKind::BrokenPipe
+        && !STDOUT_FAILED.swap(true, std::sync::atomic::Ordering::Relaxed)
+    {
+        note!("trirast: error: writing to standard output: {e}");
     }
 }
+
+/// Set when standard output could not be written (see [`say!`]): the command then fails.
+static STDOUT_FAILED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
 #[derive(Parser)]
 #[command(name = "trirast", version, about = "An exact software triangle rasterizer")]
@@ -793,6 +796,7 @@ fn main() -> ExitCode {
             }
         });
     match result {
+        Ok(()) if STDOUT_FAILED.load(std::sync::atomic::Ordering::Relaxed) => ExitCode::FAILURE,
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             note!("trirast: error: {}", printable(&e.to_string()));

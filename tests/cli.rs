@@ -1252,20 +1252,31 @@ fn unwritable_standard_streams_are_not_panics() {
         let out = run(&["render", "tri.obj", "-o", "t.png"], Stdio::null(), full());
         assert!(out.status.success(), "{}", out.status);
         assert!(dir.path("t.png").exists());
+        // The timings could not be printed: the picture is still written, and the command
+        // fails once it is.
+        let args = ["render", "tri.obj", "-o", "f.png", "--frames", "2"];
+        let out = run(&args, full(), Stdio::piped());
+        let err = stderr_of(&out);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert_eq!(err.matches("writing to standard output").count(), 1, "{err}");
+        assert!(dir.path("f.png").exists());
     }
     // The pipe is closed before the command writes, or it writes into the pipe's buffer:
-    // either way it succeeds without a word.
-    let mut child = Command::new(env!("CARGO_BIN_EXE_trirast"))
-        .args(["info", "tri.obj"])
-        .current_dir(&dir.0)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    drop(child.stdout.take());
-    let out = child.wait_with_output().unwrap();
-    assert!(out.status.success(), "{}: {}", out.status, stderr_of(&out));
-    assert!(!stderr_of(&out).contains("panicked"));
+    // either way it succeeds without a word, and its picture is written.
+    for args in [&["info", "tri.obj"][..], &["render", "tri.obj", "-o", "p.png", "--frames", "2"]] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_trirast"))
+            .args(args)
+            .current_dir(&dir.0)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        assert!(out.status.success(), "{args:?}: {}: {}", out.status, stderr_of(&out));
+        assert!(!stderr_of(&out).contains("panicked"));
+    }
+    assert!(dir.path("p.png").exists());
 }
 
 /// A budget that stops refinement at a level of single points says so, not that the budget
