@@ -1688,6 +1688,7 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
 fn info(path: &Path) -> Result<(), Error> {
     let mesh: Mesh = reading(path, |report| trirast::mesh::load_reporting(path, report))?;
     let finite = mesh.positions.iter().filter(|p| p.iter().all(|c| c.is_finite()));
+    let finite_count = finite.clone().count();
     let (lo, hi) = finite.fold(([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]), |(lo, hi), p| {
         (std::array::from_fn(|k| lo[k].min(p[k])), std::array::from_fn(|k| hi[k].max(p[k])))
     });
@@ -1697,9 +1698,24 @@ fn info(path: &Path) -> Result<(), Error> {
     say!("triangles:  {}", mesh.triangles.len());
     say!("polygons:   {}", mesh.polygon_count);
     if lo[0] <= hi[0] {
-        let (centre, radius) = camera::bounding_sphere(&mesh.positions);
+        // The framing's sphere, but its true radius: in `f64`, which neither a single point
+        // (the framing's fallback of 1) nor coordinates near `f32::MAX` (an infinite
+        // distance) change.
+        let (centre, _) = camera::bounding_sphere(&mesh.positions);
+        let c = centre.to_array().map(f64::from);
+        let radius = mesh
+            .positions
+            .iter()
+            .filter(|p| p.iter().all(|c| c.is_finite()))
+            .map(|p| (0..3).map(|k| (f64::from(p[k]) - c[k]).powi(2)).sum::<f64>().sqrt())
+            .fold(0.0, f64::max);
         say!("bounds:     min {lo:?} max {hi:?}");
-        say!("sphere:     centre {:?} radius {radius}", centre.to_array());
+        say!("sphere:     centre {:?} radius {}", centre.to_array(), radius as f32);
+        let non_finite = mesh.positions.len() - finite_count;
+        if non_finite > 0 {
+            let what = if non_finite == 1 { "vertex" } else { "vertices" };
+            say!("non-finite: {non_finite} {what} (NaN or infinite; not drawn)");
+        }
     } else {
         // Not the empty fold's infinities, nor the unit sphere framing falls back to.
         say!("bounds:     none (no finite vertex)");

@@ -1222,6 +1222,13 @@ fn info_reports_counts_bounds_and_warnings() {
         assert!(text.contains(line), "{line:?} in {text}");
     }
     assert!(err.contains("gone.mtl was not found"), "{err}");
+    // One finite point: its sphere has radius 0 (not the framing's 1); a NaN vertex is
+    // counted.
+    dir.write("point.obj", "v 1 2 3\nv nan 0 0\nf 1 1 2\n");
+    let out = trirast_in(&dir.0, ["info", "point.obj"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("centre [1.0, 2.0, 3.0] radius 0\n"), "{text}");
+    assert!(text.contains("non-finite: 1 vertex (NaN"), "{text}");
     dir.write("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
     let out = trirast_in(&dir.0, ["info", "points.obj"]);
     let text = String::from_utf8_lossy(&out.stdout);
