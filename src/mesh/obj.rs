@@ -6,7 +6,8 @@
 //! `w`, for window-space scenes drawn in perspective), `vt`, `vn`, and faces of any size
 //! whose corners are `v`, `v/vt`, `v//vn` or `v/vt/vn`, with negative (relative) indices.
 //! `mtllib` and `usemtl` are recorded; [`read_mesh`] resolves them through [`super::mtl`].
-//! Other statements (`o`, `g`, `s`, `l`, `p`, ...) are skipped.
+//! Other statements of the format (`o`, `g`, `s`, `l`, `p`, ...) are skipped; a keyword the
+//! format does not have is a warning. A `\` at the end of a line continues its statement.
 //!
 //! Two readers share one statement parser (`Statements`):
 //! - [`parse`] keeps the file as written ([`ObjMesh`]: every element and face corner), which the
