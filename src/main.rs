@@ -909,6 +909,15 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         None => MaterialTextures::load(&mesh),
     };
     print_warnings(&textures.warnings);
+    let textured = mesh.texcoords.is_some()
+        && (0..mesh.materials.len().max(1)).any(|k| textures.get(k).is_some());
+    if !textured {
+        // Accepted and ignored, they had said nothing.
+        let given = [("--filter", args.filter.is_some()), ("--wrap", args.wrap.is_some())];
+        for (option, _) in given.into_iter().filter(|&(_, given)| given) {
+            note!("trirast: warning: {option} ignored: nothing is drawn with a texture");
+        }
+    }
     let options = model_options(args)?;
     let background = args.background.unwrap_or([38, 42, 52]);
     let clear = [background[0], background[1], background[2], 255];

@@ -1083,6 +1083,10 @@ fn options_are_honoured_or_refused() {
         assert!(err.contains(named), "{args:?}: {err}");
     }
     assert!(!dir.path("x.png").exists());
+    // Texture options where nothing is textured are said to be ignored.
+    let err = run_ok(&dir.0, ["render", "--size", "16x12", "--filter", "nearest", "-o", "f.png"]);
+    assert!(err.contains("--filter ignored: nothing is drawn with a texture"), "{err}");
+    assert!(!err.contains("--wrap"), "{err}");
     for bad in ["nan", "-1", "inf"]
         .map(|v| format!("--threshold={v}"))
         .into_iter()
