@@ -1045,6 +1045,18 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
             }
             let obj = trirast::mesh::obj::read(path)?;
             print_warnings(&obj.warnings);
+            // Window depth is stored clamped to [0, 1]; a scene outside it had been drawn
+            // with its depths flattened without a word.
+            let outside = obj.positions.iter().filter(|p| !(0.0..=1.0).contains(&p[2]));
+            let outside = outside.filter(|p| p[2].is_finite()).count();
+            if outside > 0 {
+                let what = if outside == 1 { "vertex has" } else { "vertices have" };
+                note!(
+                    "trirast: warning: {}: {outside} {what} z outside [0, 1]: depths are \
+                     clamped to it",
+                    path.display()
+                );
+            }
             let triangles = trirast::mesh::window_triangles(&obj);
             if triangles.is_empty() {
                 note!("trirast: warning: {} has no faces: nothing to draw", path.display());

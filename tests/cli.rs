@@ -508,6 +508,11 @@ fn depth_test_always_lets_the_last_triangle_win_and_less_the_nearest() {
     assert_eq!(less.ids[idx(6, 6)], 0);
     assert_eq!(always.ids[idx(6, 6)], 0);
     assert_eq!(less.ids[idx(40, 12)], 1);
+    assert!(!less.stderr.contains("outside [0, 1]"), "{}", less.stderr);
+    // Depths outside [0, 1] are stored clamped, and said to be.
+    let r = render_obj(&dir, &overlapping(-0.5, 2.0), &[]);
+    assert_eq!((r.ids[p], r.depth[p]), (0, 0.0));
+    assert!(r.stderr.contains("6 vertices have z outside [0, 1]"), "{}", r.stderr);
 }
 
 #[test]
