@@ -815,11 +815,9 @@ impl MeshBuilder {
         material: Option<u32>,
     ) -> Result<(), Fail> {
         self.face_vertices.clear();
-        self.face_points.clear();
         for c in corners {
             let v = self.vertex_of(c, line)?;
             self.face_vertices.push(v);
-            self.face_points.push(self.positions[c.position as usize]);
         }
         let before = self.mesh.triangles.len();
         let triangles = reserve(&mut self.mesh.triangles, 1, "OBJ triangles")?;
@@ -827,6 +825,9 @@ impl MeshBuilder {
             // `triangulate_face`'s answer for three corners, without its `Vec`.
             triangles.push([a, b, c]);
         } else {
+            self.face_points.clear();
+            let positions = corners.iter().map(|c| self.positions[c.position as usize]);
+            self.face_points.extend(positions);
             for t in crate::polygon::triangulate_face(&self.face_points) {
                 reserve(triangles, 1, "OBJ triangles")?.push(t.map(|k| self.face_vertices[k]));
             }
