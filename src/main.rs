@@ -1719,11 +1719,11 @@ fn info(path: &Path) -> Result<(), Error> {
     say!("triangles:  {}", mesh.triangles.len());
     say!("polygons:   {}", mesh.polygon_count);
     if lo[0] <= hi[0] {
-        // The framing's sphere, but its true radius: in `f64`, which neither a single point
-        // (the framing's fallback of 1) nor coordinates near `f32::MAX` (an infinite
-        // distance) change.
-        let (centre, _) = camera::bounding_sphere(&mesh.positions);
-        let c = centre.to_array().map(f64::from);
+        // The framing's sphere (the box's centre, the farthest vertex from it) with its true
+        // radius: in `f64`, which neither a single point (the framing's fallback of 1) nor
+        // coordinates near `f32::MAX` (an infinite centre or distance) change.
+        let c: [f64; 3] = std::array::from_fn(|k| (f64::from(lo[k]) + f64::from(hi[k])) / 2.0);
+        let centre = c.map(|v| v as f32);
         let radius = mesh
             .positions
             .iter()
@@ -1731,7 +1731,10 @@ fn info(path: &Path) -> Result<(), Error> {
             .map(|p| (0..3).map(|k| (f64::from(p[k]) - c[k]).powi(2)).sum::<f64>().sqrt())
             .fold(0.0, f64::max);
         say!("bounds:     min {lo:?} max {hi:?}");
-        say!("sphere:     centre {:?} radius {}", centre.to_array(), radius as f32);
+        // Shown in single precision, as the bounds are, where it fits.
+        let shown = radius as f32;
+        let radius = if shown.is_finite() { shown.to_string() } else { radius.to_string() };
+        say!("sphere:     centre {centre:?} radius {radius}");
         let non_finite = mesh.positions.len() - finite_count;
         if non_finite > 0 {
             let what = if non_finite == 1 { "vertex" } else { "vertices" };

@@ -1238,6 +1238,17 @@ fn info_reports_counts_bounds_and_warnings() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("centre [1.0, 2.0, 3.0] radius 0\n"), "{text}");
     assert!(text.contains("non-finite: 1 vertex (NaN"), "{text}");
+    // A radius past single precision is shown, not `inf`.
+    dir.write("far.obj", "v 3e38 3e38 3e38\nv -3e38 -3e38 -3e38\nv 3e38 0 0\nf 1 2 3\n");
+    let out = trirast_in(&dir.0, ["info", "far.obj"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let radius = text.lines().find_map(|l| l.split_once(" radius ")).map(|(_, r)| r);
+    let radius: f64 = radius.expect("a radius").parse().unwrap();
+    assert!((radius / (3e38 * 3f64.sqrt()) - 1.0).abs() < 1e-6, "{text}");
+    dir.write("off.obj", "v 3e38 0 0\nv 2e38 0 0\nv 3e38 1 0\nf 1 2 3\n");
+    let out = trirast_in(&dir.0, ["info", "off.obj"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("centre [2.5e38, 0.5, 0.0] radius 500000"), "{text}");
     dir.write("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
     let out = trirast_in(&dir.0, ["info", "points.obj"]);
     let text = String::from_utf8_lossy(&out.stdout);
