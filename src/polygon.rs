@@ -277,15 +277,12 @@ pub fn triangulate_snapped(rings: &[Vec<[i32; 2]>]) -> Vec<[usize; 3]> {
             hi[k] = hi[k].max(i64::from(p[k]));
         }
     }
-    if data.len() > CDT_ABOVE_CORNERS {
-        match cdt_rings(&as_f64(&data), &holes, area > 0) {
-            // Spade's orientation tests are exact (adaptive precision), so these triangles
-            // tile the snapped polygon as earcut's integer ones do.
-            Ok(tris) => return tris.into_iter().map(|t| t.map(|i| map[i])).collect(),
-            Err(Refusal::Crossing) => return Vec::new(),
-            Err(Refusal::Other) if data.len() > EARCUT_AT_MOST_CORNERS => return Vec::new(),
-            Err(Refusal::Other) => {}
-        }
+    if data.len() > CDT_ABOVE_CORNERS
+        && let Some(tris) = large_rings(&as_f64(&data), &holes, area > 0)
+    {
+        // Spade's orientation tests are exact (adaptive precision), so these triangles
+        // tile the snapped polygon as earcut's integer ones do.
+        return tris.into_iter().map(|t| t.map(|i| map[i])).collect();
     }
     let mut flat = Vec::new();
     if (0..2).all(|k| hi[k] - lo[k] <= 2 * EARCUT_I32_HALF_RANGE) {
@@ -518,15 +515,24 @@ fn flatten<T: Copy>(
 /// Triangulates the rings of `data` (the outer ring, then one from each start in `holes`):
 /// through [`cdt_rings`] above [`CDT_ABOVE_CORNERS`] corners where it can, else earcut.
 fn triangulate_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Vec<[usize; 3]> {
-    if data.len() > CDT_ABOVE_CORNERS {
-        match cdt_rings(data, holes, ccw) {
-            Ok(tris) => return tris,
-            Err(Refusal::Crossing) => return Vec::new(),
-            Err(Refusal::Other) if data.len() > EARCUT_AT_MOST_CORNERS => return Vec::new(),
-            Err(Refusal::Other) => {}
-        }
+    if data.len() > CDT_ABOVE_CORNERS
+        && let Some(tris) = large_rings(data, holes, ccw)
+    {
+        return tris;
     }
     earcut_f64(data, holes, ccw)
+}
+
+/// The triangles of rings of more than [`CDT_ABOVE_CORNERS`] corners: [`cdt_rings`]'s, none
+/// for rings whose sides cross or, above [`EARCUT_AT_MOST_CORNERS`], that it refuses at all;
+/// `None` for earcut to decide.
+fn large_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Option<Vec<[usize; 3]>> {
+    match cdt_rings(data, holes, ccw) {
+        Ok(tris) => Some(tris),
+        Err(Refusal::Crossing) => Some(Vec::new()),
+        Err(Refusal::Other) if data.len() > EARCUT_AT_MOST_CORNERS => Some(Vec::new()),
+        Err(Refusal::Other) => None,
+    }
 }
 
 /// Why [`cdt_rings`] gave no triangulation.
