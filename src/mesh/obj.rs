@@ -406,14 +406,15 @@ impl Statements {
     /// One line to `elements`: its statement, or part of one continued onto the next line
     /// by a `\` at its end (outside a comment), as the OBJ format allows.
     fn line(&mut self, raw: &[u8], line: usize, elements: &mut impl Elements) -> Result<(), Fail> {
-        let may_continue = raw.last().is_some_and(|&b| b == b'\\' || b.is_ascii_whitespace());
-        if may_continue || !self.continued.is_empty() {
+        // A CRLF line's `\r` is trimmed first, so that only lines ending in `\` leave the way.
+        if raw.trim_ascii_end().ends_with(b"\\") || !self.continued.is_empty() {
             return self.continued_line(raw, line, elements);
         }
         self.statement(raw, line, elements)
     }
 
-    /// [`Self::line`] of a line continued or continuing (rare, and kept out of its way).
+    /// [`Self::line`] of a line ending in `\` or continuing one (rare, and kept out of its
+    /// way).
     #[cold]
     fn continued_line(
         &mut self,
