@@ -606,25 +606,31 @@ fn check_target_memory(
     available: Option<u128>,
 ) -> Result<(), Error> {
     let sides = 1..=trirast::fixed::MAX_TARGET_SIZE;
-    let (Some(available), true) = (available, sides.contains(&width) && sides.contains(&height))
-    else {
+    if !(sides.contains(&width) && sides.contains(&height)) {
         return Ok(());
-    };
+    }
     let count = samples.count() as u128;
     let needed =
         u128::from(width) * u128::from(height) * (count * (8 + per_sample) + per_pixel + 8);
-    if needed <= available {
-        return Ok(());
-    }
-    let what = format!("a {width}x{height} target with {count} sample(s) per pixel");
-    Err(Error::MemoryUnavailable { what, needed, available })
+    let what = || format!("a {width}x{height} target with {count} sample(s) per pixel");
+    within(what, needed, available)
 }
 
 /// Refuses, before it starts, work that needs `needed` bytes more than the system can give
 /// ([`memory_available`]): `sample --points 1073741824` had grown past 15 GB on a 24 GB
 /// machine before it was stopped.
 fn check_memory(what: impl FnOnce() -> String, needed: u128) -> Result<(), Error> {
-    match memory_available() {
+    within(what, needed, memory_available())
+}
+
+/// [`Error::MemoryUnavailable`] naming `what` if `needed` bytes are more than `available`
+/// (nothing is refused where the system does not say).
+fn within(
+    what: impl FnOnce() -> String,
+    needed: u128,
+    available: Option<u128>,
+) -> Result<(), Error> {
+    match available {
         Some(available) if needed > available => {
             Err(Error::MemoryUnavailable { what: what(), needed, available })
         }
@@ -1709,10 +1715,10 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
 fn info(path: &Path) -> Result<(), Error> {
     let mesh: Mesh = reading(path, |report| trirast::mesh::load_reporting(path, report))?;
     let finite = mesh.positions.iter().filter(|p| p.iter().all(|c| c.is_finite()));
-    let finite_count = finite.clone().count();
-    let (lo, hi) = finite.fold(([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]), |(lo, hi), p| {
-        (std::array::from_fn(|k| lo[k].min(p[k])), std::array::from_fn(|k| hi[k].max(p[k])))
-    });
+    let (lo, hi) =
+        finite.clone().fold(([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]), |(lo, hi), p| {
+            (std::array::from_fn(|k| lo[k].min(p[k])), std::array::from_fn(|k| hi[k].max(p[k])))
+        });
     warn_about(&mesh);
     say!("file:       {}", path.display());
     say!("vertices:   {}", mesh.positions.len());
@@ -1724,10 +1730,8 @@ fn info(path: &Path) -> Result<(), Error> {
         // coordinates near `f32::MAX` (an infinite centre or distance) change.
         let c: [f64; 3] = std::array::from_fn(|k| (f64::from(lo[k]) + f64::from(hi[k])) / 2.0);
         let centre = c.map(|v| v as f32);
-        let radius = mesh
-            .positions
-            .iter()
-            .filter(|p| p.iter().all(|c| c.is_finite()))
+        let radius = finite
+            .clone()
             .map(|p| (0..3).map(|k| (f64::from(p[k]) - c[k]).powi(2)).sum::<f64>().sqrt())
             .fold(0.0, f64::max);
         say!("bounds:     min {lo:?} max {hi:?}");
@@ -1735,7 +1739,7 @@ fn info(path: &Path) -> Result<(), Error> {
         let shown = radius as f32;
         let radius = if shown.is_finite() { shown.to_string() } else { radius.to_string() };
         say!("sphere:     centre {centre:?} radius {radius}");
-        let non_finite = mesh.positions.len() - finite_count;
+        let non_finite = mesh.positions.len() - finite.count();
         if non_finite > 0 {
             let what = if non_finite == 1 { "vertex" } else { "vertices" };
             say!("non-finite: {non_finite} {what} (NaN or infinite; not drawn)");
