@@ -1053,8 +1053,8 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
             print_warnings(&obj.warnings);
             // Window depth is stored clamped to [0, 1]; a scene outside it had been drawn
             // with its depths flattened without a word.
-            let outside = obj.positions.iter().filter(|p| !(0.0..=1.0).contains(&p[2]));
-            let outside = outside.filter(|p| p[2].is_finite()).count();
+            let outside = |z: f32| z.is_finite() && !(0.0..=1.0).contains(&z);
+            let outside = obj.positions.iter().filter(|p| outside(p[2])).count();
             if outside > 0 {
                 let what = if outside == 1 { "vertex has" } else { "vertices have" };
                 note!(
