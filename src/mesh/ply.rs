@@ -436,6 +436,8 @@ mod tests {
         assert!(e.starts_with("t.ply:11: `face` 0: not a list of numbers"), "{e}");
         let e = err(format!("{head}property int k\nend_header\n0 0 1 nan\n").as_bytes());
         assert!(e.starts_with("t.ply:9: `vertex` 0: not a list of numbers"), "{e}");
+        let e = err(b"ply\nformat ascii 2.0\nelement vertex 0\nend_header\n");
+        assert!(e.starts_with("t.ply:2: PLY version 2.0 is not supported"), "{e}");
         let e = err(b"plx\n");
         assert!(e.starts_with("t.ply:1: not a PLY file"), "{e}");
         let e = err(b"ply\nformat ascii 1.0\nelement vertex x\n");

@@ -649,6 +649,15 @@ fn scan_header(
                 }
                 elements.push(Declared { name, line, properties: HashMap::new() });
             }
+            // The crate reads any version, but the format has only 1.0: a file of another
+            // need not mean what this reader would take it to.
+            Some("format") => {
+                let version = tokens.nth(1).unwrap_or("");
+                if version.split('.').next() != Some("1") {
+                    let message = format!("PLY version {version} is not supported (only 1.0)");
+                    return Err((At::Line(line), message));
+                }
+            }
             // The crate has refused a property before any element.
             Some("property") => {
                 let Some(element) = elements.last_mut() else { continue };
