@@ -186,6 +186,33 @@ impl<'a> Iterator for Words<'a> {
     }
 }
 
+/// The warning for a file whose vertex colours have components outside [0, 1] (NaN
+/// among them), which are drawn clamped (NaN as 0), or `None`: a PLY file with `float`
+/// colours from 0 to 255 had been drawn white without a word.
+pub(crate) fn colour_warning<const N: usize>(
+    file: &Path,
+    colours: impl IntoIterator<Item = [f32; N]>,
+) -> Option<String> {
+    let (mut outside, mut low, mut high) = (0usize, 0.0f32, 1.0f32);
+    for colour in colours {
+        if colour.iter().any(|c| !(0.0..=1.0).contains(c)) {
+            outside += 1;
+            low = colour.iter().fold(low, |m, &c| m.min(c));
+            high = colour.iter().fold(high, |m, &c| m.max(c));
+        }
+    }
+    if outside == 0 {
+        return None;
+    }
+    let what = if outside == 1 { "vertex colour has" } else { "vertex colours have" };
+    let range =
+        if low < 0.0 || high > 1.0 { format!(" (from {low} to {high})") } else { String::new() };
+    Some(format!(
+        "{}: {outside} {what} components outside [0, 1]{range}; they are drawn clamped to it",
+        file.display()
+    ))
+}
+
 /// Converts a colour in [0, 1] (clamped) to `u8`, rounding to nearest.
 #[must_use]
 pub fn unorm8(c: f32) -> u8 {
@@ -245,6 +272,44 @@ mod tests {
     use super::*;
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
+
+    /// Vertex colours outside [0, 1] are a warning naming the file, the count and the range,
+    /// from each reader that has colours; colours within it are not.
+    #[test]
+    fn colours_outside_the_unit_range_are_warned_of() {
+        let dir = std::env::temp_dir().join(format!("trirast-colours-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let ply = |colours: [&str; 3]| {
+            let head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n\
+                        property float y\nproperty float z\nproperty float red\n\
+                        property float green\nproperty float blue\nelement face 1\n\
+                        property list uchar int vertex_indices\nend_header\n";
+            let [a, b, c] = colours;
+            format!("{head}0 0 0 {a}\n1 0 0 {b}\n0 1 0 {c}\n3 0 1 2\n")
+        };
+        let obj = |colours: [&str; 3]| {
+            let [a, b, c] = colours;
+            format!("v 0 0 0 {a}\nv 1 0 0 {b}\nv 0 1 0 {c}\nf 1 2 3\n")
+        };
+        let within = ["0 0.5 1", "1 1 1", "0 0 0"];
+        let outside = ["255 0 0", "0 128 0", "0.5 -0.25 NaN"];
+        for (ext, text) in [("ply", ply as fn([&str; 3]) -> String), ("obj", obj)] {
+            let file = dir.join(format!("m.{ext}"));
+            std::fs::write(&file, text(within)).unwrap();
+            assert_eq!(load(&file).unwrap().warnings, Vec::<String>::new());
+            std::fs::write(&file, text(outside)).unwrap();
+            let want = format!(
+                "{}: 3 vertex colours have components outside [0, 1] (from -0.25 to 255); they \
+                 are drawn clamped to it",
+                file.display()
+            );
+            assert_eq!(load(&file).unwrap().warnings, std::slice::from_ref(&want));
+            if ext == "obj" {
+                assert_eq!(obj::read(&file).unwrap().warnings, [want]);
+            }
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     /// Lines are the same whatever the reader's buffer size, so for lines split across two
     /// fills: LF and CRLF endings, a last line without LF, a byte-order mark, and files

@@ -95,7 +95,7 @@ fn statement(
         let f = args
             .iter()
             .map(|a| match a.parse::<f32>() {
-                Ok(v) if v.is_finite() => Ok(v.clamp(0.0, 1.0)),
+                Ok(v) if v.is_finite() => Ok(v),
                 _ => Err((line, format!("`Kd` expected a finite number, found `{a}`"))),
             })
             .collect::<Result<Vec<_>, _>>()?;
@@ -103,6 +103,17 @@ fn statement(
             1 => rgb = [f[0]; 3],
             3 => rgb.copy_from_slice(&f),
             k => return Err((line, format!("`Kd` takes r [g b], found {k} numbers"))),
+        }
+        if rgb.iter().any(|c| !(0.0..=1.0).contains(c)) {
+            rgb = rgb.map(|c| c.clamp(0.0, 1.0));
+            lib.warnings.push(format!(
+                "line {line}: `Kd {}` is outside [0, 1]; material `{}` takes it clamped, {} {} {}",
+                args.join(" "),
+                material.name,
+                rgb[0],
+                rgb[1],
+                rgb[2]
+            ));
         }
         material.diffuse = rgb;
     } else {
@@ -265,6 +276,9 @@ mod tests {
         assert_eq!(lib.materials[1].name, "b c");
         assert_eq!(lib.materials[1].diffuse, [0.3; 3]);
         assert_eq!(lib.materials[2].diffuse, [1.0, 0.0, 0.5]);
+        let clamped = "line 9: `Kd 2 -1 0.5` is outside [0, 1]; material `d` takes it clamped";
+        assert_eq!(lib.warnings.len(), 1);
+        assert!(lib.warnings[0].starts_with(clamped), "{:?}", lib.warnings);
     }
 
     #[test]

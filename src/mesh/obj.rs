@@ -106,6 +106,8 @@ pub fn read(path: &Path) -> Result<ObjMesh, Error> {
         read_statements(open(path, &|_| {})?, &mut obj).map_err(|f| f.at(path))?;
     obj.materials = materials;
     obj.warnings.extend(unknown.map(|u| u.warning(path.display())));
+    let colours = obj.colors.iter().flatten().copied();
+    obj.warnings.extend(super::colour_warning(path, colours));
     Ok(obj)
 }
 
@@ -121,6 +123,8 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, Error> {
 pub(crate) fn read_mesh_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<Mesh, Error> {
     let (mut mesh, materials, unknown) = build_mesh(open(path, report)?).map_err(|f| f.at(path))?;
     mesh.warnings.extend(unknown.map(|u| u.warning(path.display())));
+    let colours = mesh.colors.iter().flatten().copied();
+    mesh.warnings.extend(super::colour_warning(path, colours));
     super::mtl::apply(&mut mesh, &materials, path)?;
     Ok(mesh)
 }

@@ -14,7 +14,8 @@
 //!
 //! Read from the `vertex` element: `x y z`, optional normals `nx ny nz`, colours `red green
 //! blue [alpha]` (also `r g b [a]` and `diffuse_red ...`; `uchar` is divided by 255, `ushort`
-//! by 65535, floats are taken as they are, all clamped to [0, 1]; alpha defaults to 1) and
+//! by 65535, floats are taken as they are, all clamped to [0, 1], with a warning where any was
+//! outside; alpha defaults to 1) and
 //! texture coordinates `u v` (or `s t`, `texture_u texture_v`, `texture_s texture_t`). From the
 //! `face` element: the integer list `vertex_indices` (or `vertex_index`) of any size, each face
 //! triangulated by [`crate::polygon::triangulate_face`]. Other elements and properties are
@@ -41,12 +42,24 @@ pub fn read(path: &Path) -> Result<Mesh, Error> {
 
 /// [`read`], telling `report` how many bytes of the file it has read so far.
 pub(crate) fn read_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<Mesh, Error> {
-    read_file(path, report, parse_at)
+    read_file(path, report, parse_at).map(|mesh| clamped_colours(mesh, path))
 }
 
-/// Parses the contents of a PLY file; `path` is only used to name the file in errors.
+/// Parses the contents of a PLY file; `path` is only used to name the file in errors and
+/// warnings.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, Error> {
-    parse_with(bytes, bytes.len() as u64, path, parse_at)
+    parse_with(bytes, bytes.len() as u64, path, parse_at).map(|mesh| clamped_colours(mesh, path))
+}
+
+/// `mesh` with its colours, read as the file has them, clamped to [0, 1] (NaN as 0), and a
+/// warning naming `path` where that changed any.
+fn clamped_colours(mut mesh: Mesh, path: &Path) -> Mesh {
+    if let Some(colours) = &mut mesh.colors {
+        mesh.warnings.extend(super::colour_warning(path, colours.iter().copied()));
+        let unit = |c: f32| if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };
+        colours.iter_mut().for_each(|c| *c = c.map(unit));
+    }
+    mesh
 }
 
 // Value slots of an element after the shared ones (`X`, `NX`, `RED`); the texture coordinate
@@ -123,16 +136,16 @@ fn index_values(p: Option<&Property>, out: &mut Vec<i64>) {
     }
 }
 
-/// A colour channel in [0, 1]: `ushort` / 65535, other integers / 255, floats as they are.
+/// A colour channel, 1 for full: `ushort` / 65535, other integers / 255, floats as they are
+/// (clamped once the file is read: [`clamped_colours`]).
 #[allow(clippy::cast_precision_loss, clippy::cast_possible_truncation)]
 fn color(p: &Property) -> Option<f32> {
-    let v = match *p {
+    Some(match *p {
         Property::UShort(v) => f32::from(v) / 65535.0,
         Property::Float(v) => v,
         Property::Double(v) => v as f32,
         _ => scalar(p)? / 255.0,
-    };
-    Some(if v.is_nan() { 0.0 } else { v.clamp(0.0, 1.0) })
+    })
 }
 
 /// Which of our attributes the `vertex` element has.
