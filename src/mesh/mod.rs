@@ -205,8 +205,13 @@ pub(crate) fn colour_warning<const N: usize>(
         return None;
     }
     let what = if outside == 1 { "vertex colour has" } else { "vertex colours have" };
-    let range =
-        if low < 0.0 || high > 1.0 { format!(" (from {low} to {high})") } else { String::new() };
+    // The extremes beyond the range (NaN has none).
+    let range = match (low < 0.0, high > 1.0) {
+        (true, true) => format!(" (from {low} to {high})"),
+        (true, false) => format!(" (down to {low})"),
+        (false, true) => format!(" (up to {high})"),
+        (false, false) => String::new(),
+    };
     Some(format!(
         "{}: {outside} {what} components outside [0, 1]{range}; they are drawn clamped to it",
         file.display()
@@ -308,6 +313,10 @@ mod tests {
                 assert_eq!(obj::read(&file).unwrap().warnings, [want]);
             }
         }
+        let file = dir.join("one.obj");
+        std::fs::write(&file, obj(["2 0 0", "1 1 1", "NaN 0 0"])).unwrap();
+        let warnings = load(&file).unwrap().warnings;
+        assert!(warnings[0].ends_with(": 2 vertex colours have components outside [0, 1] (up to 2); they are drawn clamped to it"), "{warnings:?}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
