@@ -91,6 +91,27 @@ pub enum Error {
         /// What it must match (`"vertices"` or `"triangles"`).
         of: &'static str,
     },
+    /// A point cloud's attribute array whose length differs from its number of positions.
+    #[error("point cloud has {len} {attribute} for {expected} positions")]
+    CloudAttributeLength {
+        /// The attribute (`"normals"`, `"colors"` or `"radii"`).
+        attribute: &'static str,
+        /// Its length.
+        len: usize,
+        /// The number of positions.
+        expected: usize,
+    },
+    /// A target buffer whose length is not what the target's size and samples need (its
+    /// buffers are public fields, and one was replaced).
+    #[error("the target's {buffer} buffer has {len} entries where {expected} are needed")]
+    TargetBuffer {
+        /// The buffer (`"colour"`, `"depth"`, `"id"`, `"overdraw"` or `"normal"`).
+        buffer: &'static str,
+        /// Its length.
+        len: usize,
+        /// The length the target's size and samples need.
+        expected: usize,
+    },
     /// A file whose extension names no format trirast reads.
     #[error("{}: unsupported mesh format: expected .obj, .ply or .stl", path.display())]
     UnsupportedFormat {

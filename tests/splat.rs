@@ -275,3 +275,37 @@ fn front_camera() -> Camera {
         far: 10.0,
     }
 }
+
+/// A tree made by hand whose child ranges point back at a node itself, before it or past
+/// the nodes is drawn without them (the walk keeps only children after their parent and
+/// within the nodes), where the renderer had indexed past the end.
+#[test]
+fn hand_made_trees_with_bad_child_ranges_render() {
+    use trirast::splat::SplatNode;
+    let node = |first_child, child_count| SplatNode {
+        centre: [0.0; 3],
+        radius: 1.0,
+        normal: [0.0; 3],
+        cone: std::f32::consts::PI,
+        color: [200, 100, 50],
+        first_child,
+        child_count,
+    };
+    let projection = Projection::Perspective { fov_y: 0.7 };
+    let camera = Camera::framing_sphere(Vec3::ZERO, 1.0, 0.4, 0.3, 1.0, projection);
+    let options = SplatOptions::default().with_threshold(0.0);
+    for nodes in [
+        vec![node(5, 4)],
+        vec![node(0, 2)],
+        vec![node(1, 2), node(0, 1)],
+        vec![node(1, 4), node(u32::MAX, 4), node(0, 0)],
+    ] {
+        let tree = SplatTree::new(nodes.clone());
+        let mut target = Target::new(32, 32).unwrap();
+        render::render(&mut target, &tree, &camera, &options);
+        for i in 0..nodes.len() {
+            let children = tree.children(i);
+            assert!(children.is_empty() || (children.start > i && children.end <= nodes.len()));
+        }
+    }
+}

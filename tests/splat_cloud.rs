@@ -24,6 +24,7 @@ use trirast::model::MaterialTextures;
 use trirast::splat::cloud::{
     PointCloud, parse_ply, read_ply, sample_mesh, sample_mesh_with_textures, write_ply,
 };
+use trirast::splat::tree::SplatTree;
 use trirast::texture::{Filter, Texture, Wrap};
 
 /// A fresh scratch directory for one test.
@@ -135,7 +136,20 @@ fn write_refuses_inconsistent_clouds() {
     let e = write_ply(&path, &cloud).unwrap_err();
     assert!(matches!(e, Error::Io { .. }), "{e:?}");
     let e = e.to_string();
-    assert!(e.contains("bad.ply") && e.contains("10 positions but 9 colors"), "{e}");
+    assert!(e.contains("bad.ply") && e.contains("has 9 colors for 10 positions"), "{e}");
+    // The hierarchy refuses it too, where it had indexed past the colours.
+    let refused = SplatTree::build(&cloud);
+    let length = Error::CloudAttributeLength { attribute: "colors", len: 9, expected: 10 };
+    assert_eq!(refused.unwrap_err().to_string(), length.to_string());
+    for attribute in ["normals", "radii"] {
+        let mut cloud = random_cloud(2, 10, true, true, true);
+        match attribute {
+            "normals" => cloud.normals = Some(Vec::new()),
+            _ => cloud.radii.as_mut().unwrap().truncate(1),
+        }
+        let e = SplatTree::build(&cloud).unwrap_err().to_string();
+        assert!(e.contains(&format!("{attribute} for 10 positions")), "{e}");
+    }
     let mut cloud = random_cloud(1, 10, false, false, false);
     cloud.positions[3][1] = f32::NAN;
     let e = write_ply(&path, &cloud).unwrap_err().to_string();

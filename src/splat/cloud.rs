@@ -97,20 +97,30 @@ impl PointCloud {
         }))
     }
 
-    /// Checks what [`write_ply`] needs: attribute arrays as long as `positions`, and finite
-    /// positions (which [`read_ply`] would refuse).
-    fn check(&self) -> Result<(), String> {
-        let n = self.positions.len();
+    /// Checks that every attribute array is as long as `positions`, as the hierarchy and the
+    /// writer need.
+    ///
+    /// # Errors
+    /// [`Error::CloudAttributeLength`] naming the first that is not.
+    pub fn check_lengths(&self) -> Result<(), Error> {
+        let expected = self.positions.len();
         let lengths = [
             ("normals", self.normals.as_ref().map(Vec::len)),
             ("colors", self.colors.as_ref().map(Vec::len)),
             ("radii", self.radii.as_ref().map(Vec::len)),
         ];
-        for (name, len) in lengths {
-            if let Some(len) = len.filter(|&len| len != n) {
-                return Err(format!("the cloud has {n} positions but {len} {name}"));
+        for (attribute, len) in lengths {
+            if let Some(len) = len.filter(|&len| len != expected) {
+                return Err(Error::CloudAttributeLength { attribute, len, expected });
             }
         }
+        Ok(())
+    }
+
+    /// Checks what [`write_ply`] needs: attribute arrays as long as `positions`, and finite
+    /// positions (which [`read_ply`] would refuse).
+    fn check(&self) -> Result<(), String> {
+        self.check_lengths().map_err(|e| e.to_string())?;
         if let Some(i) = self.positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
             return Err(format!("point {i}: position {:?} is not finite", self.positions[i]));
         }

@@ -66,10 +66,15 @@ impl SplatTree {
         self.min_leaf_radius
     }
 
-    /// The children of node `i`.
+    /// The children of node `i`: those of its range that follow it and lie within `nodes`,
+    /// as a breadth-first tree's all do. A tree made by hand ([`SplatTree::new`], or `nodes`
+    /// changed) may have a range that does not; the walks over the tree (rendering, the
+    /// encoder) go through this, so such a range cannot send them past the nodes or round a
+    /// cycle (a node listing itself had made the renderer index past the end).
     #[must_use]
     pub fn children(&self, i: usize) -> std::ops::Range<usize> {
-        self.nodes[i].children()
+        let children = self.nodes[i].children();
+        children.start.max(i + 1)..children.end.min(self.nodes.len())
     }
 
     /// Number of leaves.
@@ -122,6 +127,8 @@ impl SplatTree {
     /// above the leaves), so splats of neighbouring points overlap.
     ///
     /// # Errors
+    /// [`Error::CloudAttributeLength`] when an attribute array's length is not the number of
+    /// positions (the fields are public; [`PointCloud::check_lengths`]).
     /// [`Error::OutOfMemory`] when an array of the build (each proportional to the number of
     /// points: the points with their indices, node ranges, the nodes, per-node weights, the
     /// nodes again while chains are inserted and each level's list of them) cannot be allocated,
@@ -129,6 +136,7 @@ impl SplatTree {
     /// infallible allocation would abort the process instead. (With overcommit the system may
     /// still stop the process later; this is what the allocator refuses.)
     pub fn build(cloud: &PointCloud) -> Result<Self, Error> {
+        cloud.check_lengths()?;
         let building = Building { points: cloud.len() };
         // Points travel with their indices, so partitioning reads memory in order instead of
         // chasing an index into the cloud (which made building 15 M points cache-miss bound).
