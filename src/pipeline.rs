@@ -280,7 +280,9 @@ impl Pipeline {
     /// Draws indexed triangles: each vertex of `vertices` through `vertex_shader` once, each
     /// triangle of `triangles` (indices into `vertices`) clipped, rasterized and shaded.
     ///
-    /// An index past the end of `vertices` is an error, reported before anything is drawn.
+    /// An index past the end of `vertices` is an error, reported before anything is drawn,
+    /// as is a buffer of `target` replaced by one of another length
+    /// ([`Target::check_buffers`]).
     pub fn draw<I, VS, FS>(
         &self,
         target: &mut Target,
@@ -295,6 +297,7 @@ impl Pipeline {
         FS: FragmentShader<VS::Varyings>,
     {
         target.set_schedule(None);
+        target.check_buffers()?;
         // Index ranges, in parallel: the largest index validates them all (a serial search was
         // a twentieth of a dense mesh's frame); the first bad triangle is searched for only
         // when there is one. A large mesh's are per batch (they size the batches' vertex

@@ -215,12 +215,17 @@ impl DrawStats {
 ///
 /// Vertices outside the fixed-point range are an error, reported before anything is drawn;
 /// NaN or infinite vertices drop their triangle and are counted in the returned stats.
+///
+/// # Errors
+/// [`Error::CoordinateOutOfRange`] for such a vertex; [`Error::TargetBuffer`] when one of
+/// `target`'s buffers was replaced by one of another length ([`Target::check_buffers`]).
 pub fn draw(
     target: &mut Target,
     triangles: &[[Vertex; 3]],
     options: &RenderOptions,
 ) -> Result<DrawStats, Error> {
     target.set_schedule(None);
+    target.check_buffers()?;
     check_range(triangles)?;
     let clip = match options.scissor {
         Some(s) => s.intersect(&target.rect()),

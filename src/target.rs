@@ -236,6 +236,30 @@ impl Target {
         self.height
     }
 
+    /// Checks that every buffer has its length: one entry per sample for colour, depth and
+    /// ids, one per pixel for overdraw and normals. The buffers are public fields, and a draw
+    /// into one replaced by a shorter one had indexed past its end.
+    ///
+    /// # Errors
+    /// [`Error::TargetBuffer`] naming the first that does not.
+    pub fn check_buffers(&self) -> Result<(), Error> {
+        let pixels = self.pixel_count();
+        let samples = pixels * self.samples.count();
+        let buffers = [
+            ("colour", Some(self.color.len()), samples),
+            ("depth", Some(self.depth.len()), samples),
+            ("id", self.ids.as_ref().map(Vec::len), samples),
+            ("overdraw", self.overdraw.as_ref().map(Vec::len), pixels),
+            ("normal", self.normals.as_ref().map(Vec::len), pixels),
+        ];
+        for (buffer, len, expected) in buffers {
+            if let Some(len) = len.filter(|&len| len != expected) {
+                return Err(Error::TargetBuffer { buffer, len, expected });
+            }
+        }
+        Ok(())
+    }
+
     /// `width * height`.
     #[must_use]
     pub fn pixel_count(&self) -> usize {

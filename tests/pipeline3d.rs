@@ -548,3 +548,49 @@ fn pipeline_covers_the_samples_window_triangles_cover() {
         }
     }
 }
+
+/// A target buffer replaced by one of another length (they are public fields) is an error
+/// from both draw calls and every backend, where drawing had indexed past it; one of the
+/// right length is drawn into as before.
+#[test]
+fn replaced_target_buffers_of_another_length_are_errors() {
+    use trirast::render::{Backend, RenderOptions};
+    use trirast::{Error, Vertex};
+    let fresh = || Target::new(16, 16).unwrap().with_ids().with_overdraw().with_normals();
+    type Break = fn(&mut Target);
+    let breaks: [(&str, Break); 6] = [
+        ("colour", |t| t.color.truncate(10)),
+        ("depth", |t| t.depth.push(1.0)),
+        ("id", |t| t.ids = Some(Vec::new())),
+        ("overdraw", |t| t.overdraw = Some(vec![0; 16 * 16 * 4])),
+        ("normal", |t| t.normals = Some(Vec::new())),
+        ("none", |_| {}),
+    ];
+    let v = |x: f32, y: f32| Vertex::new(x, y, 0.5, [255; 4]);
+    let triangles = [[v(0.0, 0.0), v(16.0, 0.0), v(0.0, 16.0)]];
+    let vs = |v: &Vec4| (*v, ());
+    let fs = |_: &Fragment<()>| Some(Vec4::ONE);
+    let corners = [Vec4::new(-1.0, -1.0, 0.5, 1.0), Vec4::new(1.0, -1.0, 0.5, 1.0), Vec4::Y];
+    for (buffer, break_it) in breaks {
+        for backend in [Backend::Reference, Backend::Tiled] {
+            let mut target = fresh();
+            break_it(&mut target);
+            let options = RenderOptions::default().with_backend(backend);
+            let drawn = trirast::draw(&mut target, &triangles, &options);
+            let piped = Pipeline::default().with_backend(backend).draw(
+                &mut target,
+                &vs,
+                &fs,
+                &corners,
+                &[[0, 1, 2]],
+            );
+            for result in [drawn.map(|_| ()), piped.map(|_| ())] {
+                match (buffer, result) {
+                    ("none", result) => result.unwrap(),
+                    (_, Err(Error::TargetBuffer { buffer: b, .. })) => assert_eq!(b, buffer),
+                    (_, other) => panic!("{buffer}: {other:?}"),
+                }
+            }
+        }
+    }
+}

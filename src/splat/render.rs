@@ -294,12 +294,19 @@ enum Visit {
 }
 
 /// Renders `tree` seen by `camera` into `target` (which the caller clears).
+///
+/// # Panics
+/// If one of `target`'s buffers was replaced by one of another length
+/// ([`Target::check_buffers`] says which): drawing would index past it.
 pub fn render(
     target: &mut Target,
     tree: &SplatTree,
     camera: &Camera,
     options: &SplatOptions,
 ) -> SplatStats {
+    if let Err(e) = target.check_buffers() {
+        panic!("splat render: {e}");
+    }
     if tree.nodes.is_empty() {
         return SplatStats::default();
     }
