@@ -54,6 +54,9 @@ pub fn write_png_with(
 
 /// Writes `data` (row-major, `height * width` elements) as a little-endian `.npy` array of
 /// shape (height, width) that `numpy.load` opens.
+///
+/// # Errors
+/// As [`write_npy_shaped`].
 pub fn write_npy<T>(path: &Path, data: &[T], width: u32, height: u32) -> Result<(), Error>
 where
     T: npyz::Serialize + npyz::AutoSerialize,
@@ -63,14 +66,21 @@ where
 
 /// Writes `data` (row-major) as a little-endian `.npy` array of the given shape.
 ///
-/// # Panics
-/// If the shape's element count differs from `data.len()`.
+/// # Errors
+/// [`Error::Io`] when the file cannot be written, or (kind `InvalidInput`, nothing written)
+/// when the shape's element count is not `data.len()`.
 pub fn write_npy_shaped<T>(path: &Path, data: &[T], shape: &[u64]) -> Result<(), Error>
 where
     T: npyz::Serialize + npyz::AutoSerialize,
 {
-    assert_eq!(shape.iter().product::<u64>(), data.len() as u64, "npy shape and data disagree");
     let io = |e| Error::io(path, e);
+    // Checked: a product that wrapped to the data's length had passed with a header
+    // promising 2^64 elements.
+    let count = shape.iter().try_fold(1u64, |n, &side| n.checked_mul(side));
+    if count != Some(data.len() as u64) {
+        let message = format!("npy shape {shape:?} does not hold the {} values given", data.len());
+        return Err(io(std::io::Error::new(std::io::ErrorKind::InvalidInput, message)));
+    }
     let file = File::create(path).map_err(io)?;
     let mut buf = BufWriter::new(file);
     {
@@ -116,5 +126,21 @@ mod tests {
         assert_eq!(std::fs::read(&default).unwrap(), std::fs::read(dir.join("Fast.png")).unwrap());
         std::fs::remove_dir_all(&dir).unwrap();
         assert!(sizes[2] <= sizes[1], "best is no larger than balanced: {sizes:?}");
+    }
+
+    /// A shape that does not hold the data is an error, with no file written, also where its
+    /// product overflows (it had wrapped to the data's length: 0); one that does is written.
+    #[test]
+    fn npy_shapes_must_hold_the_data() {
+        let dir = std::env::temp_dir().join(format!("trirast-npy-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("a.npy");
+        let refused = |e: Error| matches!(e, Error::Io { source, .. } if source.kind() == std::io::ErrorKind::InvalidInput);
+        assert!(refused(write_npy(&path, &[1.0f32; 3], 2, 2).unwrap_err()));
+        assert!(refused(write_npy_shaped::<f32>(&path, &[], &[1 << 32, 1 << 32]).unwrap_err()));
+        assert!(!path.exists());
+        write_npy(&path, &[1.0f32; 6], 3, 2).unwrap();
+        write_npy_shaped::<f32>(&path, &[], &[0, 1 << 40]).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -98,9 +98,12 @@ fn smooth(width: u32, height: u32) -> Scene {
 }
 
 /// `count` random triangles (a few pixels to a fifth of the image across) with random colours
-/// and depths, from a fixed `seed`.
+/// and depths, from a fixed `seed`; none on an image with a side of 0 (nowhere to put them).
 #[must_use]
 pub fn soup(width: u32, height: u32, count: usize, seed: u64) -> Scene {
+    if width == 0 || height == 0 {
+        return Scene { triangles: Vec::new(), shading: Shading::Smooth };
+    }
     let mut rng = SmallRng::seed_from_u64(seed);
     let (w, h) = (width as f32, height as f32);
     let size = 0.2 * w.min(h);

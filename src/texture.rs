@@ -84,7 +84,9 @@ impl Texture {
     #[must_use]
     pub fn from_srgba8(width: u32, height: u32, data: &[u8]) -> Self {
         assert!(width > 0 && height > 0, "empty texture");
-        assert_eq!(data.len(), 4 * width as usize * height as usize, "texel data size");
+        // Checked: a product that wrapped (2^31 x 2^31) had matched empty data.
+        let size = (width as usize).checked_mul(height as usize).and_then(|n| n.checked_mul(4));
+        assert_eq!(Some(data.len()), size, "texel data size");
         let texels = data
             .chunks_exact(4)
             .map(|c| {

@@ -1323,3 +1323,16 @@ fn tiny_vertex_coloured_triangles_match_the_reference() {
         }
     }
 }
+
+/// The random soup of an image with a side of 0 is empty, where sampling its positions had
+/// panicked; the other demos stay degenerate triangles, as before.
+#[test]
+fn demo_scenes_of_an_empty_image_do_not_panic() {
+    use trirast::scene::{Demo, demo, soup};
+    for (w, h) in [(0, 10), (10, 0), (0, 0)] {
+        assert!(soup(w, h, 5, 1).triangles.is_empty());
+        for which in [Demo::Flat, Demo::Smooth, Demo::Soup] {
+            let _ = demo(which, w, h);
+        }
+    }
+}
