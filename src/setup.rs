@@ -251,14 +251,14 @@ impl TriangleSetup {
         Self::from_snapped(xy, cull)
     }
 
-    /// Sets up a triangle from already-snapped coordinates (each within `+-2^23`).
+    /// Sets up a triangle from already-snapped coordinates (each within `+-2^23`, else
+    /// [`Rejection::OutOfRange`]).
     #[inline(always)]
     pub fn from_snapped(xy: [[i64; 2]; 3], cull: CullMode) -> Result<Self, Rejection> {
         let signed = Self::signed_area2(xy, cull)?;
         let clockwise = signed > 0;
         let [p0, p1, p2] = xy;
         let bounds = sample_bounds(extent(xy), [0, 0]);
-        debug_assert!(xy.iter().flatten().all(|v| v.abs() <= 1 << 23), "not snapped: {xy:?}");
         let narrow = |[x, y]: [i64; 2]| [x as i32, y as i32];
         let xy = [narrow(p0), narrow(p1), narrow(p2)];
         Ok(Self { xy, area2: signed.abs(), clockwise, bounds })
@@ -269,7 +269,7 @@ impl TriangleSetup {
     /// those. The area and box are recomputed exactly as there, so the result is equal.
     #[inline(always)]
     #[must_use]
-    pub fn from_kept(xy: [[i32; 2]; 3], clockwise: bool) -> Self {
+    pub(crate) fn from_kept(xy: [[i32; 2]; 3], clockwise: bool) -> Self {
         let wide = widen(xy);
         let bounds = sample_bounds(extent(wide), [0, 0]);
         Self { xy, area2: twice_signed_area(wide).abs(), clockwise, bounds }
@@ -317,9 +317,14 @@ impl TriangleSetup {
     }
 
     /// The checks of [`TriangleSetup::from_snapped`], on their own: twice the signed area
-    /// (`> 0`: clockwise on a y-down screen), or why the triangle is rejected (zero area,
-    /// culled). Lets a front end drop triangles before paying for a full setup.
+    /// (`> 0`: clockwise on a y-down screen), or why the triangle is rejected (a coordinate
+    /// outside `+-2^23`, zero area, culled). Lets a front end drop triangles before paying for a full setup.
     pub fn signed_area2(xy: [[i64; 2]; 3], cull: CullMode) -> Result<i64, Rejection> {
+        // Outside it the products below overflow (a caller's coordinates not snapped).
+        let range = -(1 << 23)..=1 << 23;
+        if !xy.iter().flatten().all(|v| range.contains(v)) {
+            return Err(Rejection::OutOfRange);
+        }
         let signed = twice_signed_area(xy);
         if signed == 0 {
             return Err(Rejection::Degenerate);
@@ -377,7 +382,8 @@ impl TriangleSetup {
 
     /// Unbiased edge values `(E_1, E_2)` at fixed-point `(x, y)`, computed relative to vertex 0
     /// (which lies on both edges) so that they are exact integers below 2^49: `E_i / area2`
-    /// is the barycentric weight of vertex `i`.
+    /// is the barycentric weight of vertex `i`. For points within the fixed-point range
+    /// (`+-2^23`, where every pixel of a target lies), as the products must stay in `i64`.
     #[inline]
     #[must_use]
     pub fn barycentric_numerators(&self, x: i64, y: i64) -> (i64, i64) {
@@ -563,6 +569,14 @@ mod tests {
         assert_eq!(TriangleSetup::new(&nan, CullMode::None).err(), Some(Rejection::NonFinite));
         let far = tri([[0.0, 0.0], [40000.0, 0.0], [0.0, 10.0]]);
         assert_eq!(TriangleSetup::new(&far, CullMode::None).err(), Some(Rejection::OutOfRange));
+        // Snapped coordinates given directly: outside +-2^23 the area's products overflowed.
+        let edge = 1 << 23;
+        let within = [[-edge, -edge], [edge, -edge], [-edge, edge]];
+        assert!(TriangleSetup::from_snapped(within, CullMode::None).is_ok());
+        for far in [[[1 << 40, 0], [0, 1 << 40], [0, 0]], [[0, 0], [edge + 1, 0], [0, 1]]] {
+            let refused = TriangleSetup::from_snapped(far, CullMode::None);
+            assert_eq!(refused.err(), Some(Rejection::OutOfRange), "{far:?}");
+        }
     }
 
     #[test]
