@@ -1224,10 +1224,21 @@ impl FrontEnd {
             emit(Err(Skipped::Rejected(Rejection::NonFinite)));
             return;
         }
-        let polygon = self.volume.clip(std::array::from_fn(|k| ClipVertex {
-            position: positions[k],
-            varyings: input[k].varyings,
-        }));
+        let clip = |scale: f32| {
+            self.volume.clip(std::array::from_fn(|k| ClipVertex {
+                position: positions[k] * scale,
+                varyings: input[k].varyings,
+            }))
+        };
+        let mut polygon = clip(1.0);
+        if !polygon.iter().all(|v| v.position.is_finite()) {
+            // Finite positions near `f32::MAX` overflowed the clip's sums and differences: a
+            // finite triangle had become a fan of non-finite pieces, drawn as nothing and
+            // counted once each. Scaled by a power of two (exact) they fit, and they are the
+            // same triangle: the projection, depth and perspective weights are ratios of
+            // them (only the `w >= MIN_W` plane, a constant, moves with the scale).
+            polygon = clip(fitting_scale(&positions));
+        }
         if polygon.is_empty() {
             // Entirely outside the view volume: counted with the culled.
             emit(Err(Skipped::Rejected(Rejection::Culled)));
@@ -1494,6 +1505,16 @@ impl Viewport {
             color: [255; 4],
         }
     }
+}
+
+/// The power of two that brings the largest magnitude of `positions` (finite) to about
+/// 2^100, where the clip's sums and differences of two coordinates cannot overflow.
+fn fitting_scale(positions: &[Vec4; 3]) -> f32 {
+    let largest = positions.iter().map(|p| p.abs().max_element()).fold(0.0f32, f32::max);
+    let exponent = ((largest.to_bits() >> 23) & 0xff) as i32 - 127;
+    // 2^(100 - exponent), built from its bits: exact, and a normal number for any finite
+    // `largest` at or above 2^100 (the only ones that overflow).
+    f32::from_bits(((127 + 100 - exponent.max(100)) as u32) << 23)
 }
 
 #[cfg(test)]

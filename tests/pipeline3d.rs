@@ -472,6 +472,39 @@ fn non_finite_vertices_drop_their_triangle_once() {
     }
 }
 
+/// A finite triangle with coordinates near `f32::MAX` crossing the clip volume is drawn as
+/// the same triangle scaled by a power of two (which changes no ratio the pipeline uses),
+/// where the clip's overflows had made it a fan of non-finite pieces, drawn as nothing and
+/// each counted.
+#[test]
+fn huge_finite_triangles_are_clipped_as_their_scaled_copies() {
+    use trirast::render::Backend;
+    let huge = [
+        Vec4::new(0.0, 0.0, 0.5, 1.0),
+        Vec4::new(3e38, 3e38, -3e38, 3e38),
+        Vec4::new(-3e38, 0.0, 3e38, 3e38),
+    ];
+    // Largest magnitude 3e38, in [2^127, 2^128): scaled by 2^(100 - 127).
+    let scale = 2f32.powi(-27);
+    let scaled = huge.map(|p| p * scale);
+    for backend in [Backend::Reference, Backend::Tiled] {
+        let draw = |vertices: &[Vec4; 3]| {
+            let mut target = Target::new(W, H).unwrap().with_ids();
+            let pipeline = Pipeline::default().with_cull(FaceCull::None).with_backend(backend);
+            let vs = |v: &Vec4| (*v, ());
+            let fs = |_: &Fragment<()>| Some(Vec4::ONE);
+            let stats = pipeline.draw(&mut target, &vs, &fs, vertices, &[[0, 1, 2]]).unwrap();
+            (stats, target)
+        };
+        let ((stats, target), (_, reference)) = (draw(&huge), draw(&scaled));
+        // Rasterized counts the clipped fan's pieces.
+        assert!(stats.non_finite == 0 && stats.rasterized > 0, "{backend:?}: {stats:?}");
+        assert!(target.ids.as_ref().unwrap().contains(&0), "{backend:?}: nothing drawn");
+        assert_eq!(target.ids, reference.ids, "{backend:?}");
+        assert_eq!(target.depth, reference.depth, "{backend:?}");
+    }
+}
+
 /// The 3D pipeline covers exactly the samples the window-space path covers, given the same
 /// triangles in clip space with `w = 1` (target sides powers of two, vertices on the 1/256
 /// grid: the viewport maps them back exactly). Pixel-sized and sub-pixel triangles, at 1x, 4x
