@@ -595,7 +595,15 @@ pub(crate) struct TileGrid {
 
 impl TileGrid {
     /// The tiles of a `width x height` target.
+    ///
+    /// # Panics
+    /// If a side is above [`crate::fixed::MAX_TARGET_SIZE`].
     pub(crate) fn of_size(width: u32, height: u32) -> Self {
+        let largest = crate::fixed::MAX_TARGET_SIZE;
+        assert!(
+            width.max(height) <= largest,
+            "a {width} x {height} target: sides are at most {largest}"
+        );
         let tiles_x = width.div_ceil(TILE);
         let tiles = tiles_x * height.div_ceil(TILE);
         Self { tiles_x, tiles, screen: PixelRect::of_target(width, height) }
@@ -648,6 +656,10 @@ impl Bins {
     /// Bins triangles whose (sample-inclusive) pixel bounds are `bounds`; bounds reaching
     /// outside the `width x height` target are clipped to it. Chunks are binned in parallel
     /// and merged in chunk order, so lists stay in submission order.
+    ///
+    /// # Panics
+    /// If a side is above a target's largest, 16384 (a list per tile is allocated: sides
+    /// of 2^21 had asked for 6 GB, larger ones overflowed the tile count).
     #[must_use]
     pub fn build(bounds: &[Option<PixelRect>], width: u32, height: u32) -> Self {
         Self::build_with(bounds.len(), |k| bounds[k], width, height)
@@ -655,6 +667,9 @@ impl Bins {
 
     /// [`Bins::build`] with the bounds of triangle `k` given by `bound(k)`, so that no
     /// intermediate array is allocated per batch.
+    ///
+    /// # Panics
+    /// As [`Bins::build`].
     #[must_use]
     pub fn build_with(
         len: usize,
@@ -1504,6 +1519,14 @@ mod tests {
     use std::sync::Mutex;
 
     use super::*;
+
+    /// Bins of a target larger than any target can be are refused with a message, where
+    /// sides of 2^21 had asked for 6 GB and larger ones overflowed the tile count.
+    #[test]
+    #[should_panic(expected = "sides are at most 16384")]
+    fn bins_of_an_impossible_target_are_refused() {
+        let _ = Bins::build(&[], 1 << 21, 1 << 21);
+    }
 
     /// Batches of records up to 64 bytes (window records, zero-sized ones) take [`BATCH`]
     /// triangles; larger records fewer, their bytes at most [`BATCH_BYTES`] and within a
