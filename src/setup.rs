@@ -318,7 +318,8 @@ impl TriangleSetup {
 
     /// The checks of [`TriangleSetup::from_snapped`], on their own: twice the signed area
     /// (`> 0`: clockwise on a y-down screen), or why the triangle is rejected (a coordinate
-    /// outside `+-2^23`, zero area, culled). Lets a front end drop triangles before paying for a full setup.
+    /// outside `+-2^23`, zero area, culled). Lets a front end drop triangles before paying
+    /// for a full setup.
     pub fn signed_area2(xy: [[i64; 2]; 3], cull: CullMode) -> Result<i64, Rejection> {
         // Outside it the products below overflow (a caller's coordinates not snapped).
         let range = -(1 << 23)..=1 << 23;

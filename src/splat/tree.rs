@@ -68,9 +68,10 @@ impl SplatTree {
 
     /// The children of node `i`: those of its range that follow it and lie within `nodes`,
     /// as a breadth-first tree's all do. A tree made by hand ([`SplatTree::new`], or `nodes`
-    /// changed) may have a range that does not; the walks over the tree (rendering, the
-    /// encoder) go through this, so such a range cannot send them past the nodes or round a
-    /// cycle (a node listing itself had made the renderer index past the end).
+    /// changed) may have a range that does not; the renderer walks the tree through this, so
+    /// such a range cannot send it past the nodes or round a cycle (a node listing itself had
+    /// made it index past the end). The encoder clips ranges its own way
+    /// ([`super::format::encode`]).
     #[must_use]
     pub fn children(&self, i: usize) -> std::ops::Range<usize> {
         let children = self.nodes[i].children();
