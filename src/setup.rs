@@ -213,7 +213,7 @@ impl PixelRect {
 /// triangle back from memory, and the 72 bytes they took were more than a quarter of a window
 /// triangle's record, then 192 bytes (a million small random triangles at 1x, two threads: 75
 /// -> 68-69 ms; the grid mesh, drawn in bands, 45 -> 42-43 ms). Window records now keep only
-/// the vertices and winding of it ([`TriangleSetup::from_kept`]).
+/// the vertices and winding of it (`TriangleSetup::from_kept`, crate-private).
 #[derive(Clone, Copy, Debug)]
 pub struct TriangleSetup {
     /// Snapped vertex positions, in the caller's order (within `+-2^23`: `i32` keeps the

@@ -1025,7 +1025,7 @@ impl NarrowEight {
 }
 
 /// Sets up eight window records (`records`) for the narrow kernel within `tile` at `level`
-/// into `out`, as the tile loop would one by one ([`TriangleSetup::from_kept`], the box
+/// into `out`, as the tile loop would one by one (`TriangleSetup::from_kept`, the box
 /// within the tile, [`TriangleSetup::edges_at`] its first pixel's centre,
 /// [`crate::shade::TriangleShader::span_parts_of`]): returns the lanes set up (bit `l`),
 /// those whose triangle's box is at most [`NARROW_COLUMNS`] wide and reaches the tile. Only
