@@ -1577,6 +1577,7 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
     } else {
         let cloud =
             reading(file, |report| trirast::splat::cloud::read_ply_reporting(file, report))?;
+        print_warnings(&cloud.warnings);
         let points = cloud.positions.len();
         let needed = points as u128 * BUILD_BYTES_PER_POINT;
         check_memory(|| format!("the hierarchy of {points} points"), needed)?;

@@ -38,6 +38,7 @@ fn random_cloud(rng: &mut SmallRng, n: usize, radii: bool) -> PointCloud {
         colors: Some((0..n).map(|_| [rng.random(), rng.random(), rng.random()]).collect()),
         normals: Some(normals),
         positions,
+        warnings: Vec::new(),
     }
 }
 
@@ -231,8 +232,13 @@ fn splat_sphere_covers_what_the_triangle_sphere_covers() {
             }
         })
         .collect();
-    let cloud =
-        PointCloud { normals: Some(positions.clone()), positions, colors: None, radii: None };
+    let cloud = PointCloud {
+        normals: Some(positions.clone()),
+        positions,
+        colors: None,
+        radii: None,
+        warnings: Vec::new(),
+    };
     let tree = SplatTree::build(&cloud).unwrap();
     let mut splat_target = Target::new(w, h).unwrap().with_ids();
     let stats = render::render(&mut splat_target, &tree, &camera, &SplatOptions::default());

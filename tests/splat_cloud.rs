@@ -80,7 +80,7 @@ fn random_cloud(seed: u64, n: usize, normals: bool, colors: bool, radii: bool) -
         }
         r
     });
-    PointCloud { positions, normals, colors, radii }
+    PointCloud { positions, normals, colors, radii, warnings: Vec::new() }
 }
 
 // ------------------------------------------------------------------------------------------
@@ -861,4 +861,38 @@ fn samples_shared_models_when_present() {
             assert!((len - 1.0).abs() < 1e-5, "{name}: normal {n:?}");
         }
     }
+}
+
+/// Colour channels outside their type's range (floats beyond 0..1, such as colours written
+/// from 0 to 255 as floats; integers beyond 0..255) are clamped as before, and now a warning
+/// naming the file says how many points and how far; a cloud within range has none.
+#[test]
+fn clamped_colour_channels_are_warned_of() {
+    let ply = |types: &str, rows: &str| {
+        format!(
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+             property float z\nproperty {types} red\nproperty {types} green\n\
+             property {types} blue\nend_header\n{rows}"
+        )
+    };
+    let name = Path::new("c.ply");
+    let within = ply("float", "0 0 0 0 0.5 1\n1 0 0 1 1 1\n0 1 0 0 0 0\n");
+    assert!(parse_ply(within.as_bytes(), name).unwrap().warnings.is_empty());
+    let floats = ply("float", "0 0 0 255 128 0\n1 0 0 1 1 1\n0 1 0 -0.5 0 NaN\n");
+    let cloud = parse_ply(floats.as_bytes(), name).unwrap();
+    assert_eq!(cloud.colors.as_ref().unwrap(), &[[255, 255, 0], [255; 3], [0; 3]]);
+    let want = "c.ply: 2 points have colour channels outside their type's range (from -0.5 to \
+                255): 0 to 1 for float colours, 0 to 255 for integer ones; they are clamped to it";
+    assert_eq!(cloud.warnings, [want]);
+    let integers = ply("int", "0 0 0 300 0 0\n1 0 0 255 255 255\n0 1 0 0 0 0\n");
+    let cloud = parse_ply(integers.as_bytes(), name).unwrap();
+    assert_eq!(cloud.colors.as_ref().unwrap()[0], [255, 0, 0]);
+    assert!(
+        cloud.warnings[0]
+            .starts_with("c.ply: 1 point has colour channels outside their type's range (300)"),
+        "{:?}",
+        cloud.warnings
+    );
+    let uchar = ply("uchar", "0 0 0 255 0 0\n1 0 0 255 255 255\n0 1 0 0 0 0\n");
+    assert!(parse_ply(uchar.as_bytes(), name).unwrap().warnings.is_empty());
 }

@@ -22,7 +22,8 @@
 //!   [`write_ply`] -> [`read_ply`] exact.
 //! - colours `red green blue` (also `r g b` and `diffuse_red ...`): `uchar` as it is, `ushort`
 //!   scaled from 0..65535, other integers clamped to 0..255, `float`/`double` taken as 0..1
-//!   (clamped) and rounded to 8 bits. `alpha` is allowed and ignored (splats are opaque).
+//!   (clamped) and rounded to 8 bits; a channel the clamp changed is counted in a warning
+//!   ([`PointCloud::warnings`]). `alpha` is allowed and ignored (splats are opaque).
 //! - `radius`: the splat radius in world units, finite and non-negative. `scale` and `size`
 //!   are deliberately not read: Gaussian-splat files store per-axis *log* scales under
 //!   `scale_0..2`, and `size` means a diameter or a pixel size depending on the tool, so
@@ -72,6 +73,9 @@ pub struct PointCloud {
     pub colors: Option<Vec<[u8; 3]>>,
     /// Splat radii, when known (world units).
     pub radii: Option<Vec<f32>>,
+    /// Problems that did not stop reading it (colours out of range, clamped), for the user
+    /// to see.
+    pub warnings: Vec<String>,
 }
 
 impl PointCloud {
@@ -148,7 +152,15 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, Error> {
 /// # Errors
 /// As [`read_ply`].
 pub fn read_ply_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<PointCloud, Error> {
-    read_file(path, report, parse_at)
+    read_file(path, report, parse_at).map(|cloud| naming(cloud, path))
+}
+
+/// `cloud` with its warnings naming `path`.
+fn naming(mut cloud: PointCloud, path: &Path) -> PointCloud {
+    for warning in &mut cloud.warnings {
+        *warning = format!("{}: {warning}", path.display());
+    }
+    cloud
 }
 
 /// Parses the contents of a PLY file as [`read_ply`] does; `path` only names the file in errors.
@@ -157,12 +169,15 @@ pub fn read_ply_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<PointClou
 /// # Errors
 /// [`Error::Parse`] naming `path` and the line or byte offset of the first problem.
 pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<PointCloud, Error> {
-    parse_with(bytes, bytes.len() as u64, path, parse_at)
+    parse_with(bytes, bytes.len() as u64, path, parse_at).map(|cloud| naming(cloud, path))
 }
 
-// Value slots of a vertex after the shared ones (`X`, `NX`, `RED`).
+// Value slots of a vertex after the shared ones (`X`, `NX`, `RED`): the radius, then per
+// colour channel its value as the file has it and whether that was out of its type's range.
 const RADIUS: usize = 9;
-const SLOTS: usize = 10;
+const RAW_RED: usize = 10;
+const OUT_RED: usize = 13;
+const SLOTS: usize = 16;
 
 fn slot(name: &str) -> Option<usize> {
     if let Some(k) = POSITION_NORMAL.iter().position(|n| *n == name) {
@@ -187,23 +202,32 @@ type Values = Row<Point>;
 impl Fields for Point {
     fn set(&mut self, name: &str, property: Property) -> bool {
         let Some(k) = slot(name) else { return false };
-        let value =
-            if (RED..RED + 3).contains(&k) { channel(&property) } else { scalar(&property) };
-        value.map(|v| self.values[k] = v).is_some()
+        if (RED..RED + 3).contains(&k) {
+            let Some((scaled, raw, outside)) = channel(&property) else { return false };
+            let c = k - RED;
+            self.values[k] = scaled;
+            (self.values[RAW_RED + c], self.values[OUT_RED + c]) = (raw, f32::from(outside));
+            return true;
+        }
+        scalar(&property).map(|v| self.values[k] = v).is_some()
     }
 }
 
 /// A colour channel on a 0..255 scale: `uchar` as it is, `ushort` / 257, floats * 255 (from
-/// 0..1), other integers clamped.
+/// 0..1), other integers clamped (NaN as 0); with the value as the file has it, and whether
+/// that lies outside its type's range (0..1 for floats, 0..255 for integers other than
+/// `ushort`), which the clamp hides.
 #[allow(clippy::cast_possible_truncation)]
-fn channel(p: &Property) -> Option<f32> {
-    let v = match *p {
-        Property::UShort(v) => f32::from(v) / 257.0,
-        Property::Float(v) => v.clamp(0.0, 1.0) * 255.0,
-        Property::Double(v) => (v.clamp(0.0, 1.0) * 255.0) as f32,
-        _ => scalar(p)?,
+fn channel(p: &Property) -> Option<(f32, f32, bool)> {
+    let raw = scalar(p)?;
+    let (v, range) = match *p {
+        Property::UShort(v) => (f32::from(v) / 257.0, 0.0..=65535.0),
+        Property::Float(v) => (v.clamp(0.0, 1.0) * 255.0, 0.0..=1.0),
+        Property::Double(v) => ((v.clamp(0.0, 1.0) * 255.0) as f32, 0.0..=1.0),
+        _ => (raw, 0.0..=255.0),
     };
-    Some(if v.is_nan() { 0.0 } else { v.clamp(0.0, 255.0) })
+    let scaled = if v.is_nan() { 0.0 } else { v.clamp(0.0, 255.0) };
+    Some((scaled, raw, !range.contains(&raw)))
 }
 
 /// Which of our attributes the `vertex` element has.
@@ -219,7 +243,8 @@ fn parse_at<R: Read>(source: &mut Source<R>, len: u64) -> Result<PointCloud, Fai
         format!("element `{element}` has two properties `{property}` (first at line {first})")
     })?;
     let layout = check_header(&ply)?;
-    let mut body = Body { layout, ..Body::default() };
+    let colours_outside = (0, f32::INFINITY, f32::NEG_INFINITY);
+    let mut body = Body { layout, colours_outside, ..Body::default() };
     ply.read_body(source, &mut body)?;
     Ok(body.into_cloud())
 }
@@ -249,6 +274,9 @@ struct Body {
     normals: Vec<[f32; 3]>,
     colors: Vec<[u8; 3]>,
     radii: Vec<f32>,
+    /// Points with a colour channel outside its type's range, and the smallest and largest
+    /// such values as the file has them.
+    colours_outside: (usize, f32, f32),
 }
 
 impl Sink for Body {
@@ -299,6 +327,13 @@ impl Sink for Body {
         }
         if self.layout.colors {
             self.colors.push([v[RED], v[RED + 1], v[RED + 2]].map(|c| c.round() as u8));
+            let outside = (0..3).filter(|&c| v[OUT_RED + c] != 0.0).map(|c| v[RAW_RED + c]);
+            let (count, low, high) = &mut self.colours_outside;
+            let before = *count;
+            for raw in outside {
+                (*low, *high) = (low.min(raw), high.max(raw));
+                *count = before + 1;
+            }
         }
         Ok(())
     }
@@ -306,11 +341,26 @@ impl Sink for Body {
 
 impl Body {
     fn into_cloud(self) -> PointCloud {
+        let (outside, low, high) = self.colours_outside;
+        let warnings = (outside > 0).then(|| {
+            let what = if outside == 1 { "point has" } else { "points have" };
+            // The extremes, where not NaN (NaN has none).
+            let range = match (low.is_finite(), high.is_finite()) {
+                (true, true) if low < high => format!(" (from {low} to {high})"),
+                (true, _) => format!(" ({low})"),
+                _ => String::new(),
+            };
+            format!(
+                "{outside} {what} colour channels outside their type's range{range}: 0 to 1 \
+                 for float colours, 0 to 255 for integer ones; they are clamped to it"
+            )
+        });
         PointCloud {
             positions: self.positions,
             normals: self.layout.normals.then_some(self.normals),
             colors: self.layout.colors.then_some(self.colors),
             radii: self.layout.radii.then_some(self.radii),
+            warnings: warnings.into_iter().collect(),
         }
     }
 }
@@ -484,6 +534,7 @@ fn sample(
             normals: Some(Vec::new()),
             colors: Some(Vec::new()),
             radii: Some(Vec::new()),
+            warnings: Vec::new(),
         });
     }
     // The error names the bytes of all four arrays, whichever could not be had.
@@ -512,6 +563,7 @@ fn sample(
         normals: Some(normals),
         colors: Some(colors),
         radii: Some(try_filled(n, radius, &what).map_err(all)?),
+        warnings: Vec::new(),
     })
 }
 

@@ -990,6 +990,7 @@ mod tests {
             colors: Some((0..n).map(|i| [i as u8, 7, 200]).collect()),
             positions,
             radii: None,
+            warnings: Vec::new(),
         };
         SplatTree::build(&cloud).unwrap()
     }
