@@ -38,7 +38,7 @@ fn random_cloud(rng: &mut SmallRng, n: usize, radii: bool) -> PointCloud {
         colors: Some((0..n).map(|_| [rng.random(), rng.random(), rng.random()]).collect()),
         normals: Some(normals),
         positions,
-        warnings: Vec::new(),
+        ..PointCloud::default()
     }
 }
 
@@ -232,13 +232,7 @@ fn splat_sphere_covers_what_the_triangle_sphere_covers() {
             }
         })
         .collect();
-    let cloud = PointCloud {
-        normals: Some(positions.clone()),
-        positions,
-        colors: None,
-        radii: None,
-        warnings: Vec::new(),
-    };
+    let cloud = PointCloud { normals: Some(positions.clone()), positions, ..PointCloud::default() };
     let tree = SplatTree::build(&cloud).unwrap();
     let mut splat_target = Target::new(w, h).unwrap().with_ids();
     let stats = render::render(&mut splat_target, &tree, &camera, &SplatOptions::default());

@@ -80,7 +80,7 @@ fn random_cloud(seed: u64, n: usize, normals: bool, colors: bool, radii: bool) -
         }
         r
     });
-    PointCloud { positions, normals, colors, radii, warnings: Vec::new() }
+    PointCloud { positions, normals, colors, radii, ..PointCloud::default() }
 }
 
 // ------------------------------------------------------------------------------------------

@@ -434,8 +434,7 @@ fn cloud_of(pts: &[Point]) -> PointCloud {
         positions: pts.iter().map(|p| p.position).collect(),
         normals: Some(pts.iter().map(|p| p.normal).collect()),
         colors: Some(pts.iter().map(|p| p.color).collect()),
-        radii: None,
-        warnings: Vec::new(),
+        ..PointCloud::default()
     }
 }
 
@@ -596,9 +595,8 @@ fn isolated_points_keep_their_splat_size_through_the_file() {
     let cloud = PointCloud {
         normals: Some(vec![[0.0, 0.0, 1.0]; positions.len()]),
         positions,
-        colors: None,
         radii: Some(vec![0.0015; 40_030]),
-        warnings: Vec::new(),
+        ..PointCloud::default()
     };
     let tree = SplatTree::build(&cloud).unwrap();
     let decoded = format::decode(&format::encode(&tree).unwrap()).unwrap();
@@ -625,13 +623,8 @@ fn points_beside_huge_splats_keep_their_place_through_the_file() {
         let positions: Vec<[f32; 3]> =
             (0..1000).map(|_| [0; 3].map(|_| rng.unit() as f32 * 2.0 - 1.0)).collect();
         let radii = (0..1000).map(|i| if i % 100 == 0 { big } else { 0.01 }).collect();
-        let cloud = PointCloud {
-            positions,
-            normals: None,
-            colors: None,
-            radii: Some(radii),
-            warnings: Vec::new(),
-        };
+        let cloud =
+            PointCloud { positions, normals: None, radii: Some(radii), ..PointCloud::default() };
         let tree = SplatTree::build(&cloud).unwrap();
         let decoded = format::decode(&format::encode(&tree).unwrap()).unwrap();
         let small = tree

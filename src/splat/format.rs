@@ -989,8 +989,7 @@ mod tests {
             normals: Some(positions.iter().map(|_| [0.0, 0.6, 0.8]).collect()),
             colors: Some((0..n).map(|i| [i as u8, 7, 200]).collect()),
             positions,
-            radii: None,
-            warnings: Vec::new(),
+            ..PointCloud::default()
         };
         SplatTree::build(&cloud).unwrap()
     }

@@ -730,7 +730,7 @@ mod tests {
             positions,
             colors,
             radii: Some((0..n).map(|_| rng.random_range(0.002..0.03)).collect()),
-            warnings: Vec::new(),
+            ..PointCloud::default()
         };
         let tree = SplatTree::build(&cloud).unwrap();
         let camera = Camera {
@@ -822,13 +822,8 @@ mod tests {
                 v.normalize_or(Vec3::X).to_array()
             })
             .collect();
-        let cloud = PointCloud {
-            normals: Some(positions.clone()),
-            positions,
-            colors: None,
-            radii: None,
-            warnings: Vec::new(),
-        };
+        let cloud =
+            PointCloud { normals: Some(positions.clone()), positions, ..PointCloud::default() };
         let tree = SplatTree::build(&cloud).unwrap();
         let camera = Camera {
             eye: Vec3::new(0.0, 0.0, 2.2),
