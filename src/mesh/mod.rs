@@ -310,7 +310,9 @@ mod tests {
             );
             assert_eq!(load(&file).unwrap().warnings, std::slice::from_ref(&want));
             if ext == "obj" {
-                assert_eq!(obj::read(&file).unwrap().warnings, [want]);
+                assert_eq!(obj::read(&file).unwrap().warnings, std::slice::from_ref(&want));
+                let bytes = text(outside).into_bytes();
+                assert_eq!(obj::parse_mesh(&bytes, &file).unwrap().0.warnings, [want]);
             }
         }
         let file = dir.join("one.obj");

@@ -121,12 +121,19 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, Error> {
 
 /// [`read_mesh`], telling `report` how many bytes of the OBJ file it has read so far.
 pub(crate) fn read_mesh_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<Mesh, Error> {
-    let (mut mesh, materials, unknown) = build_mesh(open(path, report)?).map_err(|f| f.at(path))?;
+    let (mut mesh, materials) = built_mesh(open(path, report)?, path)?;
+    super::mtl::apply(&mut mesh, &materials, path)?;
+    Ok(mesh)
+}
+
+/// [`build_mesh`] of `input`, its warnings (unknown statements, colours out of range) in the
+/// mesh, `path` naming the file in them and in errors.
+fn built_mesh(input: impl BufRead, path: &Path) -> Result<(Mesh, MaterialStatements), Error> {
+    let (mut mesh, materials, unknown) = build_mesh(input).map_err(|f| f.at(path))?;
     mesh.warnings.extend(unknown.map(|u| u.warning(path.display())));
     let colours = mesh.colors.iter().flatten().copied();
     mesh.warnings.extend(super::colour_warning(path, colours));
-    super::mtl::apply(&mut mesh, &materials, path)?;
-    Ok(mesh)
+    Ok((mesh, materials))
 }
 
 /// `path` through [`crate::input::open`], buffered for reading line by line, telling `report`
@@ -157,9 +164,7 @@ pub fn parse(bytes: &[u8]) -> Result<ObjMesh, (usize, String)> {
 /// the materials: the mesh [`to_mesh`] makes of [`parse`]'s result (it is the reference this
 /// is tested against), and the material statements. `path` only names the file in errors.
 pub fn parse_mesh(bytes: &[u8], path: &Path) -> Result<(Mesh, MaterialStatements), Error> {
-    let (mut mesh, materials, unknown) = build_mesh(bytes).map_err(|f| f.at(path))?;
-    mesh.warnings.extend(unknown.map(|u| u.warning(path.display())));
-    Ok((mesh, materials))
+    built_mesh(bytes, path)
 }
 
 /// Converts parsed OBJ data to an indexed [`Mesh`]. When the file has `usemtl`, `materials`
