@@ -307,10 +307,19 @@ impl Target {
         buffer.iter().skip(s).step_by(n).copied().collect()
     }
 
-    /// Index of pixel `(x, y)` in per-pixel buffers (and in per-sample ones at 1x).
+    /// Index of pixel `(x, y)` in per-pixel buffers (and in per-sample ones at 1x). The pixel
+    /// must lie in the target: the index of one outside it is meaningless (a negative
+    /// coordinate wraps to an index past every buffer, so using it panics rather than
+    /// reading another pixel).
     #[inline]
     #[must_use]
     pub fn index(&self, x: i32, y: i32) -> usize {
+        debug_assert!(
+            (0..self.width as i32).contains(&x) && (0..self.height as i32).contains(&y),
+            "pixel ({x}, {y}) outside the {}x{} target",
+            self.width,
+            self.height
+        );
         y as usize * self.width as usize + x as usize
     }
 }
