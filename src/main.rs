@@ -646,6 +646,16 @@ const BUILD_BYTES_PER_POINT: u128 = 200;
 /// what was measured (`trirast pack`, 1 and 2 million points: 114).
 const ENCODE_BYTES_PER_POINT: u128 = 120;
 
+/// Peak bytes a triangle of `bench dense` takes (its sphere's vertices and indices), rounded
+/// up from what was measured (10 and 40 million triangles: 17.5): a billion triangles had
+/// grown past 4 GB unchecked.
+const DENSE_BYTES_PER_TRIANGLE: u128 = 20;
+
+/// Peak bytes a point of `splat-bench` takes (the sampled cloud, its hierarchy and the
+/// build's scratch), rounded up from what was measured (1 and 4 million points: 287):
+/// `--points 1073741824` had been stopped by the system's out-of-memory killer at 24 GB.
+const SPLAT_BENCH_BYTES_PER_POINT: u128 = 300;
+
 /// Bytes this process can still have without being stopped or pushing others out: Linux's
 /// estimate of allocatable memory (`MemAvailable`, reclaimable caches included) plus free
 /// swap, less where a control group above the process sets a lower limit, or the process's
@@ -1359,6 +1369,10 @@ fn bench(
         .build()
         .map_err(|e| usage(format!("cannot start {threads} threads: {e}")))?;
     let scenes = bench_scenes(scenes);
+    if scenes.contains(&trirast::bench::BenchScene::Dense) {
+        let needed = dense_triangles as u128 * DENSE_BYTES_PER_TRIANGLE;
+        check_memory(|| format!("the dense scene of {dense_triangles} triangles"), needed)?;
+    }
     // What the kernels run on, so that figures from different machines can be told apart.
     let simd = trirast::simd::SimdLevel::detect();
     if !json {
@@ -1446,6 +1460,12 @@ fn splat_bench(points: &[usize], threads: Option<usize>, frames: usize) -> Resul
         .map_err(|e| usage(format!("cannot start {threads} threads: {e}")))?;
     let counts =
         if points.is_empty() { trirast::bench::SPLAT_COUNTS.to_vec() } else { points.to_vec() };
+    // The largest count, refused before any is timed.
+    let most = counts.iter().copied().max().unwrap_or(0);
+    check_memory(
+        || format!("the splat benchmark of {most} points"),
+        most as u128 * SPLAT_BENCH_BYTES_PER_POINT,
+    )?;
     say!(
         "{:>10} {:>10} {:>10} {:>12} {:>8} {:>8} {:>10} {:>9} {:>4}",
         "points",

@@ -935,6 +935,36 @@ fn absurd_counts_and_angles_are_usage_errors() {
     assert!(trirast::bench::run_splats(0, 1).is_err());
 }
 
+/// The benchmarks that build what a count asks for refuse, before they start, a count the
+/// memory left cannot hold: `splat-bench --points 1073741824` (2^30, allowed) had grown to
+/// 24 GB and been stopped by the system's out-of-memory killer without a word. Run under an
+/// address-space limit of 4 GB, which the check reads, so the refusal does not depend on the
+/// machine's memory.
+#[test]
+fn benchmarks_too_large_for_memory_are_refused_up_front() {
+    let dir = TempDir::new("bench-memory");
+    let cases: [(&[&str], &str); 2] = [
+        (&["splat-bench", "--points", "1073741824", "--frames", "1"], "the splat benchmark of"),
+        (
+            &["bench", "dense", "--dense-triangles", "1000000000", "--frames", "1"],
+            "the dense scene",
+        ),
+    ];
+    for (args, what) in cases {
+        let out = Command::new("sh")
+            .arg("-c")
+            .arg("ulimit -v 4000000 && exec \"$0\" \"$@\"")
+            .arg(env!("CARGO_BIN_EXE_trirast"))
+            .args(args)
+            .current_dir(&dir.0)
+            .output()
+            .expect("failed to start sh");
+        let err = stderr_of(&out);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(what) && err.contains("GiB is available"), "{args:?}: {err}");
+    }
+}
+
 /// Output files are checked before anything is rendered: two options naming one file (the
 /// second overwrote the first, which then held an `.npy` under a `.png` name), a missing
 /// directory (found only after some files were written), an output that is a directory (a
