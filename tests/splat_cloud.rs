@@ -294,6 +294,37 @@ fn non_finite_normals_read_as_unknown() {
     assert_eq!(c.normals.unwrap(), vec![[0.0; 3]; 2]);
 }
 
+/// PCL writes the invalid points of an organised cloud (a depth camera's pixels without a
+/// depth) with `nan` positions, and often `nan` normals and radii with them. Those points are
+/// left out, every attribute with its point, and counted in one warning naming the first; a
+/// cloud of only such points reads as empty.
+#[test]
+fn points_with_non_finite_positions_are_left_out() {
+    let head = "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\n\
+                property float z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+                property uchar red\nproperty uchar green\nproperty uchar blue\n\
+                property float radius\nend_header\n";
+    let body = "nan nan nan nan nan nan 0 0 0 nan\n\
+                1 2 3 0 0 1 10 20 30 0.5\n\
+                4 inf 6 0 1 0 1 1 1 -1\n\
+                7 8 9 1 0 0 40 50 60 0.25\n\
+                0 0 1e39 0 0 1 9 9 9 1\n";
+    let path = Path::new("organised.ply");
+    let c = parse_ply(format!("{head}{body}").as_bytes(), path).unwrap();
+    assert_eq!(c.positions, [[1.0, 2.0, 3.0], [7.0, 8.0, 9.0]]);
+    assert_eq!(c.normals.unwrap(), [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]);
+    assert_eq!(c.colors.unwrap(), [[10, 20, 30], [40, 50, 60]]);
+    assert_eq!(c.radii.unwrap(), [0.5, 0.25]);
+    let want = "organised.ply: 3 points were left out for a position that is not finite (the \
+                first: vertex 0, line 15)";
+    assert_eq!(c.warnings, [want]);
+
+    let only = "nan nan nan 0 0 1 0 0 0 1\n".repeat(5);
+    let c = parse_ply(format!("{head}{only}").as_bytes(), path).unwrap();
+    assert!(c.is_empty() && c.normals.unwrap().is_empty() && c.radii.unwrap().is_empty());
+    assert_eq!(c.warnings.len(), 1);
+}
+
 // ------------------------------------------------------------------------------------------
 // Malformed files
 // ------------------------------------------------------------------------------------------
@@ -373,11 +404,11 @@ fn malformed_files_name_the_file_and_line_or_byte() {
     let e = error_of(&dir, "long.ply", format!("{XYZ}end_header\n1 2 3 4\n4 5 6\n").as_bytes(), 8);
     assert!(e.contains("found 4 values, but the header declares 3"), "{e}");
 
-    // A non-finite position, written as a word or as a value too large for `float`.
-    let e = error_of(&dir, "nan.ply", format!("{XYZ}end_header\n1 2 3\n4 NaN 6\n").as_bytes(), 9);
-    assert!(e.starts_with("vertex 1: position [4.0, NaN, 6.0] is not finite"), "{e}");
-    let e = error_of(&dir, "inf.ply", format!("{XYZ}end_header\n1 2 3\n4 1e39 6\n").as_bytes(), 9);
-    assert!(e.starts_with("vertex 1: position [4.0, inf, 6.0] is not finite"), "{e}");
+    // A point with a non-finite position is left out (PCL's invalid points) and warned of,
+    // but its other values must still be well formed, and the rest of the file too.
+    let src = format!("{XYZ}property float radius\nend_header\n1 2 3 1\nnan nan nan x\n");
+    let e = error_of(&dir, "nan_word.ply", src.as_bytes(), 10);
+    assert!(e.starts_with("`vertex` 1: not a list of numbers"), "{e}");
 
     let src = format!("{XYZ}property float radius\nend_header\n1 2 3 1\n4 5 6 -1\n");
     let e = error_of(&dir, "radius.ply", src.as_bytes(), 10);
@@ -398,14 +429,20 @@ fn malformed_files_name_the_file_and_line_or_byte() {
 fn malformed_binary_files_name_the_byte() {
     let dir = scratch("malformed_binary");
     for big in [false, true] {
-        let mut b = binary_xyz("3", big);
+        let mut b = binary_xyz("2", big);
         let body = b.bytes.len();
         b.f32(1.0).f32(2.0).f32(3.0).f32(4.0).f32(f32::INFINITY).f32(6.0);
-        let e = error_of(&dir, "inf.ply", &b.bytes, 0);
-        assert_eq!(
-            e,
-            format!("byte {}: vertex 1: position [4.0, inf, 6.0] is not finite", body + 12)
+        let path = dir.join("inf.ply");
+        fs::write(&path, &b.bytes).unwrap();
+        let cloud = read_ply(&path).unwrap();
+        assert_eq!(cloud.positions, [[1.0, 2.0, 3.0]]);
+        let want = format!(
+            "{}: 1 point was left out for a position that is not finite (the first: vertex 1, \
+             byte {})",
+            path.display(),
+            body + 12
         );
+        assert_eq!(cloud.warnings, [want]);
 
         // Truncated inside vertex 1: the error names where vertex 1 starts.
         let mut b = binary_xyz("2", big);

@@ -13,8 +13,10 @@
 //!
 //! From the `vertex` element (required) it reads:
 //!
-//! - `x y z` (required; any scalar type, converted to `f32`). A non-finite position is an
-//!   error naming the vertex: it would poison every bounding sphere above it.
+//! - `x y z` (required; any scalar type, converted to `f32`). A point whose position is not
+//!   finite is left out, with a warning counting such points and naming the first: it would
+//!   poison every bounding sphere above it, and PCL writes `nan` positions for the invalid
+//!   points of organised clouds (a depth camera's pixels without a depth).
 //! - `nx ny nz` (all three, or no normals). Normals are normalised on read, so a file with
 //!   scaled normals still gives unit normals; a zero normal stays zero (unknown), and so does a
 //!   non-finite one (PCL writes `nan` normals for points it could not estimate). A normal that
@@ -277,6 +279,8 @@ struct Body {
     /// Points with a colour channel outside its type's range, and the smallest and largest
     /// such values as the file has them.
     colours_outside: (usize, f32, f32),
+    /// Vertices left out for a non-finite position, and the first of them (index, where).
+    not_finite: (usize, Option<(usize, At)>),
 }
 
 impl Sink for Body {
@@ -309,7 +313,10 @@ impl Sink for Body {
         let v = &e.values;
         let p = [v[X], v[X + 1], v[X + 2]];
         if !p.iter().all(|c| c.is_finite()) {
-            return Err((at, format!("vertex {index}: position {p:?} is not finite")));
+            let (count, first) = &mut self.not_finite;
+            *count += 1;
+            first.get_or_insert((index, at));
+            return Ok(());
         }
         if self.layout.radii {
             let r = v[RADIUS];
@@ -355,13 +362,32 @@ impl Body {
                  for float colours, 0 to 255 for integer ones; they are clamped to it"
             )
         });
+        let skipped = match self.not_finite {
+            (count, Some((index, at))) => {
+                let what = if count == 1 { "point was" } else { "points were" };
+                Some(format!(
+                    "{count} {what} left out for a position that is not finite (the first: \
+                     vertex {index}, {})",
+                    at_text(at)
+                ))
+            }
+            _ => None,
+        };
         PointCloud {
             positions: self.positions,
             normals: self.layout.normals.then_some(self.normals),
             colors: self.layout.colors.then_some(self.colors),
             radii: self.layout.radii.then_some(self.radii),
-            warnings: warnings.into_iter().collect(),
+            warnings: skipped.into_iter().chain(warnings).collect(),
         }
+    }
+}
+
+/// Where a vertex is, for a warning: its line, or its byte offset in a binary file.
+fn at_text(at: At) -> String {
+    match at {
+        At::Line(line) => format!("line {line}"),
+        At::Byte(offset) => format!("byte {offset}"),
     }
 }
 
