@@ -2,15 +2,15 @@
 //!
 //! Hand-written, like the OBJ reader, so that errors name the line. Only what the pipeline uses
 //! is read: `newmtl name`, the diffuse colour `Kd r [g b]` and the diffuse texture
-//! `map_Kd [options] file` (the last token is the file; options such as `-s 1 1 1` before it are
-//! skipped). Other statements (`Ka`, `Ks`, `Ns`, `d`, `illum`, other maps, ...) are ignored.
+//! `map_Kd [options] file` (options such as `-s 1 1 1` are skipped; the file is the rest of
+//! the line, spaces and all, without the quotes some exporters put around it). Other statements (`Ka`, `Ks`, `Ns`, `d`, `illum`, other maps, ...) are ignored.
 //!
 //! Paths: `mtllib` names are resolved relative to the OBJ's directory, `map_Kd` names relative to
 //! the `.mtl`'s directory. A missing library, a missing or unreadable texture, a library or
 //! texture path that is not a regular file, a texture over [`Texture::load`]'s size limits and a
 //! `usemtl` naming no known material are warnings ([`Mesh::warnings`]), and the affected faces
-//! fall back to the material's `Kd` (or the default grey); a malformed `.mtl` is an error naming
-//! its line.
+//! fall back to the material's `Kd` (or the default grey); so is a line of a `.mtl` that cannot
+//! be read, which is named and ignored.
 
 use std::collections::HashMap;
 use std::io::ErrorKind;
@@ -45,12 +45,32 @@ pub fn read(path: &Path) -> Result<MaterialLibrary, Error> {
     })
 }
 
-/// Parses `.mtl` text, resolving `map_Kd` file names against `dir`; an error is
-/// `(line, message)`.
+/// Lines of a library that cannot be read and are each named in a warning; the ones after
+/// are counted in one more.
+const MAX_IGNORED_WARNINGS: usize = 20;
+
+/// Parses `.mtl` text, resolving `map_Kd` file names against `dir`. A line that cannot be
+/// read (`Kd 0,5 0,5 0,5`, `Kd` before any `newmtl`, bytes that are not UTF-8) is ignored
+/// with a warning naming it: a material library only colours the model, and one bad line had
+/// stopped the whole model from loading. The `Err` is kept for reading errors of the
+/// underlying lines, which a slice does not have.
 pub fn parse(bytes: &[u8], dir: &Path) -> Result<MaterialLibrary, (usize, String)> {
     let mut lib = MaterialLibrary::default();
+    let mut ignored = 0usize;
     let io = |e: std::io::Error| (0, e.to_string());
-    super::read_lines(bytes, io, |raw, line| statement(&mut lib, raw, line, dir))?;
+    super::read_lines(bytes, io, |raw, line| {
+        if let Err((line, message)) = statement(&mut lib, raw, line, dir) {
+            ignored += 1;
+            if ignored <= MAX_IGNORED_WARNINGS {
+                lib.warnings.push(format!("line {line}: {message}; the line is ignored"));
+            }
+        }
+        Ok(())
+    })?;
+    if let Some(more) = ignored.checked_sub(MAX_IGNORED_WARNINGS).filter(|&n| n > 0) {
+        let lines = if more == 1 { "line" } else { "lines" };
+        lib.warnings.push(format!("{more} more {lines} that cannot be read are ignored"));
+    }
     Ok(lib)
 }
 
@@ -117,7 +137,8 @@ fn statement(
         }
         material.diffuse = rgb;
     } else {
-        let Some(file) = args.last() else {
+        let rest = &text.trim_start()[keyword.len()..];
+        let Some(file) = texture_file(rest) else {
             return Err((line, "`map_Kd` needs a file name".into()));
         };
         material.diffuse_texture = Some(dir.join(file));
@@ -128,6 +149,40 @@ fn statement(
     Ok(())
 }
 
+/// The file name of a texture statement's arguments `rest`: what follows the options
+/// (`-s 1 1 1`, `-clamp on`, ...), to the end of the line, so that a name with spaces is
+/// whole (the last word alone had named another file); double quotes around it are removed.
+/// An option takes its arguments as the MTL format gives them, the optional ones (`-s u [v
+/// [w]]`) only when they are numbers.
+fn texture_file(mut rest: &str) -> Option<&str> {
+    fn split(text: &str) -> (&str, &str) {
+        let text = text.trim_start();
+        text.split_at(text.find(|c: char| c.is_ascii_whitespace()).unwrap_or(text.len()))
+    }
+    loop {
+        let (word, after) = split(rest);
+        // (required, at most) arguments.
+        let (required, most) = match word {
+            "-blendu" | "-blendv" | "-boost" | "-texres" | "-clamp" | "-bm" | "-imfchan"
+            | "-cc" | "-type" => (1, 1),
+            "-mm" => (1, 2),
+            "-o" | "-s" | "-t" => (1, 3),
+            _ => break,
+        };
+        rest = after;
+        for k in 0..most {
+            let (arg, after) = split(rest);
+            if arg.is_empty() || (k >= required && arg.parse::<f32>().is_err()) {
+                break;
+            }
+            rest = after;
+        }
+    }
+    let name = rest.trim();
+    let name = name.strip_prefix('"').and_then(|n| n.strip_suffix('"')).unwrap_or(name);
+    (!name.is_empty()).then_some(name)
+}
+
 /// Resolves an OBJ's materials from its material statements `obj`: loads its `mtllib` files
 /// (relative to `obj_path`'s directory) and fills in the colour and texture of every named
 /// material in `mesh.materials` (as made by [`super::obj::parse_mesh`] or
@@ -136,7 +191,8 @@ fn statement(
 /// defines (not reported when a library is missing: it was probably there), a texture that is
 /// missing, not a regular file, too large or whose header cannot be decoded (its
 /// `diffuse_texture` is then `None`, leaving the `Kd` colour). Materials keep the default grey
-/// when undefined. A malformed library is an error naming the `.mtl` file and line.
+/// when undefined. A library's lines that cannot be read are warnings naming the `.mtl` file
+/// and line (see [`parse`]).
 pub fn apply(mesh: &mut Mesh, obj: &MaterialStatements, obj_path: &Path) -> Result<(), Error> {
     let dir = obj_path.parent().unwrap_or_else(|| Path::new(""));
     let obj_name = obj_path.display();
@@ -172,7 +228,12 @@ pub fn apply(mesh: &mut Mesh, obj: &MaterialStatements, obj_path: &Path) -> Resu
                 Err(e) => return Err(e),
             };
             for w in lib.warnings {
-                mesh.warnings.push(format!("{}: {w}", file.display()));
+                // `file:line: ...`, as the OBJ reader's warnings name their lines.
+                let named = match w.strip_prefix("line ").and_then(|w| w.split_once(": ")) {
+                    Some((line, rest)) => format!("{}:{line}: {rest}", file.display()),
+                    None => format!("{}: {w}", file.display()),
+                };
+                mesh.warnings.push(named);
             }
             for (m, at) in lib.materials.into_iter().zip(lib.texture_lines) {
                 defined.entry(m.name.clone()).or_insert_with(|| (m, file.clone(), at));
@@ -281,8 +342,41 @@ mod tests {
         assert!(lib.warnings[0].starts_with(clamped), "{:?}", lib.warnings);
     }
 
+    /// A texture's name is the rest of the line after the options, so names with spaces are
+    /// whole (the last word alone had named another file), quoted or not; optional option
+    /// arguments are taken only when they are numbers.
     #[test]
-    fn errors_name_the_line() {
+    fn texture_names_are_the_rest_of_the_line() {
+        let cases = [
+            ("map_Kd my dir/blue tex.png", "my dir/blue tex.png"),
+            ("map_Kd \"blue tex.png\"", "blue tex.png"),
+            ("map_Kd   -s 2 2 -clamp on  blue tex.png  ", "blue tex.png"),
+            ("map_Kd -o 0.5 -mm 0 1 -bm 2 a.png", "a.png"),
+            ("map_Kd -s 1 2 3 4.png", "4.png"),
+            (
+                "map_Kd -imfchan r -cc off -texres 512 -blendu on -blendv off -boost 1 t.png",
+                "t.png",
+            ),
+            ("map_Kd -unknown t.png", "-unknown t.png"),
+            ("map_Kd plain.png", "plain.png"),
+        ];
+        for (statement, want) in cases {
+            let lib = parse(format!("newmtl a\n{statement}\n").as_bytes(), Path::new("d")).unwrap();
+            let got = lib.materials[0].diffuse_texture.clone();
+            assert_eq!(got, Some(Path::new("d").join(want)), "{statement}");
+        }
+        for statement in ["map_Kd -s 1 1 1", "map_Kd -clamp on", "map_Kd \"\""] {
+            let lib = parse(format!("newmtl a\n{statement}\n").as_bytes(), Path::new("")).unwrap();
+            let want = "line 2: `map_Kd` needs a file name; the line is ignored";
+            assert_eq!(lib.warnings, [want], "{statement}");
+            assert_eq!(lib.materials[0].diffuse_texture, None);
+        }
+    }
+
+    /// A line that cannot be read is ignored with a warning naming it, and the rest of the
+    /// library is read: the material before it keeps what it had, the one after is whole.
+    #[test]
+    fn lines_that_cannot_be_read_are_warned_of_and_ignored() {
         let cases: &[(&[u8], usize, &str)] = &[
             (b"Kd 1 1 1\n", 1, "before any `newmtl`"),
             (b"newmtl a\nKd 1 x 1\n", 2, "found `x`"),
@@ -290,11 +384,28 @@ mod tests {
             (b"newmtl\n", 1, "needs a material name"),
             (b"newmtl a\nmap_Kd\n", 2, "needs a file name"),
             (b"newmtl a\nKd nan 0 0\n", 2, "finite"),
+            (b"newmtl a\nKd 0,5 0,5 0,5\n", 2, "found `0,5`"),
+            (b"newmtl a\nKd 0.5 0.5 0.5 1.0\n", 2, "found 4 numbers"),
+            (b"newmtl a\nKd 1 1 1 \xe9\n", 2, "UTF-8"),
         ];
         for (src, line, needle) in cases {
-            let (l, msg) = parse(src, Path::new("")).unwrap_err();
-            assert_eq!(l, *line, "{msg}");
-            assert!(msg.contains(needle), "{msg:?} should contain {needle:?}");
+            let mut text = src.to_vec();
+            text.extend_from_slice(b"newmtl z\nKd 0.25 0.5 0.75\nmap_Kd z.png\n");
+            let lib = parse(&text, Path::new("")).unwrap();
+            assert_eq!(lib.warnings.len(), 1, "{:?}", lib.warnings);
+            let w = &lib.warnings[0];
+            assert!(w.starts_with(&format!("line {line}: ")), "{w}");
+            assert!(w.contains(needle) && w.ends_with("; the line is ignored"), "{w}: {needle}");
+            let z = lib.materials.last().unwrap();
+            assert_eq!((z.name.as_str(), z.diffuse), ("z", [0.25, 0.5, 0.75]));
+            assert_eq!(z.diffuse_texture.as_deref(), Some(Path::new("z.png")));
+            if let Some(a) = lib.materials.iter().find(|m| m.name == "a") {
+                assert_eq!((a.diffuse, &a.diffuse_texture), (Material::default().diffuse, &None));
+            }
         }
+        // Twenty lines are named, the rest counted.
+        let lib = parse("Kd 1\n".repeat(25).as_bytes(), Path::new("")).unwrap();
+        assert_eq!(lib.warnings.len(), 21);
+        assert_eq!(lib.warnings[20], "5 more lines that cannot be read are ignored");
     }
 }
