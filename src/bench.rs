@@ -1,10 +1,10 @@
 //! Built-in benchmark scenes and the timing loop behind `trirast bench`.
 //!
-//! Every scene is generated in code (the bunny reads `../shared/models/stanford-bunny.obj` when
-//! it exists and otherwise generates a mesh of the same triangle count, and says which).
+//! Every scene is generated in code (the bunny reads the Stanford bunny when [`bunny_path`]
+//! finds it and otherwise generates a mesh of the same triangle count, and says which).
 //! Timings are render time only: scene generation and loading are excluded.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use glam::{Vec3, Vec4};
@@ -127,6 +127,23 @@ enum Prepared {
     },
 }
 
+/// The Stanford bunny the bunny scene and the splat benchmark read, where one is found:
+/// `stanford-bunny.obj` in the directory `TRIRAST_MODELS` names, or in a `shared/models`
+/// directory beside the working directory (`../shared/models`) or beside a directory above
+/// the executable (a build of this repository's, where `shared` lies beside it), so that
+/// the scenes do not change with the directory the command is run from.
+#[must_use]
+pub fn bunny_path() -> Option<PathBuf> {
+    const NAME: &str = "stanford-bunny.obj";
+    if let Some(dir) = std::env::var_os("TRIRAST_MODELS") {
+        return Some(Path::new(&dir).join(NAME)).filter(|p| p.is_file());
+    }
+    let beside_cwd = std::env::current_dir().ok().map(|d| d.join("../shared/models"));
+    let exe = std::env::current_exe().ok();
+    let above_exe = exe.iter().flat_map(|e| e.ancestors().skip(1)).map(|a| a.join("shared/models"));
+    beside_cwd.into_iter().chain(above_exe).map(|d| d.join(NAME)).find(|p| p.is_file())
+}
+
 /// Size of the dense scene, overridable for quick runs.
 pub const DENSE_TRIANGLES: usize = 100_000_000;
 
@@ -137,9 +154,8 @@ fn prepare(
     let mut rng = SmallRng::seed_from_u64(2024);
     Ok(match scene {
         BenchScene::Bunny => {
-            let path = Path::new("../shared/models/stanford-bunny.obj");
-            let (mut mesh, source) = if path.exists() {
-                (crate::mesh::load(path)?, format!("{}", path.display()))
+            let (mut mesh, source) = if let Some(path) = bunny_path() {
+                (crate::mesh::load(&path)?, format!("{}", path.display()))
             } else {
                 (
                     scene::sphere_mesh(69_451)?,
@@ -499,9 +515,8 @@ pub struct SplatBenchResult {
 pub fn run_splats(points: usize, frames: usize) -> Result<SplatBenchResult, Error> {
     use crate::splat::render::{self as splat_render, SplatOptions};
     use crate::splat::{SplatTree, cloud, format};
-    let path = Path::new("../shared/models/stanford-bunny.obj");
-    let (mesh, source) = if path.exists() {
-        (crate::mesh::load(path)?, "stanford-bunny.obj".to_string())
+    let (mesh, source) = if let Some(path) = bunny_path() {
+        (crate::mesh::load(&path)?, format!("{}", path.display()))
     } else {
         (scene::sphere_mesh(69_451)?, "generated sphere (bunny not found)".to_string())
     };

@@ -1478,8 +1478,10 @@ fn splat_bench(points: &[usize], threads: Option<usize>, frames: usize) -> Resul
         "splats",
         "thr"
     );
+    let mut source = None;
     for n in counts {
         let r = pool.install(|| trirast::bench::run_splats(n, frames))?;
+        source.get_or_insert(r.source.clone());
         say!(
             "{:>10} {:>10} {:>10.0} {:>12} {:>8.2} {:>8.2} {:>10.2} {:>9} {:>4}",
             r.points,
@@ -1492,6 +1494,9 @@ fn splat_bench(points: &[usize], threads: Option<usize>, frames: usize) -> Resul
             r.splats,
             threads
         );
+    }
+    if let Some(source) = source {
+        say!("points sampled from {source}");
     }
     Ok(())
 }

@@ -39,7 +39,7 @@ const SEEDS: &[&[u8]] = &[
     // and exponents.
     b"f 1 2 3\nf 3 4 5 1 2\nv 1e1 2.5E0 -0.0\nv 1.5 +3 0\nv -1 -2 1e-3\nv 9 9 9\nv 3 3 3\n",
     // A larger fan with w values and relative indices only.
-    b"v 8 8 0.1 2\nv 12 8 0.2 0.5\nv 14 12 0.3 -1\nv 12 15 0.4 1\nv 8 15 0.5 3\n\
+    b"v 8 8 0.1 2\nv 12 8 0.2 0.5\nv 14 12 0.3 0.25\nv 12 15 0.4 1\nv 8 15 0.5 3\n\
       f -5 -4 -3\nf -5 -3 -2\nf -5 -2 -1\nvt 1 1\nvn 1 0 0\nf -5/-1/-1 -4/-1/-1 -3/-1/-1\n",
 ];
 
@@ -191,10 +191,21 @@ fn same_as_streamed(input: &[u8], parsed: &Result<ObjMesh, (usize, String)>) {
     let streamed = obj::parse_mesh(input, Path::new("f.obj"));
     match (parsed, streamed) {
         (Ok(obj), Ok((mut mesh, materials))) => {
-            // The same warnings, one naming the file, the other the line only.
-            let named: Vec<String> =
-                obj.warnings.iter().map(|w| format!("f.obj{}", &w[4..])).collect();
-            assert_eq!(std::mem::take(&mut mesh.warnings), named, "warnings");
+            // The same warnings, one naming the file, the other the line only; but colours
+            // outside [0, 1] are counted over the vertices the mesh keeps (those faces use),
+            // and over every vertex as written, so the mesh may have no such warning where
+            // the text has one.
+            let colours = |w: &String| w.contains(" components outside [0, 1]");
+            let named: Vec<String> = (obj.warnings.iter())
+                .filter(|w| !colours(w))
+                .map(|w| format!("f.obj{}", w.strip_prefix("line").expect("a line's warning")))
+                .collect();
+            let warnings = std::mem::take(&mut mesh.warnings);
+            let (coloured, others): (Vec<_>, Vec<_>) = warnings.into_iter().partition(colours);
+            assert_eq!(others, named, "warnings");
+            if !coloured.is_empty() {
+                assert!(obj.warnings.iter().any(colours), "{coloured:?}: {:?}", obj.warnings);
+            }
             assert_eq!(format!("{mesh:?}"), format!("{:?}", obj::to_mesh(obj)), "streamed mesh");
             assert_eq!(materials, obj.materials, "material statements");
         }
@@ -209,7 +220,7 @@ fn check_mesh(mesh: &ObjMesh, lines: usize) {
     let n = mesh.positions.len();
     assert_eq!(mesh.w.len(), n, "one w per position");
     assert_eq!(mesh.colors.len(), n, "one colour slot per position");
-    assert!(mesh.w.iter().all(|&w| w != 0.0), "w = 0 must be rejected");
+    assert!(mesh.w.iter().all(|&w| w > 0.0 || w.is_nan()), "w <= 0 must be rejected");
     assert_eq!(mesh.face_starts.first(), Some(&0));
     assert_eq!(mesh.face_starts.last().map(|&s| s as usize), Some(mesh.corners.len()));
     assert!(mesh.face_starts.windows(2).all(|w| w[1] >= w[0] + 3), "faces have 3+ corners");

@@ -190,7 +190,7 @@ impl<'a> Iterator for Words<'a> {
 /// among them), which are drawn clamped (NaN as 0), or `None`: a PLY file with `float`
 /// colours from 0 to 255 had been drawn white without a word.
 pub(crate) fn colour_warning<const N: usize>(
-    file: &Path,
+    file: impl std::fmt::Display,
     colours: impl IntoIterator<Item = [f32; N]>,
 ) -> Option<String> {
     let (mut outside, mut low, mut high) = (0usize, 0.0f32, 1.0f32);
@@ -213,8 +213,7 @@ pub(crate) fn colour_warning<const N: usize>(
         (false, false) => String::new(),
     };
     Some(format!(
-        "{}: {outside} {what} components outside [0, 1]{range}; they are drawn clamped to it",
-        file.display()
+        "{file}: {outside} {what} components outside [0, 1]{range}; they are drawn clamped to it"
     ))
 }
 

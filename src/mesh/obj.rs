@@ -3,7 +3,7 @@
 //! Hand-written rather than taken from `tobj` for two reasons that matter here: errors must name
 //! the line, and triangles must be numbered in file order (tobj regroups faces by object and
 //! material). Supported: `v x y z [w]` and `v x y z [w] r g b` (the colour extension; with
-//! `w`, for window-space scenes drawn in perspective), `vt`, `vn`, and faces of any size
+//! `w`, positive, for window-space scenes drawn in perspective), `vt`, `vn`, and faces of any size
 //! whose corners are `v`, `v/vt`, `v//vn` or `v/vt/vn`, with negative (relative) indices.
 //! `mtllib` and `usemtl` are recorded; [`read_mesh`] resolves them through [`super::mtl`].
 //! Other statements of the format (`o`, `g`, `s`, `l`, `p`, ...) are skipped; a keyword the
@@ -107,7 +107,7 @@ pub fn read(path: &Path) -> Result<ObjMesh, Error> {
     obj.materials = materials;
     obj.warnings.extend(unknown.map(|u| u.warning(path.display())));
     let colours = obj.colors.iter().flatten().copied();
-    obj.warnings.extend(super::colour_warning(path, colours));
+    obj.warnings.extend(super::colour_warning(path.display(), colours));
     Ok(obj)
 }
 
@@ -132,7 +132,7 @@ fn built_mesh(input: impl BufRead, path: &Path) -> Result<(Mesh, MaterialStateme
     let (mut mesh, materials, unknown) = build_mesh(input).map_err(|f| f.at(path))?;
     mesh.warnings.extend(unknown.map(|u| u.warning(path.display())));
     let colours = mesh.colors.iter().flatten().copied();
-    mesh.warnings.extend(super::colour_warning(path, colours));
+    mesh.warnings.extend(super::colour_warning(path.display(), colours));
     Ok((mesh, materials))
 }
 
@@ -146,7 +146,8 @@ fn open<'a>(
     Ok(BufReader::with_capacity(1 << 16, ReadProgress::new(file, report)))
 }
 
-/// Parses OBJ text as written; an error is `(line, message)`.
+/// Parses OBJ text as written; an error is `(line, message)`. Warnings name their line as
+/// `line:N:` and vertex colours outside [0, 1] as `OBJ text:`, where [`read`] names the file.
 pub fn parse(bytes: &[u8]) -> Result<ObjMesh, (usize, String)> {
     let mut obj = ObjMesh { face_starts: vec![0], ..ObjMesh::default() };
     let (materials, unknown) = read_statements(bytes, &mut obj).map_err(|fail| match fail {
@@ -157,6 +158,8 @@ pub fn parse(bytes: &[u8]) -> Result<ObjMesh, (usize, String)> {
     })?;
     obj.materials = materials;
     obj.warnings.extend(unknown.map(|u| u.warning("line")));
+    let colours = obj.colors.iter().flatten().copied();
+    obj.warnings.extend(super::colour_warning("OBJ text", colours));
     Ok(obj)
 }
 
@@ -475,8 +478,12 @@ impl Statements {
                         return Err(Fail::Parse(line, message));
                     }
                 };
-                if w == 0.0 {
-                    return Err(Fail::Parse(line, "`v` has w = 0".into()));
+                // A window vertex's w is its clip-space w, positive in front of the eye: a
+                // negative one had drawn colours jumping along a line and transparent pixels
+                // where the interpolated 1 / w crosses zero.
+                if w <= 0.0 {
+                    let message = format!("`v` has w = {w}; w must be positive");
+                    return Err(Fail::Parse(line, message));
                 }
                 if w.is_finite() && !w.recip().is_finite() {
                     // A window vertex's 1 / w: the rasterizer would drop its triangles as if
@@ -1124,7 +1131,9 @@ mod tests {
             (b"v 0 0 0\nf 1/2 1 1\n", 2, "past the last `vt`"),
             (b"v 0 0 0\nf 1/1/1/1 1 1\n", 2, "more than three"),
             (b"v 0 0 0\nf /1 1 1\n", 2, "no vertex index"),
-            (b"v 0 0 0 0\n", 1, "w = 0"),
+            (b"v 0 0 0 0\n", 1, "w = 0; w must be positive"),
+            (b"v 0 0 0 1\nv 0 0 0 -1 1 0 0\n", 2, "w = -1; w must be positive"),
+            (b"v 0 0 0 -0\n", 1, "w = -0; w must be positive"),
             (b"vn 0 0\n", 1, "`vn` takes"),
             (b"v 0 0 0\n\xff\n", 2, "UTF-8"),
             (b"v 0 0 0 # caf\xe9\nf 1 1 \xe9\n", 2, "UTF-8"),

@@ -55,7 +55,7 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, Error> {
 /// warning naming `path` where that changed any.
 fn clamped_colours(mut mesh: Mesh, path: &Path) -> Mesh {
     if let Some(colours) = &mut mesh.colors {
-        mesh.warnings.extend(super::colour_warning(path, colours.iter().copied()));
+        mesh.warnings.extend(super::colour_warning(path.display(), colours.iter().copied()));
         let unit = |c: f32| if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };
         colours.iter_mut().for_each(|c| *c = c.map(unit));
     }

@@ -760,7 +760,11 @@ mod tests {
         let from_ascii = parse_ply(ascii.as_bytes(), path).unwrap();
         assert_eq!(from_ascii, parse_ply(&binary, path).unwrap());
         assert_eq!(from_ascii.normals.as_ref().unwrap()[..3], [[0.0; 3]; 3], "unknown normals");
-        for bad in ["nan 2 3 0 0 1 1 2 3", "1 2 3 0 0 1 nan 2 3", "1 2 3 0 0 1 1 2 3 nan"] {
+        // A `nan` position is read as a binary file's NaN: the point is left out.
+        let text = header("ascii", 1) + "nan 2 3 0 0 1 1 2 3\n";
+        let cloud = parse_ply(text.as_bytes(), path).unwrap();
+        assert!(cloud.is_empty() && cloud.warnings[0].contains("(the first: vertex 0, line 14)"));
+        for bad in ["1 2 3 0 0 1 nan 2 3", "1 2 3 0 0 1 1 2 3 nan"] {
             let text = header("ascii", 1) + bad + "\n";
             let e = parse_ply(text.as_bytes(), path).unwrap_err().to_string();
             assert!(e.starts_with("c.ply:14:"), "{bad}: {e}");
