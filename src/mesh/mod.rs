@@ -147,24 +147,24 @@ fn without_bom(text: &[u8]) -> &[u8] {
     text.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(text)
 }
 
-/// The statement of an OBJ or MTL line `raw` (number `line`): the text before any `#`,
-/// trimmed. Only that text need be UTF-8: exporters write names in other encodings (Latin-1)
-/// into comments, and a file is not refused for them.
-pub(crate) fn statement_text(raw: &[u8], line: usize) -> Result<&str, (usize, String)> {
+/// The statement of an MTL line `raw`: the text before any `#`, trimmed, bytes that are not
+/// UTF-8 replaced (U+FFFD). Exporters write names in other encodings (Latin-1); a name so
+/// read still matches the OBJ's `usemtl`, whose words are converted the same way.
+pub(crate) fn statement_text(raw: &[u8]) -> std::borrow::Cow<'_, str> {
     let raw = memchr::memchr(b'#', raw).map_or(raw, |k| &raw[..k]);
-    let text = std::str::from_utf8(raw).map_err(|_| (line, "not valid UTF-8".to_string()))?;
-    Ok(text.trim())
+    match String::from_utf8_lossy(raw) {
+        std::borrow::Cow::Borrowed(text) => std::borrow::Cow::Borrowed(text.trim()),
+        std::borrow::Cow::Owned(text) => std::borrow::Cow::Owned(text.trim().to_string()),
+    }
 }
 
-/// The words of an OBJ line `raw` (number `line`): its bytes split at ASCII whitespace, up to
-/// any `#`. As in [`statement_text`], only the text before the `#` need be UTF-8; an ASCII
-/// line (nearly all) is not checked further, and its words stay bytes: making text of every
-/// line (`str::from_utf8`, then trimmed and split) had been a third of loading an OBJ.
-pub(crate) fn statement_words(raw: &[u8], line: usize) -> Result<Words<'_>, (usize, String)> {
-    if !raw.is_ascii() {
-        statement_text(raw, line)?;
-    }
-    Ok(Words { rest: raw })
+/// The words of an OBJ line `raw`: its bytes split at ASCII whitespace, up to any `#`. Words
+/// stay bytes, whatever their encoding: names (`o`, `usemtl`, `mtllib`) are made text with
+/// their bytes that are not UTF-8 replaced, and a number or index that is not ASCII is an
+/// error naming it; making text of every line (`str::from_utf8`, then trimmed and split) had
+/// been a third of loading an OBJ, and `o caf\xe9` (Latin-1) had been refused.
+pub(crate) fn statement_words(raw: &[u8]) -> Words<'_> {
+    Words { rest: raw }
 }
 
 /// [`statement_words`]' iterator.

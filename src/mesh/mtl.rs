@@ -81,7 +81,7 @@ fn statement(
     line: usize,
     dir: &Path,
 ) -> Result<(), (usize, String)> {
-    let text = super::statement_text(raw, line)?;
+    let text = super::statement_text(raw);
     let mut tokens = text.split_ascii_whitespace();
     let Some(keyword) = tokens.next() else {
         return Ok(());
@@ -386,7 +386,7 @@ mod tests {
             (b"newmtl a\nKd nan 0 0\n", 2, "finite"),
             (b"newmtl a\nKd 0,5 0,5 0,5\n", 2, "found `0,5`"),
             (b"newmtl a\nKd 0.5 0.5 0.5 1.0\n", 2, "found 4 numbers"),
-            (b"newmtl a\nKd 1 1 1 \xe9\n", 2, "UTF-8"),
+            (b"newmtl a\nKd 1 1 \xe9\n", 2, "found `\u{fffd}`"),
         ];
         for (src, line, needle) in cases {
             let mut text = src.to_vec();

@@ -462,7 +462,7 @@ impl Statements {
         line: usize,
         elements: &mut impl Elements,
     ) -> Result<(), Fail> {
-        let mut tokens = super::statement_words(raw, line)?;
+        let mut tokens = super::statement_words(raw);
         let Some(keyword) = tokens.next() else { return Ok(()) };
         match keyword {
             b"v" => {
@@ -527,7 +527,7 @@ impl Statements {
                 }
                 let n = self.corners.len();
                 if n < 3 {
-                    let n = super::statement_words(raw, line)?.count() - 1;
+                    let n = super::statement_words(raw).count() - 1;
                     let message = format!("a face needs 3 or more corners, found {n}");
                     return Err(Fail::Parse(line, message));
                 }
@@ -1119,6 +1119,27 @@ mod tests {
         }
     }
 
+    /// Names need not be UTF-8 (exporters write Latin-1): their other bytes are replaced, in
+    /// the OBJ and in its library alike, so the material is still found; `o caf\xe9` had
+    /// refused the file.
+    #[test]
+    fn names_that_are_not_utf8_are_read() {
+        let dir = std::env::temp_dir().join(format!("trirast-latin1-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("caf\u{e9}.mtl"), b"newmtl caf\xe9 au lait\nKd 0 0.5 1\n").unwrap();
+        let obj = b"mtllib caf\xc3\xa9.mtl\no caf\xe9\ng \xff\xfe\nv 0 0 0\nv 1 0 0\nv 0 1 0\n\
+                    usemtl caf\xe9 au lait\nf 1 2 3\n\xff\n";
+        let path = dir.join("m.obj");
+        std::fs::write(&path, obj).unwrap();
+        let mesh = read_mesh(&path).unwrap();
+        assert_eq!(mesh.triangles.len(), 1);
+        assert_eq!(mesh.materials[0].name, "caf\u{fffd} au lait");
+        assert_eq!(mesh.materials[0].diffuse, [0.0, 0.5, 1.0]);
+        let unknown = format!("{}:9: unknown statement `\u{fffd}` ignored", path.display());
+        assert_eq!(mesh.warnings, [unknown]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     #[test]
     fn errors_name_the_line() {
         let cases: &[(&[u8], usize, &str)] = &[
@@ -1135,8 +1156,8 @@ mod tests {
             (b"v 0 0 0 1\nv 0 0 0 -1 1 0 0\n", 2, "w = -1; w must be positive"),
             (b"v 0 0 0 -0\n", 1, "w = -0; w must be positive"),
             (b"vn 0 0\n", 1, "`vn` takes"),
-            (b"v 0 0 0\n\xff\n", 2, "UTF-8"),
-            (b"v 0 0 0 # caf\xe9\nf 1 1 \xe9\n", 2, "UTF-8"),
+            (b"v 0 0 0 # caf\xe9\nf 1 1 \xe9\n", 2, "found `\u{fffd}`"),
+            (b"v 0 0 \xe9\n", 1, "found `\u{fffd}`"),
             (b"v 0 0 0\nf 1 1 99999999999\n", 2, "too large"),
             (b"v 0 0 0\nf 1 1 00\n", 2, "index 0"),
         ];
