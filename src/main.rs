@@ -138,8 +138,8 @@ enum Command {
         /// Output point cloud (.ply, binary).
         #[arg(short, long, default_value = "cloud.ply")]
         output: PathBuf,
-        /// Random seed (the same seed gives the same points).
-        #[arg(long, default_value_t = 1)]
+        /// Random seed, 0 to 2^64 - 1 (the same seed gives the same points).
+        #[arg(long, default_value_t = 1, value_parser = parse_seed)]
         seed: u64,
     },
     /// Build the splat hierarchy of a point cloud and write it as a compact .tsplat file.
@@ -439,6 +439,18 @@ const MAX_DENSE_TRIANGLES: usize = 1_000_000_000;
 
 fn parse_dense(s: &str) -> Result<usize, String> {
     parse_count(s, "--dense-triangles", MAX_DENSE_TRIANGLES)
+}
+
+/// `n what`, `what` taking an `s` unless `n` is 1 ("1 points" had been printed).
+fn counted(n: usize, what: &str) -> String {
+    format!("{n} {what}{}", if n == 1 { "" } else { "s" })
+}
+
+/// `--seed`: a whole number that fits 64 bits (the parser's own message, "invalid digit
+/// found in string" for `-1`, named neither the option nor the range).
+fn parse_seed(s: &str) -> Result<u64, String> {
+    s.parse()
+        .map_err(|_| format!("--seed takes a whole number from 0 to {}, found `{s}`", u64::MAX))
 }
 
 /// A whole number from 1 to `max` for option `name`.
@@ -1585,8 +1597,8 @@ fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Er
     }
     trirast::splat::cloud::write_ply(output, &cloud)?;
     note!(
-        "sampled {} points in {:.0} ms; wrote {}",
-        cloud.positions.len(),
+        "sampled {} in {:.0} ms; wrote {}",
+        counted(cloud.positions.len(), "point"),
         start.elapsed().as_secs_f64() * 1e3,
         output.display()
     );
@@ -1609,9 +1621,9 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
         let start = std::time::Instant::now();
         let tree = trirast::splat::SplatTree::build(&cloud)?;
         note!(
-            "built the hierarchy of {} points ({} nodes) in {:.0} ms",
-            cloud.positions.len(),
-            tree.nodes.len(),
+            "built the hierarchy of {} ({}) in {:.0} ms",
+            counted(cloud.positions.len(), "point"),
+            counted(tree.nodes.len(), "node"),
             start.elapsed().as_secs_f64() * 1e3
         );
         tree
@@ -1638,10 +1650,10 @@ fn pack(file: &Path, output: &Path) -> Result<(), Error> {
     trirast::splat::format::write(output, &tree)?;
     let bytes = std::fs::metadata(output).map_err(|e| Error::io(output, e))?.len();
     note!(
-        "wrote {}: {} nodes, {} points, {} bytes ({:.2} bytes per node, {:.2} per point)",
+        "wrote {}: {}, {}, {} bytes ({:.2} bytes per node, {:.2} per point)",
         output.display(),
-        tree.nodes.len(),
-        tree.leaf_count(),
+        counted(tree.nodes.len(), "node"),
+        counted(tree.leaf_count(), "point"),
         bytes,
         bytes as f64 / tree.nodes.len().max(1) as f64,
         bytes as f64 / tree.leaf_count().max(1) as f64
@@ -1724,10 +1736,10 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
             " (coarser than --threshold: budget reached)"
         };
         note!(
-            "level {level} px: {} splats ({} points), {} nodes culled, {ms:.1} ms{note}",
-            stats.drawn,
+            "level {level} px: {} ({} of them single points), {} culled, {ms:.1} ms{note}",
+            counted(stats.drawn, "splat"),
             stats.leaves_drawn,
-            stats.culled,
+            counted(stats.culled, "node"),
         );
     }
     trirast::output::write_png_with(&args.output, &target, args.png_compression.into())?;
@@ -1836,12 +1848,11 @@ fn draw_timed(
     })?;
     report(&stats);
     if let (Some(fastest), Some(&median)) = (times.first(), times.get(times.len() / 2)) {
-        let count = |n: usize, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
         say!(
             "{}, {}: median {median:.2} ms, min {fastest:.2} ms per frame; \
              {:.1} Mtri/s, {:.3} G frag/s{}",
-            count(times.len(), "frame"),
-            count(rayon::current_num_threads(), "thread"),
+            counted(times.len(), "frame"),
+            counted(rayon::current_num_threads(), "thread"),
             stats.submitted as f64 / median / 1e3,
             stats.fragments as f64 / median / 1e6,
             target.last_schedule().map_or(String::new(), |s| format!("; {}", s.name()))

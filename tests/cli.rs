@@ -913,8 +913,9 @@ fn impossible_thread_counts_are_usage_errors() {
 fn absurd_counts_and_angles_are_usage_errors() {
     let dir = TempDir::new("absurd");
     let huge = "18446744073709551615";
-    let cases: [(&[&str], &str); 11] = [
+    let cases: [(&[&str], &str); 12] = [
         (&["bench", "fill", "--frames", huge], "--frames"),
+        (&["sample", "mesh.obj", "--seed", "-1"], "--seed takes a whole number from 0"),
         (&["bench", "fill", "--frames", "0"], "--frames"),
         (&["bench", "dense", "--dense-triangles", "10000000000"], "--dense-triangles"),
         (&["splat-bench", "--points", "0"], "--points"),
@@ -1279,6 +1280,10 @@ fn info_reports_counts_bounds_and_warnings() {
     let out = trirast_in(&dir.0, ["info", "off.obj"]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("centre [2.5e38, 0.5, 0.0] radius 500000"), "{text}");
+    // A directory is named as one, not as a file of an unknown format.
+    fs::create_dir(dir.path("models")).unwrap();
+    let err = run_err(&dir.0, ["info", "models"]);
+    assert!(err.contains("models: is a directory, not a regular file"), "{err}");
     dir.write("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
     let out = trirast_in(&dir.0, ["info", "points.obj"]);
     let text = String::from_utf8_lossy(&out.stdout);

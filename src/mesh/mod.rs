@@ -85,7 +85,11 @@ pub fn load_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<Mesh, Error> 
         Some("obj") => obj::read_mesh_reporting(path, report),
         Some("ply") => ply::read_reporting(path, report),
         Some("stl") => stl::read_reporting(path, report),
-        _ => Err(Error::UnsupportedFormat { path: path.to_path_buf() }),
+        _ => match crate::input::open(path) {
+            // A directory (or device) is named as such, not as an unknown format.
+            Err(e @ Error::NotRegularFile { .. }) => Err(e),
+            _ => Err(Error::UnsupportedFormat { path: path.to_path_buf() }),
+        },
     }
 }
 
