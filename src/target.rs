@@ -308,9 +308,8 @@ impl Target {
     }
 
     /// Index of pixel `(x, y)` in per-pixel buffers (and in per-sample ones at 1x). The pixel
-    /// must lie in the target: the index of one outside it is meaningless (a negative
-    /// coordinate wraps to an index past every buffer, so using it panics rather than
-    /// reading another pixel).
+    /// must lie in the target (asserted in debug builds): the index of one outside it is
+    /// meaningless, another pixel's or past the buffers (`(-1, 1)` wraps to `(width - 1, 0)`).
     #[inline]
     #[must_use]
     pub fn index(&self, x: i32, y: i32) -> usize {

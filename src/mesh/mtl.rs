@@ -3,7 +3,9 @@
 //! Hand-written, like the OBJ reader, so that errors name the line. Only what the pipeline uses
 //! is read: `newmtl name`, the diffuse colour `Kd r [g b]` and the diffuse texture
 //! `map_Kd [options] file` (options such as `-s 1 1 1` are skipped; the file is the rest of
-//! the line, spaces and all, without the quotes some exporters put around it). Other statements (`Ka`, `Ks`, `Ns`, `d`, `illum`, other maps, ...) are ignored.
+//! the line, spaces and all, without the quotes some exporters put around it). Other
+//! statements (`Ka`, `Ks`, `Ns`, `d`, `illum`, other maps, ...) are ignored. Bytes that are
+//! not UTF-8 (Latin-1 names) are replaced, as in the OBJ's words.
 //!
 //! Paths: `mtllib` names are resolved relative to the OBJ's directory, `map_Kd` names relative to
 //! the `.mtl`'s directory. A missing library, a missing or unreadable texture, a library or
@@ -50,7 +52,7 @@ pub fn read(path: &Path) -> Result<MaterialLibrary, Error> {
 const MAX_IGNORED_WARNINGS: usize = 20;
 
 /// Parses `.mtl` text, resolving `map_Kd` file names against `dir`. A line that cannot be
-/// read (`Kd 0,5 0,5 0,5`, `Kd` before any `newmtl`, bytes that are not UTF-8) is ignored
+/// read (`Kd 0,5 0,5 0,5`, `Kd` before any `newmtl`, `map_Kd` without a file) is ignored
 /// with a warning naming it: a material library only colours the model, and one bad line had
 /// stopped the whole model from loading. The `Err` is kept for reading errors of the
 /// underlying lines, which a slice does not have.
@@ -68,8 +70,9 @@ pub fn parse(bytes: &[u8], dir: &Path) -> Result<MaterialLibrary, (usize, String
         Ok(())
     })?;
     if let Some(more) = ignored.checked_sub(MAX_IGNORED_WARNINGS).filter(|&n| n > 0) {
-        let lines = if more == 1 { "line" } else { "lines" };
-        lib.warnings.push(format!("{more} more {lines} that cannot be read are ignored"));
+        let lines =
+            if more == 1 { "line that cannot be read is" } else { "lines that cannot be read are" };
+        lib.warnings.push(format!("{more} more {lines} ignored"));
     }
     Ok(lib)
 }
@@ -407,5 +410,7 @@ mod tests {
         let lib = parse("Kd 1\n".repeat(25).as_bytes(), Path::new("")).unwrap();
         assert_eq!(lib.warnings.len(), 21);
         assert_eq!(lib.warnings[20], "5 more lines that cannot be read are ignored");
+        let lib = parse("Kd 1\n".repeat(21).as_bytes(), Path::new("")).unwrap();
+        assert_eq!(lib.warnings[20], "1 more line that cannot be read is ignored");
     }
 }
