@@ -10,7 +10,9 @@
 //! Format detection: a file whose first word is `solid` is ASCII unless its size is exactly
 //! `84 + 50 * count` for the little-endian triangle count at byte 80, in which case it is a
 //! binary file with a text-like header. Anything else is binary, and a size that disagrees with
-//! the count is an error naming byte 80.
+//! the count is an error naming byte 80, except that a count of 0 in a file of whole facets
+//! (some exporters write 0) is read by the size, with a warning; a file beginning `solid`
+//! is so read only when its first bytes are not text.
 //!
 //! ASCII: keywords are matched case-insensitively; a file may hold several `solid ... endsolid`
 //! blocks; `facet normal nx ny nz` may omit the normal; an `outer loop` of more than three
@@ -91,7 +93,9 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, Error> {
         Ok(Format::Ascii) => {
             parse_ascii(&mut SliceLines::new(bytes)).map_err(|f| ascii_failed(f, head, len))
         }
-        Ok(Format::Binary { count }) => parse_binary(&bytes[84..], count),
+        Ok(Format::Binary { count, by_size }) => {
+            parse_binary(&bytes[84..], count).map(|mesh| warned(mesh, (count, by_size), path))
+        }
         Err(fail) => Err(fail),
     };
     mesh.map_err(|f| f.at(path))
@@ -109,7 +113,9 @@ fn read_from<R: Read + Seek>(
         Ok(Format::Ascii) => {
             parse_ascii(&mut StreamLines::new(reader)).map_err(|f| ascii_failed(f, &head, len))
         }
-        Ok(Format::Binary { count }) => read_binary(&mut reader, count, len),
+        Ok(Format::Binary { count, by_size }) => {
+            read_binary(&mut reader, count, len).map(|mesh| warned(mesh, (count, by_size), path))
+        }
         Err(fail) => Err(fail),
     };
     mesh.map_err(|f| f.at(path))
@@ -242,19 +248,54 @@ fn on_line(line: usize, message: String) -> Fail {
 /// Which reader a file takes.
 enum Format {
     Ascii,
-    /// Binary, of `count` triangles (the size agrees).
+    /// Binary, of `count` triangles (the size agrees); `by_size` when the header's count was
+    /// 0 and `count` comes from the size.
     Binary {
         count: u32,
+        by_size: bool,
     },
 }
 
 /// The format of a file of `len` bytes that starts with `head` (its first [`HEAD`] bytes) and
-/// whose first word is `solid` or not; a binary file whose size disagrees with its count fails.
+/// whose first word is `solid` or not; a binary file whose size disagrees with its count fails,
+/// except that a count of 0 in a file of whole facets takes the count its size gives (some
+/// exporters write 0 there). Bytes 80 to 83 all zero do not occur in ASCII STL, but a binary
+/// file may begin `solid` too, so one that does is taken by its size only when its head has
+/// bytes no ASCII STL has.
 fn format(head: &[u8], len: u64, solid: bool) -> Result<Format, Fail> {
+    if let Some(count) = count_from_size(head, len).filter(|_| !solid || looks_binary(head)) {
+        return Ok(Format::Binary { count, by_size: true });
+    }
     if solid && binary_size(head) != Some(len) {
         return Ok(Format::Ascii);
     }
-    check_binary_size(head, len).map(|count| Format::Binary { count })
+    check_binary_size(head, len).map(|count| Format::Binary { count, by_size: false })
+}
+
+/// `mesh`, of `count` facets, with [`by_size_warning`] when it was read `by_size`.
+fn warned(mut mesh: Mesh, (count, by_size): (u32, bool), path: &Path) -> Mesh {
+    if by_size {
+        mesh.warnings.push(by_size_warning(path, count));
+    }
+    mesh
+}
+
+/// The triangle count a binary file of `len` bytes whose header declares 0 holds: its facets
+/// after the 84 bytes of header and count, when they are whole and at least one.
+fn count_from_size(head: &[u8], len: u64) -> Option<u32> {
+    let facets = len.checked_sub(84)?;
+    let declared_zero = head.get(80..84)? == [0; 4];
+    (declared_zero && facets > 0 && facets % 50 == 0).then(|| u32::try_from(facets / 50).ok())?
+}
+
+/// The warning for a file of `count` facets read by [`count_from_size`], naming the file.
+fn by_size_warning(path: &Path, count: u32) -> String {
+    format!(
+        "{}: byte 80: the header declares 0 triangles, but the file holds {} (84 bytes + 50 \
+         per triangle); read by its size",
+        path.display(),
+        count
+    )
 }
 
 /// What a failed ASCII read reports: a binary file whose header starts with `solid` but whose
@@ -702,6 +743,41 @@ mod tests {
         let e = both(&b).unwrap_err().to_string();
         assert!(e.starts_with("t.stl: byte 80: the header declares 1 triangles"), "{e}");
         assert!(e.contains("not ASCII STL either"), "{e}");
+    }
+
+    /// A binary file whose header declares 0 triangles but that holds whole facets is read
+    /// by its size, with a warning (some exporters write 0 there), whether its header begins
+    /// `solid` or not; other mismatches, and a size that is not whole facets, still fail.
+    #[test]
+    fn a_zero_count_is_read_by_the_size() {
+        let facets = |header: &[u8], count: u32, n: usize| {
+            let mut b = header.to_vec();
+            b.resize(80, b' ');
+            b.extend_from_slice(&count.to_le_bytes());
+            for k in 0..n {
+                let x = k as f32;
+                for v in [[0.0f32, 0.0, 1.0], [x, 0.0, 0.0], [x + 1.0, 0.0, 0.0], [x, 1.0, 0.0]] {
+                    v.iter().for_each(|c| b.extend_from_slice(&c.to_le_bytes()));
+                }
+                b.extend_from_slice(&[0, 0]);
+            }
+            b
+        };
+        for header in [&b"exported"[..], b"solid part"] {
+            let mut m = both(&facets(header, 0, 3)).unwrap();
+            let warnings = std::mem::take(&mut m.warnings);
+            assert_eq!(m, both(&facets(header, 3, 3)).unwrap());
+            assert_eq!(m.triangles.len(), 3);
+            let want = "t.stl: byte 80: the header declares 0 triangles, but the file holds 3 (84 \
+                        bytes + 50 per triangle); read by its size";
+            assert_eq!(warnings, [want]);
+            for (count, n, extra) in [(1, 3, 0), (4, 3, 0), (0, 3, 1), (0, 3, 49)] {
+                let mut b = facets(header, count, n);
+                b.extend(std::iter::repeat_n(0, extra));
+                let e = both(&b).unwrap_err().to_string();
+                assert!(e.contains("byte 80: the header declares"), "{count} {n} {extra}: {e}");
+            }
+        }
     }
 
     #[test]
