@@ -1759,7 +1759,14 @@ fn info(path: &Path) -> Result<(), Error> {
         });
     warn_about(&mesh);
     say!("file:       {}", path.display());
-    say!("vertices:   {}", mesh.positions.len());
+    // What a vertex is differs by format, and the count is not the file's `v` lines for OBJ.
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let vertices = match ext.as_deref() {
+        Some("obj") => " (distinct corners the faces use: unused `v` lines are left out)",
+        Some("stl") => " (facet corners, welded)",
+        _ => "",
+    };
+    say!("vertices:   {}{vertices}", mesh.positions.len());
     say!("triangles:  {}", mesh.triangles.len());
     say!("polygons:   {}", mesh.polygon_count);
     if lo[0] <= hi[0] {
