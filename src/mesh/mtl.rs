@@ -37,10 +37,11 @@ pub struct MaterialLibrary {
 }
 
 /// Reads and parses a `.mtl` file; texture paths are resolved relative to its directory.
+/// Warnings name the file and line (`lib.mtl:9: ...`), as the OBJ reader's do.
 pub fn read(path: &Path) -> Result<MaterialLibrary, Error> {
     let bytes = crate::input::read(path)?;
     let dir = path.parent().unwrap_or_else(|| Path::new(""));
-    parse(&bytes, dir).map_err(|(line, message)| Error::Parse {
+    library(&bytes, dir, Some(path)).map_err(|(line, message)| Error::Parse {
         path: path.to_path_buf(),
         line,
         message,
@@ -53,33 +54,53 @@ const MAX_IGNORED_WARNINGS: usize = 20;
 
 /// Parses `.mtl` text, resolving `map_Kd` file names against `dir`. A line that cannot be
 /// read (`Kd 0,5 0,5 0,5`, `Kd` before any `newmtl`, `map_Kd` without a file) is ignored
-/// with a warning naming it: a material library only colours the model, and one bad line had
-/// stopped the whole model from loading. The `Err` is kept for reading errors of the
-/// underlying lines, which a slice does not have.
+/// with a warning naming it (`line 9: ...`): a material library only colours the model, and
+/// one bad line had stopped the whole model from loading. The `Err` is kept for reading
+/// errors of the underlying lines, which a slice does not have.
 pub fn parse(bytes: &[u8], dir: &Path) -> Result<MaterialLibrary, (usize, String)> {
+    library(bytes, dir, None)
+}
+
+/// [`parse`], its warnings naming `file` and the line where there is a file, the line alone
+/// where not.
+fn library(
+    bytes: &[u8],
+    dir: &Path,
+    file: Option<&Path>,
+) -> Result<MaterialLibrary, (usize, String)> {
     let mut lib = MaterialLibrary::default();
+    // Each warning's line and text, in line order.
+    let mut notes = Vec::new();
     let mut ignored = 0usize;
     let io = |e: std::io::Error| (0, e.to_string());
     super::read_lines(bytes, io, |raw, line| {
-        if let Err((line, message)) = statement(&mut lib, raw, line, dir) {
+        if let Err((line, message)) = statement(&mut lib, &mut notes, raw, line, dir) {
             ignored += 1;
             if ignored <= MAX_IGNORED_WARNINGS {
-                lib.warnings.push(format!("line {line}: {message}; the line is ignored"));
+                notes.push((line, format!("{message}; the line is ignored")));
             }
         }
         Ok(())
     })?;
+    lib.warnings = (notes.into_iter())
+        .map(|(line, note)| match file {
+            Some(file) => format!("{}:{line}: {note}", file.display()),
+            None => format!("line {line}: {note}"),
+        })
+        .collect();
     if let Some(more) = ignored.checked_sub(MAX_IGNORED_WARNINGS).filter(|&n| n > 0) {
         let lines =
             if more == 1 { "line that cannot be read is" } else { "lines that cannot be read are" };
-        lib.warnings.push(format!("{more} more {lines} ignored"));
+        let file = file.map_or(String::new(), |file| format!("{}: ", file.display()));
+        lib.warnings.push(format!("{file}{more} more {lines} ignored"));
     }
     Ok(lib)
 }
 
-/// One line of a `.mtl` file into `lib`.
+/// One line of a `.mtl` file into `lib`, a warning of it into `notes` as its line and text.
 fn statement(
     lib: &mut MaterialLibrary,
+    notes: &mut Vec<(usize, String)>,
     raw: &[u8],
     line: usize,
     dir: &Path,
@@ -108,10 +129,11 @@ fn statement(
     };
     if lower == "kd" {
         if matches!(args.first(), Some(&("spectral" | "xyz"))) {
-            lib.warnings.push(format!(
-                "line {line}: `Kd {}` is not supported; material `{}` keeps its default colour",
+            let note = format!(
+                "`Kd {}` is not supported; material `{}` keeps its default colour",
                 args[0], material.name
-            ));
+            );
+            notes.push((line, note));
             return Ok(());
         }
         let mut rgb = [0.0f32; 3];
@@ -129,14 +151,15 @@ fn statement(
         }
         if rgb.iter().any(|c| !(0.0..=1.0).contains(c)) {
             rgb = rgb.map(|c| c.clamp(0.0, 1.0));
-            lib.warnings.push(format!(
-                "line {line}: `Kd {}` is outside [0, 1]; material `{}` takes it clamped, {} {} {}",
+            let note = format!(
+                "`Kd {}` is outside [0, 1]; material `{}` takes it clamped, {} {} {}",
                 args.join(" "),
                 material.name,
                 rgb[0],
                 rgb[1],
                 rgb[2]
-            ));
+            );
+            notes.push((line, note));
         }
         material.diffuse = rgb;
     } else {
@@ -230,14 +253,7 @@ pub fn apply(mesh: &mut Mesh, obj: &MaterialStatements, obj_path: &Path) -> Resu
                 }
                 Err(e) => return Err(e),
             };
-            for w in lib.warnings {
-                // `file:line: ...`, as the OBJ reader's warnings name their lines.
-                let named = match w.strip_prefix("line ").and_then(|w| w.split_once(": ")) {
-                    Some((line, rest)) => format!("{}:{line}: {rest}", file.display()),
-                    None => format!("{}: {w}", file.display()),
-                };
-                mesh.warnings.push(named);
-            }
+            mesh.warnings.extend(lib.warnings);
             for (m, at) in lib.materials.into_iter().zip(lib.texture_lines) {
                 defined.entry(m.name.clone()).or_insert_with(|| (m, file.clone(), at));
             }
@@ -412,5 +428,15 @@ mod tests {
         assert_eq!(lib.warnings[20], "5 more lines that cannot be read are ignored");
         let lib = parse("Kd 1\n".repeat(21).as_bytes(), Path::new("")).unwrap();
         assert_eq!(lib.warnings[20], "1 more line that cannot be read is ignored");
+        // A file's warnings name it with the line, as the OBJ reader's do.
+        let path = std::env::temp_dir().join(format!("trirast-mtl-{}.mtl", std::process::id()));
+        std::fs::write(&path, "Kd 1\n".repeat(21) + "newmtl a\nKd 2 0 0\n").unwrap();
+        let lib = read(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        let file = path.display();
+        assert_eq!(lib.warnings.len(), 22);
+        assert!(lib.warnings[0].starts_with(&format!("{file}:1: `Kd` before any")));
+        assert!(lib.warnings[20].starts_with(&format!("{file}:23: `Kd 2 0 0` is outside")));
+        assert_eq!(lib.warnings[21], format!("{file}: 1 more line that cannot be read is ignored"));
     }
 }
