@@ -890,12 +890,16 @@ fn impossible_thread_counts_are_usage_errors() {
     // The comparison switches refuse what they do not know (they ignored it, so a comparison
     // measured the default twice) and take what they do.
     let args = ["render", "--size", "64x48", "-o", "switch.png"];
+    dir.write("tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
     for switch in [("TRIRAST_SIMD", "avx1024"), ("TRIRAST_SCHEDULE", "tiled")] {
         let out = trirast_with_env(&dir.0, args, switch);
         let err = stderr_of(&out);
         assert_eq!(out.status.code(), Some(1), "{switch:?}: {err}");
         assert!(err.contains(&format!("{}={}", switch.0, switch.1)), "{err}");
         assert!(!dir.path("switch.png").exists(), "nothing is rendered");
+        // A command that draws nothing runs whatever they say.
+        let out = trirast_with_env(&dir.0, ["info", "tri.obj"], switch);
+        assert!(out.status.success(), "info with {switch:?}: {}", stderr_of(&out));
     }
     let known = [("TRIRAST_SIMD", "scalar"), ("TRIRAST_SCHEDULE", "banded")];
     for switch in known.into_iter().chain([("TRIRAST_SCHEDULE", "auto"), ("TRIRAST_SIMD", "")]) {
