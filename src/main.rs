@@ -1767,11 +1767,11 @@ fn info(path: &Path) -> Result<(), Error> {
     warn_about(&mesh);
     say!("file:       {}", path.display());
     // What a vertex is differs by format, and the count is not the file's `v` lines for OBJ.
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    let vertices = match ext.as_deref() {
-        Some("obj") => " (distinct corners the faces use: unused `v` lines are left out)",
-        Some("stl") => " (facet corners, welded)",
-        _ => "",
+    use trirast::mesh::Format;
+    let vertices = match Format::of(path) {
+        Some(Format::Obj) => " (distinct corners the faces use: unused `v` lines are left out)",
+        Some(Format::Stl) => " (facet corners, welded)",
+        Some(Format::Ply) | None => "",
     };
     say!("vertices:   {}{vertices}", mesh.positions.len());
     say!("triangles:  {}", mesh.triangles.len());

@@ -67,6 +67,28 @@ pub struct Mesh {
     pub warnings: Vec<String>,
 }
 
+/// A mesh file's format, as [`load`] chooses its reader.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// Wavefront OBJ (`.obj`).
+    Obj,
+    /// Stanford PLY (`.ply`).
+    Ply,
+    /// STL, ASCII or binary (`.stl`).
+    Stl,
+}
+
+impl Format {
+    /// The format `path`'s extension names, in any case; `None` for any other.
+    #[must_use]
+    pub fn of(path: &Path) -> Option<Self> {
+        let ext = path.extension()?.to_str()?;
+        [("obj", Self::Obj), ("ply", Self::Ply), ("stl", Self::Stl)]
+            .into_iter()
+            .find_map(|(name, format)| ext.eq_ignore_ascii_case(name).then_some(format))
+    }
+}
+
 /// Reads a mesh file for the 3D pipeline, choosing the reader by extension.
 pub fn load(path: &Path) -> Result<Mesh, Error> {
     load_reporting(path, &|_| {})
@@ -80,12 +102,11 @@ pub fn load(path: &Path) -> Result<Mesh, Error> {
 /// # Errors
 /// As [`load`].
 pub fn load_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<Mesh, Error> {
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("obj") => obj::read_mesh_reporting(path, report),
-        Some("ply") => ply::read_reporting(path, report),
-        Some("stl") => stl::read_reporting(path, report),
-        _ => match crate::input::open(path) {
+    match Format::of(path) {
+        Some(Format::Obj) => obj::read_mesh_reporting(path, report),
+        Some(Format::Ply) => ply::read_reporting(path, report),
+        Some(Format::Stl) => stl::read_reporting(path, report),
+        None => match crate::input::open(path) {
             // A directory (or device) is named as such, not as an unknown format.
             Err(e @ Error::NotRegularFile { .. }) => Err(e),
             _ => Err(Error::UnsupportedFormat { path: path.to_path_buf() }),
@@ -280,6 +301,20 @@ mod tests {
     use super::*;
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
+
+    /// The format is the extension's in any case, and nothing else names one: not a name
+    /// without an extension, nor one that ends in a format's name.
+    #[test]
+    fn formats_are_named_by_the_extension_in_any_case() {
+        let of = |name: &str| Format::of(Path::new(name));
+        assert_eq!(of("bunny.obj"), Some(Format::Obj));
+        assert_eq!(of("dir.v2/BUNNY.OBJ"), Some(Format::Obj));
+        assert_eq!(of("scan.Ply"), Some(Format::Ply));
+        assert_eq!(of("part.sTl"), Some(Format::Stl));
+        for other in ["obj", "bunny", "bunny.objx", "bunny.pobj", "cloud.tsplat", ".obj/x", "x."] {
+            assert_eq!(of(other), None, "{other}");
+        }
+    }
 
     /// Vertex colours outside [0, 1] are a warning naming the file, the count and the range,
     /// from each reader that has colours; colours within it are not.
