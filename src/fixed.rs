@@ -91,12 +91,13 @@ pub fn last_centre_at_or_before(v: i64) -> i64 {
     (v - i64::from(HALF)).div_euclid(i64::from(ONE))
 }
 
-/// `ceil(n / d)` for `d > 0`, exact for all `i64` operands in range.
+/// `ceil(n / d)` for `d > 0`, exact for every `n` (`i64::MIN` too, which the negation of
+/// `floor(-n / d)` would overflow).
 #[inline]
 #[must_use]
 pub fn ceil_div(n: i64, d: i64) -> i64 {
     debug_assert!(d > 0);
-    -((-n).div_euclid(d))
+    n.div_euclid(d) + i64::from(n.rem_euclid(d) != 0)
 }
 
 /// `floor(n / d)` for `d > 0`.
@@ -110,6 +111,26 @@ pub fn floor_div(n: i64, d: i64) -> i64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The divisions are the exact ceiling and floor, computed in `i128`, for operands of
+    /// both signs, at the ends of `i64` and on and beside multiples of `d`.
+    #[test]
+    fn divisions_round_up_and_down_exactly() {
+        let ds = [1, 2, 3, 7, 256, 1 << 40, i64::MAX - 1, i64::MAX];
+        for d in ds {
+            let mut ns = vec![i64::MIN, i64::MIN + 1, -1, 0, 1, i64::MAX - 1, i64::MAX];
+            for k in [-5i64, -1, 0, 1, 5] {
+                let m = k.saturating_mul(d);
+                ns.extend([m.saturating_sub(1), m, m.saturating_add(1)]);
+            }
+            for n in ns {
+                let (wn, wd) = (i128::from(n), i128::from(d));
+                let (floor, ceil) = (wn.div_euclid(wd), -(-wn).div_euclid(wd));
+                assert_eq!(i128::from(floor_div(n, d)), floor, "floor({n} / {d})");
+                assert_eq!(i128::from(ceil_div(n, d)), ceil, "ceil({n} / {d})");
+            }
+        }
+    }
 
     #[test]
     fn snap_rounds_half_to_even() {
