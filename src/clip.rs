@@ -9,8 +9,11 @@
 //! Varyings are interpolated linearly in clip space, which is perspective-correct. New
 //! vertices on an edge are always computed from the edge's inside end towards its outside
 //! end, so two triangles sharing a clipped edge get bit-identical vertices and stay watertight.
+//! They are computed in `f64`: any finite `f32` positions' differences and distances are then
+//! finite (in `f32`, coordinates near `f32::MAX` overflowed to NaN vertices), and the new
+//! vertex lies between the edge's ends, so it is finite in `f32` too.
 
-use glam::Vec4;
+use glam::{DVec4, Vec4};
 
 use crate::varyings::Varyings;
 
@@ -75,6 +78,40 @@ impl ClipVolume {
         }
     }
 
+    /// [`Self::distance`] in `f64`, for the clipped edges: finite for any finite position.
+    fn distance_f64(&self, plane: usize, p: DVec4) -> f64 {
+        let [gx, gy] = self.guard.map(f64::from);
+        match plane {
+            0 => p.z,
+            1 => p.w - p.z,
+            2 => p.w - f64::from(MIN_W),
+            3 => p.x + gx * p.w,
+            4 => gx * p.w - p.x,
+            5 => p.y + gy * p.w,
+            _ => gy * p.w - p.y,
+        }
+    }
+
+    /// `p`, a point where an edge meets `plane`, with the coordinate the plane bounds set
+    /// on it exactly. As computed, that coordinate is the difference of the edge's ends'
+    /// (times `t`): where they are far larger than the guard band, it can miss the plane by
+    /// more than the band is wide (a triangle over the whole view, corners at 1e30, had
+    /// covered half of it), and `w` can land at or below 0 (an outside end at w = 0, `t`
+    /// rounded to 1), where the divide overflows.
+    fn on_plane(&self, plane: usize, mut p: DVec4) -> DVec4 {
+        let [gx, gy] = self.guard.map(f64::from);
+        match plane {
+            0 => p.z = 0.0,
+            1 => p.z = p.w,
+            2 => p.w = f64::from(MIN_W),
+            3 => p.x = -gx * p.w,
+            4 => p.x = gx * p.w,
+            5 => p.y = -gy * p.w,
+            _ => p.y = gy * p.w,
+        }
+        p
+    }
+
     /// Bit `i` set iff the vertex is outside plane `i`. Non-finite positions are outside
     /// everything.
     #[must_use]
@@ -86,10 +123,13 @@ impl ClipVolume {
     }
 
     /// Clips a triangle; returns the convex polygon that remains (empty, or 3 to 10 vertices),
-    /// in the triangle's winding.
+    /// in the triangle's winding, its vertices finite with `w >= MIN_W`. A triangle with a
+    /// non-finite coordinate clips to nothing.
     pub fn clip<V: Varyings>(&self, tri: [ClipVertex<V>; 3]) -> Vec<ClipVertex<V>> {
         let codes = tri.map(|v| self.outcode(v.position));
-        if codes[0] & codes[1] & codes[2] != 0 {
+        if codes[0] & codes[1] & codes[2] != 0 || !tri.iter().all(|v| v.position.is_finite()) {
+            // All outside one plane, or a vertex not finite (its distances would be NaN, and
+            // a NaN vertex made where its edges meet each plane).
             return Vec::new();
         }
         let mut poly = tri.to_vec();
@@ -99,19 +139,20 @@ impl ClipVolume {
             next.clear();
             for i in 0..poly.len() {
                 let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
-                let (da, db) = (self.distance(plane, a.position), self.distance(plane, b.position));
+                let (pa, pb) = (a.position.as_dvec4(), b.position.as_dvec4());
+                let (da, db) = (self.distance_f64(plane, pa), self.distance_f64(plane, pb));
                 let (a_in, b_in) = (da >= 0.0, db >= 0.0);
                 if a_in {
                     next.push(a);
                 }
                 if a_in != b_in {
                     // From the inside end, so shared edges give identical vertices.
-                    let (inside, outside, di, d_o) =
-                        if a_in { (a, b, da, db) } else { (b, a, db, da) };
+                    let (inside, outside, p, q, di, d_o) =
+                        if a_in { (a, b, pa, pb, da, db) } else { (b, a, pb, pa, db, da) };
                     let t = di / (di - d_o);
                     next.push(ClipVertex {
-                        position: inside.position + (outside.position - inside.position) * t,
-                        varyings: V::lerp(&inside.varyings, &outside.varyings, t),
+                        position: self.on_plane(plane, p + (q - p) * t).as_vec4(),
+                        varyings: V::lerp(&inside.varyings, &outside.varyings, t as f32),
                     });
                 }
             }

@@ -1224,21 +1224,16 @@ impl FrontEnd {
             emit(Err(Skipped::Rejected(Rejection::NonFinite)));
             return;
         }
-        let clip = |scale: f32| {
-            self.volume.clip(std::array::from_fn(|k| ClipVertex {
-                position: positions[k] * scale,
-                varyings: input[k].varyings,
-            }))
-        };
-        let mut polygon = clip(1.0);
-        if !polygon.iter().all(|v| v.position.is_finite()) {
-            // Finite positions near `f32::MAX` overflowed the clip's sums and differences: a
-            // finite triangle had become a fan of non-finite pieces, drawn as nothing and
-            // counted once each. Scaled by a power of two (exact) they fit, and they are the
-            // same triangle: the projection, depth and perspective weights are ratios of
-            // them (only the `w >= MIN_W` plane, a constant, moves with the scale).
-            polygon = clip(fitting_scale(&positions));
-        }
+        // Coordinates past 2^100 are scaled down by a power of two (exact): the same
+        // triangle, since the projection, depth and perspective weights are ratios of them
+        // (only the `w >= MIN_W` plane, a constant, moves with the scale). Unscaled, the
+        // clip's pieces would be finite (it works in `f64`), but `1 / w` near `f32::MAX`
+        // is subnormal in the viewport's `f32`, and the pieces' depths lost precision.
+        let scale = fitting_scale(&positions);
+        let polygon = self.volume.clip(std::array::from_fn(|k| ClipVertex {
+            position: positions[k] * scale,
+            varyings: input[k].varyings,
+        }));
         if polygon.is_empty() {
             // Entirely outside the view volume: counted with the culled.
             emit(Err(Skipped::Rejected(Rejection::Culled)));
@@ -1507,13 +1502,13 @@ impl Viewport {
     }
 }
 
-/// The power of two that brings the largest magnitude of `positions` (finite) to about
-/// 2^100, where the clip's sums and differences of two coordinates cannot overflow.
+/// The power of two that brings the largest magnitude of `positions` (finite) to 2^100 when
+/// it is larger, else 1.
 fn fitting_scale(positions: &[Vec4; 3]) -> f32 {
     let largest = positions.iter().map(|p| p.abs().max_element()).fold(0.0f32, f32::max);
     let exponent = ((largest.to_bits() >> 23) & 0xff) as i32 - 127;
     // 2^(100 - exponent), built from its bits: exact, and a normal number for any finite
-    // `largest` at or above 2^100 (the only ones that overflow).
+    // `largest` at or above 2^100.
     f32::from_bits(((127 + 100 - exponent.max(100)) as u32) << 23)
 }
 

@@ -131,6 +131,87 @@ fn near_plane_clipping_renders_exactly_the_visible_part() {
     assert!(checked > 40 * (W * H) as usize * 9 / 10);
 }
 
+/// In a projection without a near plane (depth `z = w / 2`: only `w >= MIN_W` bounds the
+/// view in front of the eye), a triangle reaching behind the eye draws exactly the part in
+/// front of it, cut by the guard band. Its edges had met the `w` plane at vertices rounded
+/// onto the eye's plane (`w = 0`), whose pieces were non-finite and dropped: the whole
+/// triangle went undrawn.
+#[test]
+fn triangles_through_the_eye_plane_draw_their_part_in_front_of_it() {
+    let mut rng = SmallRng::seed_from_u64(17);
+    // The analytic test's camera: its near and far planes out of the way.
+    let mut cam = camera(1e-6);
+    cam.far = 1e9;
+    let Projection::Perspective { fov_y } = cam.projection else { unreachable!() };
+    let f = 1.0 / (fov_y / 2.0).tan();
+    let aspect = W as f32 / H as f32;
+    let vs = |v: &Vec3| (Vec4::new(v.x * f / aspect, v.y * f, -v.z / 2.0, -v.z), ());
+    let fs = |_: &Fragment<()>| Some(Vec4::ONE);
+    let (mut checked, mut drawn) = (0, 0);
+    for i in 0..60 {
+        let mut t: [Vec3; 3] = std::array::from_fn(|_| {
+            Vec3::new(
+                rng.random_range(-3.0..3.0),
+                rng.random_range(-3.0..3.0),
+                rng.random_range(-6.0..1.5),
+            )
+        });
+        match i % 3 {
+            0 => t[0].z = 0.0,
+            // Clip space (-s, -s, _, s), (s, -s, _, s), (0, s, _, -s): in `f32` the edges to
+            // the last met the `w` plane where w is 0 (t is 1/2 exactly: MIN_W is below the
+            // precision of s).
+            1 => {
+                let s = rng.random_range(0.5..3.0);
+                let (x, y) = (s * aspect / f, s / f);
+                t = [Vec3::new(-x, -y, -s), Vec3::new(x, -y, -s), Vec3::new(0.0, y, s)];
+            }
+            _ => {}
+        }
+        let mut target = Target::new(W, H).unwrap().with_ids();
+        let stats = Pipeline::default()
+            .with_cull(FaceCull::None)
+            .draw(&mut target, &vs, &fs, &t, &[[0, 1, 2]])
+            .unwrap();
+        assert_eq!(stats.non_finite, 0, "{t:?}: {stats:?}");
+        let ids = target.ids.unwrap();
+        for py in 0..H {
+            for px in 0..W {
+                let got = ids[(py * W + px) as usize] == 0;
+                if let Some(want) = analytic(&cam, t, px, py) {
+                    assert_eq!(got, want, "pixel ({px}, {py}) of {t:?}");
+                    checked += 1;
+                    drawn += usize::from(want);
+                }
+            }
+        }
+    }
+    assert!(checked > 60 * (W * H) as usize * 9 / 10 && drawn > 60 * (W * H) as usize / 10);
+}
+
+/// A triangle over the whole view with clip-space coordinates near `f32::MAX` covers every
+/// pixel: in `f32`, the clip's differences overflowed and it had been clipped to nothing.
+#[test]
+fn a_huge_triangle_over_the_view_covers_every_pixel() {
+    for c in [1.0e30f32, 1.7e38, 3.0e38, f32::MAX] {
+        let t =
+            [Vec4::new(c, 0.0, 0.5, 1.0), Vec4::new(-c, c, 0.5, 1.0), Vec4::new(0.0, -c, 0.5, 1.0)];
+        let mut target = Target::new(W, H).unwrap().with_ids();
+        let stats = Pipeline::default()
+            .with_cull(FaceCull::None)
+            .draw(
+                &mut target,
+                &|v: &Vec4| (*v, ()),
+                &|_: &Fragment<()>| Some(Vec4::ONE),
+                &t,
+                &[[0, 1, 2]],
+            )
+            .unwrap();
+        let ids = target.ids.unwrap();
+        assert!(ids.iter().all(|&i| i == 0), "{c:e}: {stats:?}");
+    }
+}
+
 #[test]
 fn far_plane_clipping_renders_exactly_the_part_in_front_of_it() {
     let mut rng = SmallRng::seed_from_u64(13);
@@ -474,8 +555,8 @@ fn non_finite_vertices_drop_their_triangle_once() {
 
 /// A finite triangle with coordinates near `f32::MAX` crossing the clip volume is drawn as
 /// the same triangle scaled by a power of two (which changes no ratio the pipeline uses),
-/// where the clip's overflows had made it a fan of non-finite pieces, drawn as nothing and
-/// each counted.
+/// where the clip's overflows in `f32` had made it a fan of non-finite pieces, drawn as
+/// nothing and each counted, or (a triangle over the whole view) nothing, counted as culled.
 #[test]
 fn huge_finite_triangles_are_clipped_as_their_scaled_copies() {
     use trirast::render::Backend;
