@@ -360,12 +360,25 @@ pub fn render(
                 (out.sorted_by_tile(), next, st)
             })
             .collect();
+        // Every node of the next level comes after every node of this one, in ascending
+        // order: in a breadth-first tree all do, and those of a tree made by hand that do not
+        // (children shared by several parents, which had made the walk exponential: 32 nodes
+        // each listing the next four took minutes and gigabytes) are dropped, so that each
+        // node is visited at most once.
+        let index = |k: u32| if flag_fits { k & !INSIDE } else { k } as usize;
+        let mut after = frontier.last().map_or(0, |&k| index(k) + 1);
         frontier = Vec::with_capacity(level.iter().map(|p| p.1.len()).sum());
         for (part, next, st) in level {
             if !part.runs.is_empty() {
                 parts.push(part);
             }
-            frontier.extend(next);
+            frontier.extend(next.into_iter().filter(|&k| {
+                let fresh = index(k) >= after;
+                if fresh {
+                    after = index(k) + 1;
+                }
+                fresh
+            }));
             stats.visited += st.visited;
             stats.drawn += st.drawn;
             stats.leaves_drawn += st.leaves_drawn;

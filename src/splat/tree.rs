@@ -70,8 +70,9 @@ impl SplatTree {
     /// as a breadth-first tree's all do. A tree made by hand ([`SplatTree::new`], or `nodes`
     /// changed) may have a range that does not; the renderer walks the tree through this, so
     /// such a range cannot send it past the nodes or round a cycle (a node listing itself had
-    /// made it index past the end). The encoder clips ranges its own way
-    /// ([`super::format::encode`]).
+    /// made it index past the end); the renderer also drops children that another parent's
+    /// range already reached, so ranges that overlap are walked once. The encoder clips ranges
+    /// its own way ([`super::format::encode`]).
     #[must_use]
     pub fn children(&self, i: usize) -> std::ops::Range<usize> {
         let children = self.nodes[i].children();
