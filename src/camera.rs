@@ -7,6 +7,8 @@
 
 use glam::{Mat4, Vec3, Vec4};
 
+use crate::error::Error;
+
 /// How the camera projects.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Projection {
@@ -86,6 +88,48 @@ impl Camera {
         }
     }
 
+    /// Whether the camera forms an image: its eye, target and up finite, a field of view
+    /// strictly between 0 and pi (at pi or more the image turns upside down) or an
+    /// orthographic height above 0, and near and far planes finite with `near < far`, `near`
+    /// above 0 in perspective. A camera that is not (a field of view of 0 or NaN, a framing
+    /// of a sphere of radius 3e38, whose eye is infinite) gives non-finite transforms, under
+    /// which every triangle is dropped without a word.
+    ///
+    /// # Errors
+    /// [`Error::Camera`] naming the first value that is out of its range.
+    pub fn check(&self) -> Result<(), Error> {
+        let bad = |what: String| Err(Error::Camera(what));
+        for (name, v) in [("eye", self.eye), ("target", self.target), ("up", self.up)] {
+            if !v.is_finite() {
+                return bad(format!("the {name} {v} is not finite"));
+            }
+        }
+        match self.projection {
+            Projection::Perspective { fov_y } => {
+                if !(fov_y > 0.0 && fov_y < std::f32::consts::PI) {
+                    return bad(format!(
+                        "the field of view {fov_y} (radians) is not between 0 and pi"
+                    ));
+                }
+                if !(self.near > 0.0) {
+                    return bad(format!("the near plane {} is not above 0", self.near));
+                }
+            }
+            Projection::Orthographic { height } => {
+                if !(height > 0.0 && height.is_finite()) {
+                    return bad(format!("the orthographic height {height} is not above 0"));
+                }
+            }
+        }
+        if !(self.near.is_finite() && self.far.is_finite() && self.near < self.far) {
+            return bad(format!(
+                "the near and far planes {} and {} are not finite with near < far",
+                self.near, self.far
+            ));
+        }
+        Ok(())
+    }
+
     /// World to view transform.
     #[must_use]
     pub fn view(&self) -> Mat4 {
@@ -157,6 +201,56 @@ pub fn bounding_sphere(points: &[[f32; 3]]) -> (Vec3, f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Framing cameras form images; a camera with a value out of its range is refused,
+    /// naming the value.
+    #[test]
+    fn cameras_that_form_no_image_are_refused() {
+        let perspective = Projection::Perspective { fov_y: DEFAULT_FOV_Y };
+        let orthographic = Projection::Orthographic { height: 2.0 };
+        for (projection, radius) in [(perspective, 1.0), (orthographic, 1e-30), (perspective, 1e30)]
+        {
+            let cam = Camera::framing_sphere(Vec3::ONE, radius, 0.5, 0.3, 1.5, projection);
+            assert!(cam.check().is_ok(), "{cam:?}");
+        }
+        let good = Camera::framing_sphere(Vec3::ZERO, 1.0, 0.0, 0.0, 1.0, perspective);
+        let with = |f: &dyn Fn(&mut Camera)| {
+            let mut cam = good;
+            f(&mut cam);
+            cam.check().unwrap_err().to_string()
+        };
+        let fov = |fov_y| move |c: &mut Camera| c.projection = Projection::Perspective { fov_y };
+        let height =
+            |height| move |c: &mut Camera| c.projection = Projection::Orthographic { height };
+        for (err, names) in [
+            (with(&|c| c.eye.x = f32::NAN), "eye"),
+            (with(&|c| c.target.y = f32::INFINITY), "target"),
+            (with(&|c| c.up.z = f32::NEG_INFINITY), "up"),
+            (with(&fov(0.0)), "field of view 0"),
+            (with(&fov(f32::NAN)), "field of view NaN"),
+            (with(&fov(std::f32::consts::PI)), "field of view 3.14"),
+            (with(&|c| c.near = 0.0), "near plane 0"),
+            (with(&|c| c.near = -1.0), "near plane -1"),
+            (with(&|c| c.far = c.near), "near and far"),
+            (with(&|c| c.far = f32::INFINITY), "near and far"),
+            (with(&height(0.0)), "height 0"),
+            (with(&height(f32::INFINITY)), "height inf"),
+            // A sphere too large to frame in `f32`: its eye is infinite.
+            (
+                Camera::framing_sphere(Vec3::ZERO, 3e38, 0.0, 0.0, 1.0, perspective)
+                    .check()
+                    .unwrap_err()
+                    .to_string(),
+                "eye",
+            ),
+        ] {
+            assert!(err.starts_with("camera: ") && err.contains(names), "{err}");
+        }
+        // An orthographic camera may have its near plane behind the eye.
+        let mut ortho = good;
+        (ortho.projection, ortho.near) = (orthographic, -1.0);
+        assert!(ortho.check().is_ok());
+    }
 
     #[test]
     fn near_maps_to_zero_and_far_to_one() {

@@ -165,6 +165,9 @@ pub enum Error {
     /// Options that do not fit together.
     #[error("{0}")]
     Usage(String),
+    /// A camera that forms no image ([`crate::camera::Camera::check`] says why).
+    #[error("camera: {0}")]
+    Camera(String),
     /// Decoding an input image failed.
     #[error("{}: cannot decode image: {message}", path.display())]
     Decode {

@@ -529,6 +529,11 @@ impl FragmentShader<Vec4> for ColorFragment<'_> {
 }
 
 /// Renders `mesh` seen by `camera` into `target` (which the caller clears).
+///
+/// # Errors
+/// A per-vertex attribute or material list whose length does not match the vertices or
+/// triangles, a camera that forms no image ([`Camera::check`]), or what
+/// [`crate::pipeline::Pipeline::draw`] refuses (an index past the vertices).
 pub fn render_mesh(
     target: &mut Target,
     mesh: &Mesh,
@@ -537,6 +542,7 @@ pub fn render_mesh(
     textures: &MaterialTextures,
 ) -> Result<DrawStats, Error> {
     check_mesh(mesh)?;
+    camera.check()?;
     let aspect = target.width() as f32 / target.height() as f32;
     let ModelView { origin, view, view_proj } = ModelView::new(camera, aspect);
     let normal_matrix = Mat3::from_mat4(view).inverse().transpose();
@@ -1095,6 +1101,10 @@ mod tests {
         let mut target = Target::new(32, 32).unwrap();
         let options = ModelOptions::default();
         render_mesh(&mut target, &good, &camera, &options, &MaterialTextures::default()).unwrap();
+        // A camera that forms no image is an error too, where it had drawn nothing.
+        let blind = Camera { projection: Projection::Perspective { fov_y: f32::NAN }, ..camera };
+        let err = render_mesh(&mut target, &good, &blind, &options, &MaterialTextures::default());
+        assert!(matches!(err, Err(Error::Camera(_))), "{err:?}");
     }
 
     /// A triangle's material colours it: unlit, each pixel of a sphere whose triangles
