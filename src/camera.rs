@@ -111,7 +111,7 @@ impl Camera {
                         "the field of view {fov_y} (radians) is not between 0 and pi"
                     ));
                 }
-                if !(self.near > 0.0) {
+                if self.near <= 0.0 {
                     return bad(format!("the near plane {} is not above 0", self.near));
                 }
             }
