@@ -184,6 +184,10 @@ impl Camera {
 
 /// The smallest sphere-ish bound of a point set: the bounding box's centre and the largest
 /// distance from it (within a factor of the optimum, and cheap). Non-finite points are ignored.
+/// Each again in `f64` where it overflows in `f32` (the box's `lo + hi` past 1.7e38, the
+/// squares of the distances past 1.8e19), where it had been left infinite; in `f32`
+/// otherwise, so the framing of every other model is as it was. The radius of points spread
+/// past `f32::MAX` is still infinite.
 #[must_use]
 pub fn bounding_sphere(points: &[[f32; 3]]) -> (Vec3, f32) {
     let finite = points.iter().map(|&p| Vec3::from(p)).filter(|p| p.is_finite());
@@ -193,8 +197,15 @@ pub fn bounding_sphere(points: &[[f32; 3]]) -> (Vec3, f32) {
     if !lo.is_finite() {
         return (Vec3::ZERO, 1.0);
     }
-    let centre = (lo + hi) * 0.5;
-    let radius = finite.map(|p| p.distance(centre)).fold(0.0f32, f32::max);
+    let mut centre = (lo + hi) * 0.5;
+    if !centre.is_finite() {
+        centre = ((lo.as_dvec3() + hi.as_dvec3()) * 0.5).as_vec3();
+    }
+    let mut radius = finite.clone().map(|p| p.distance(centre)).fold(0.0f32, f32::max);
+    if radius == f32::INFINITY {
+        let c = centre.as_dvec3();
+        radius = finite.map(|p| p.as_dvec3().distance(c)).fold(0.0f64, f64::max) as f32;
+    }
     (centre, if radius > 0.0 { radius } else { 1.0 })
 }
 
@@ -250,6 +261,28 @@ mod tests {
         let mut ortho = good;
         (ortho.projection, ortho.near) = (orthographic, -1.0);
         assert!(ortho.check().is_ok());
+    }
+
+    /// Points near `f32::MAX`, or spread past the square root of it, have a finite sphere
+    /// holding them; points spread past `f32::MAX` an infinite radius.
+    #[test]
+    fn huge_point_sets_have_finite_spheres() {
+        for points in [
+            vec![[3e38, 0.0, 0.0], [3.4e38, 0.0, 0.0]],
+            vec![[1e20, -1e20, 0.0], [-1e20, 1e20, 5.0]],
+            vec![[f32::MAX, f32::MAX, f32::MAX], [f32::MAX, f32::MAX, f32::MAX]],
+        ] {
+            let (centre, radius) = bounding_sphere(&points);
+            assert!(centre.is_finite() && radius.is_finite() && radius > 0.0, "{points:?}");
+            for p in points {
+                let d = Vec3::from(p).as_dvec3().distance(centre.as_dvec3());
+                assert!(d <= f64::from(radius) * (1.0 + 1e-6) || radius == 1.0, "{p:?}");
+            }
+        }
+        let (_, radius) = bounding_sphere(&[[-3e38, 0.0, 0.0], [3e38, 1.0, 0.0]]);
+        assert!(radius.is_finite());
+        let (_, radius) = bounding_sphere(&[[-3e38, -3e38, 0.0], [3e38, 3e38, 0.0]]);
+        assert_eq!(radius, f32::INFINITY);
     }
 
     #[test]
