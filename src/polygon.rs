@@ -216,7 +216,8 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 /// the result is whatever earcut or the Delaunay triangulation (above 1024 corners, see the
 /// module docs) makes of it, except that rings passing through one point more
 /// than twice (repeats next to each other counting once) give no triangles. Non-finite
-/// coordinates give no triangles, holes with fewer than 3 points are ignored. For an exact
+/// coordinates give no triangles, holes with fewer than 3 points are ignored; finite ones of
+/// any magnitude triangulate as the same polygon at ordinary scale. For an exact
 /// triangulation of pixel coordinates, see [`triangulate_snapped`].
 #[must_use]
 pub fn triangulate_polygon(rings: &[Vec<[f64; 2]>]) -> Vec<[usize; 3]> {
@@ -225,6 +226,18 @@ pub fn triangulate_polygon(rings: &[Vec<[f64; 2]>]) -> Vec<[usize; 3]> {
     };
     if rings.iter().flatten().any(|p| !(p[0].is_finite() && p[1].is_finite())) {
         return Vec::new();
+    }
+    let largest = rings.iter().flatten().flatten().fold(0.0f64, |m, c| m.max(c.abs()));
+    if largest > 2f64.powi(500) || (largest > 0.0 && largest < 2f64.powi(-500)) {
+        // Products of such coordinates (the area, earcut's orientation tests) overflow or
+        // underflow: a square at 1e308 or at 1e-320 had given no triangles. Scaled by a power
+        // of two to about 1, in two steps (one factor could be out of range), they are the
+        // same polygon, exactly.
+        let e = largest.log2().floor() as i32;
+        let (a, b) = (2f64.powi(-e / 2), 2f64.powi(-e + e / 2));
+        let scaled: Vec<Vec<[f64; 2]>> =
+            rings.iter().map(|r| r.iter().map(|p| p.map(|c| c * a * b)).collect()).collect();
+        return triangulate_polygon(&scaled);
     }
     let area = shoelace(outer);
     if area == 0.0 || !area.is_finite() {

@@ -906,3 +906,34 @@ fn twisted_faces_give_n_minus_2_triangles() {
         assert_n_minus_2(&tris, n, &face);
     }
 }
+
+/// Polygons at coordinates whose products overflow or underflow (corners near 1e308, or
+/// subnormal near 1e-320) triangulate as their copies at ordinary scale, where the area had
+/// come out infinite or zero and they had given no triangles: the same polygon scaled by
+/// powers of two, holes and earcut included.
+#[test]
+fn polygons_at_extreme_scales_triangulate_as_at_ordinary_ones() {
+    let mut rng = SmallRng::seed_from_u64(0xe87e);
+    for i in 0..200 {
+        let rings = polygon(&mut rng, kind_of(i), 4);
+        let float: Vec<Vec<[f64; 2]>> =
+            rings.iter().map(|r| r.iter().map(|p| p.map(|v| v as f64)).collect()).collect();
+        let want = triangulate_polygon(&float);
+        assert!(!want.is_empty(), "{rings:?}");
+        for scale in [2f64.powi(1000), 2f64.powi(-1060), 2f64.powi(600), 2f64.powi(-600)] {
+            let scaled: Vec<Vec<[f64; 2]>> =
+                float.iter().map(|r| r.iter().map(|p| p.map(|c| c * scale)).collect()).collect();
+            // The corners scale exactly: integers below 2^24 times a power of two, normal or
+            // (the smallest) subnormal with room for their bits.
+            assert!(
+                scaled
+                    .iter()
+                    .flatten()
+                    .flatten()
+                    .zip(float.iter().flatten().flatten())
+                    .all(|(s, f)| s / scale == *f)
+            );
+            assert_eq!(triangulate_polygon(&scaled), want, "scale {scale:e}: {rings:?}");
+        }
+    }
+}
