@@ -7,7 +7,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use trirast::camera::{self, Camera, Projection};
-use trirast::mesh::Mesh;
+use trirast::mesh::{Format, Mesh};
 use trirast::model::{self, Lighting, MaterialTextures, ModelOptions};
 use trirast::pipeline::FaceCull;
 use trirast::render::Schedule;
@@ -489,9 +489,9 @@ fn check_rayon_threads() -> Result<(), Error> {
 }
 
 /// The comparison switches `TRIRAST_SIMD` and `TRIRAST_SCHEDULE`, checked as the commands
-/// that draw start: a value the library does not know (it ignored them in silence, so a comparison could
-/// measure the default against itself) is an error, and a SIMD level this CPU lacks a warning
-/// naming the level used instead.
+/// that draw start: a value the library does not know (it ignored them in silence, so a
+/// comparison could measure the default against itself) is an error, and a SIMD level this
+/// CPU lacks a warning naming the level used instead.
 fn check_switches() -> Result<(), Error> {
     use trirast::simd::SimdLevel;
     if let Some(value) = std::env::var_os("TRIRAST_SIMD") {
@@ -1767,7 +1767,6 @@ fn info(path: &Path) -> Result<(), Error> {
     warn_about(&mesh);
     say!("file:       {}", path.display());
     // What a vertex is differs by format, and the count is not the file's `v` lines for OBJ.
-    use trirast::mesh::Format;
     let vertices = match Format::of(path) {
         Some(Format::Obj) => " (distinct corners the faces use: unused `v` lines are left out)",
         Some(Format::Stl) => " (facet corners, welded)",

@@ -57,6 +57,9 @@ impl SampleCount {
     }
 
     /// Offset of sample `s` in fixed-point (1/256 pixel) units.
+    ///
+    /// # Panics
+    /// If `s` is not below [`Self::count`].
     #[must_use]
     pub fn offset(self, s: usize) -> [i64; 2] {
         self.pattern()[s].map(|v| i64::from(v) * 16)

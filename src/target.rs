@@ -281,9 +281,15 @@ impl Target {
     /// The colour image: at 1x the colour buffer itself; with multisampling, each pixel's
     /// samples averaged in linear light (colour decoded from sRGB, averaged, encoded again;
     /// alpha averaged as is). Pixels are resolved in parallel on the current rayon pool.
+    ///
+    /// # Panics
+    /// If the colour buffer was replaced by one of another length: the image would have
+    /// been of another size, without a word.
     #[must_use]
     pub fn resolve(&self) -> Vec<[u8; 4]> {
         let n = self.samples.count();
+        let expected = self.pixel_count() * n;
+        assert_eq!(self.color.len(), expected, "resolve: the colour buffer's length");
         if n == 1 {
             return self.color.clone();
         }
@@ -547,6 +553,20 @@ impl Target {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A colour buffer replaced by one of another length is refused by name, at 1x and
+    /// multisampled, where the image had come out of another size.
+    #[test]
+    fn resolving_a_replaced_colour_buffer_panics() {
+        for samples in [SampleCount::X1, SampleCount::X4] {
+            let mut target = Target::multisampled(8, 4, samples).unwrap();
+            target.color.pop();
+            let caught =
+                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| target.resolve()));
+            let message = caught.unwrap_err().downcast::<String>().unwrap();
+            assert!(message.contains("colour buffer"), "{message}");
+        }
+    }
 
     /// The shortcut of `resolve_pixel`: a pixel whose samples are all one colour averages to
     /// that colour, for every 8-bit value in every channel (colour and alpha) at every sample

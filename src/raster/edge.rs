@@ -76,8 +76,8 @@ pub fn row_coverage(e: [i64; 3], step_x: [i64; 3]) -> u32 {
     row_coverage_of::<{ NARROW as u32 }>(e, step_x)
 }
 
-/// [`row_coverage`] of the first `columns` pixels (at most [`NARROW`], asserted in debug
-/// builds only: the check is in the narrow kernels' row loops), the rest clear. Boxes up to 4
+/// [`row_coverage`] of the first `columns` pixels (at most [`NARROW`]; asserted in debug
+/// builds only, as this runs in the narrow kernels' row loops), the rest clear. Boxes up to 4
 /// pixels wide step 4 pixels, not 8 (a branch per row, the same for every row of a triangle):
 /// grid, one thread, 87-89 -> 80-83 ms.
 #[inline(always)]
