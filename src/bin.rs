@@ -944,8 +944,9 @@ pub(crate) enum Eight {
 impl Eight {
     /// The kind for a target with `samples` per pixel: window triangles at `window` (their
     /// narrow kernel's level, if any), otherwise the smallest triangles (on a 4x target,
-    /// only for the small kernel: [`crate::simd::shade_small_samples`]); nothing else beyond
-    /// 1x.
+    /// for the small kernel, [`crate::simd::shade_small_samples`], or the shared queue of a
+    /// stage whose colour waits behind depth, [`shade::shade_small_lane_samples`]); nothing
+    /// else beyond 1x.
     pub(crate) fn of(window: Option<SimdLevel>, samples: SampleCount) -> Self {
         match window {
             None if samples == crate::simd::SMALL_SAMPLES => Self::Small,
@@ -976,7 +977,9 @@ const SMALL_EIGHT_MIN: u32 = 4;
 /// [`crate::simd::shade_narrow_eight`]; small triangles, with boxes of at most 8 x 8
 /// pixels, through [`crate::simd::shade_small_eight`] where the fragment stage gives them
 /// kernel colours, else queued as [`shade::shade_small_triangle`] queues them,
-/// [`shade::shade_small_lane`], if they share the lane queue), the others with
+/// [`shade::shade_small_lane`], if they share the lane queue, and on a 4x target as
+/// [`shade::shade_small_triangle_samples`] does, [`shade::shade_small_lane_samples`]), the
+/// others with
 /// `one(band, queue, l)` (record `l` through `shade_record`). `one` is called from this one
 /// place, so that it is inlined: from two, it was left out of line, a call per record (bunny
 /// 3-5% slower on two threads).
@@ -1001,13 +1004,19 @@ where
         (Eight::Narrow(level), Ok(eight)) => {
             (S::narrow_eight(eight, clip, level, &mut setup.narrow), 0)
         }
-        // Multisampled, for the small kernel alone (there is no shared queue).
-        (Eight::Small, _) if band.samples().count() > 1 && !kernels => (0, 0),
+        // Multisampled, for the small kernel, or for a stage whose colour waits behind depth
+        // in the shared queue.
+        (Eight::Small, _)
+            if band.samples().count() > 1 && !kernels && !fragments.defers_colour() =>
+        {
+            (0, 0)
+        }
         // Fewer than eight too: a band's piece ends with them (about one record in seven of
         // the bunny's, whose pieces lose half their triangles to culling).
         (Eight::Small, _) => {
             let tests = (clip, shared, kernel, kernels);
-            small_lanes(records, tests, band.samples().count() > 1, setup, &mut boxes)
+            let target = (band.samples().count() > 1, fragments.defers_colour());
+            small_lanes(records, tests, target, setup, &mut boxes)
         }
         _ => (0, 0),
     };
@@ -1044,13 +1053,22 @@ where
                 l = if kernels { l0 + 1 } else { l0 + rest };
                 // A loop: the closure of a `map` here was left out of line, a call per
                 // triangle (no difference measured on the grid, within the noise).
+                let multisampled = band.samples().count() > 1;
                 for m in l0..l {
                     let p = records[m].kept().expect("a small lane keeps its triangle");
-                    let (lane, id) = ((&setup.small, m), (depth_test, p.id));
+                    let id = (depth_test, p.id);
                     let (depth, t) = (&p.depth, &p.payload);
-                    covered += shade::shade_small_lane(
-                        band, lane, &boxes[m], depth, id, t, fragments, queue,
-                    );
+                    covered += if multisampled {
+                        let lane = (&setup.small, &setup.samples, m);
+                        shade::shade_small_lane_samples(
+                            band, lane, &boxes[m], depth, id, t, fragments, queue,
+                        )
+                    } else {
+                        let lane = (&setup.small, m);
+                        shade::shade_small_lane(
+                            band, lane, &boxes[m], depth, id, t, fragments, queue,
+                        )
+                    };
                 }
             }
             continue;
@@ -1123,12 +1141,14 @@ pub(crate) fn shade_small_run_lanes<'a, T, F: TriangleFragments<T>>(
 /// [`TriangleFragments::small_colors`]), larger. Their coverage is set up in `setup` and
 /// their boxes within `clip` in `boxes`; none where fewer than [`SMALL_EIGHT_MIN`] are.
 /// `multisampled` (a 4x target): the boxes of their samples ([`crate::simd::samples_box`])
-/// and each sample's coverage, and none share a queue.
+/// and each sample's coverage, and those share the queue when `deferred` (the stage lets
+/// their colour wait behind their depth, [`TriangleFragments::defers_colour`]), whatever
+/// their size.
 #[inline(always)]
 fn small_lanes<S: Record, K>(
     records: &[&S],
     (clip, shared, kernel, kernels): (&PixelRect, impl Fn(&Prepared<S::Payload>) -> bool, &K, bool),
-    multisampled: bool,
+    (multisampled, deferred): (bool, bool),
     setup: &mut EightSetup,
     boxes: &mut [PixelRect; 8],
 ) -> (u8, u8)
@@ -1147,7 +1167,8 @@ where
         } else {
             &p.setup.bounds
         };
-        let fits_queue = !multisampled && p.setup.area2 <= shade::SHARED_QUEUE_AREA2;
+        let fits_queue =
+            if multisampled { deferred } else { p.setup.area2 <= shade::SHARED_QUEUE_AREA2 };
         // The box first, `shared` last (it may compute the coverage rectangle).
         let small = crate::simd::SMALL_BOX;
         if b.x1 - b.x0 < small

@@ -1277,10 +1277,7 @@ impl SmallShading {
         let small = |a: i32, b: i32| (b - a).clamp(0, SMALL_BOX - 1) as u32 + 1;
         debug_assert!(small(rect.x0, rect.x1) == (rect.x1 - rect.x0 + 1) as u32, "a small box");
         debug_assert!(small(rect.y0, rect.y1) == (rect.y1 - rect.y0 + 1) as u32, "a small box");
-        let (columns, rows) = (small(rect.x0, rect.x1), small(rect.y0, rect.y1));
-        // A row's bits repeated in every byte, cut to `rows` bytes.
-        let row = ((1u64 << columns) - 1) * 0x0101_0101_0101_0101;
-        self.cells[l] = row & (u64::MAX >> (64 - 8 * rows));
+        self.cells[l] = box_cells(small(rect.x0, rect.x1), small(rect.y0, rect.y1));
         (self.x0[l], self.y0[l]) = (rect.x0, rect.y0);
     }
 
@@ -1482,6 +1479,16 @@ pub fn shade_small_eight_scalar(
     covered
 }
 
+/// The pixels of a box of `columns` x `rows` (each 1 to 8), numbered as
+/// [`SmallEight::inside`] numbers them (bit `8 r + c`): a row's bits repeated in every byte,
+/// cut to `rows` bytes.
+#[inline(always)]
+pub(crate) fn box_cells(columns: u32, rows: u32) -> u64 {
+    debug_assert!((1..=8).contains(&columns) && (1..=8).contains(&rows), "a small box");
+    let row = ((1u64 << columns) - 1) * 0x0101_0101_0101_0101;
+    row & (u64::MAX >> (64 - 8 * rows))
+}
+
 /// Samples per pixel of the multisampled small kernel ([`shade_small_samples`]): the 4x
 /// pattern, the CLI's default for meshes.
 pub const SMALL_SAMPLES: SampleCount = SampleCount::X4;
@@ -1500,7 +1507,7 @@ pub struct SmallSamples {
 /// over a pixel (`256 A`, `256 B`, exact multiples) over 256. Below 2^12 * 2 * 112 in
 /// magnitude for a small triangle.
 #[inline(always)]
-fn sample_offsets(eight: &SmallEight, l: usize, s: usize) -> [i32; 3] {
+pub(crate) fn sample_offsets(eight: &SmallEight, l: usize, s: usize) -> [i32; 3] {
     let [ox, oy] = SMALL_SAMPLES.offset(s).map(|v| v as i32);
     std::array::from_fn(|k| (eight.step_x[k][l] >> 8) * ox + (eight.step_y[k][l] >> 8) * oy)
 }
