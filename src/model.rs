@@ -1172,8 +1172,9 @@ mod tests {
 
     /// Phong draws through the pipeline with its lanes ([`FragmentShader::shades_lanes`]),
     /// and on multisampled targets with its small triangles' colour waiting behind their
-    /// depth in a shared queue ([`crate::shade::shade_small_triangle_samples`]), what it
-    /// draws one fragment at a time: colour, depth, ids and normals, at 1x, 4x and 8x, the
+    /// depth in a shared queue ([`crate::shade::shade_small_triangle_samples`], at 4x also
+    /// eight at a time, [`crate::shade::shade_small_lane_samples`]), what it draws one
+    /// fragment at a time: colour, depth, ids, normals and overdraw, at 1x, 4x and 8x, the
     /// reference and both schedules, every level, with `Less` and with `Always` (where the
     /// last triangle drawn wins, so colour written out of order shows). The mesh is two
     /// overlapping spheres, one of large triangles after one of small ones, with back faces
@@ -1256,7 +1257,8 @@ mod tests {
                             let mut target = Target::multisampled(width, height, samples)
                                 .unwrap()
                                 .with_ids()
-                                .with_normals();
+                                .with_normals()
+                                .with_overdraw();
                             let stats = shader(&mut target);
                             assert!(stats.fragments > 10_000, "the spheres are drawn");
                             target
@@ -1277,6 +1279,7 @@ mod tests {
                             |t: &Target| t.depth.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
                         assert_eq!(bits(&lanes), bits(&single), "{case}");
                         assert_eq!(lanes.ids, single.ids, "{case}");
+                        assert_eq!(lanes.overdraw, single.overdraw, "{case}");
                         let normal_bits = |t: &Target| {
                             let n = t.normals.as_ref().unwrap();
                             n.iter().flat_map(|n| n.map(f32::to_bits)).collect::<Vec<_>>()
