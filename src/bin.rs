@@ -985,10 +985,9 @@ const SMALL_EIGHT_MIN_QUEUED: u32 = 1;
 /// kernel colours, else queued as [`shade::shade_small_triangle`] queues them,
 /// [`shade::shade_small_lane`], if they share the lane queue, and on a 4x target as
 /// [`shade::shade_small_triangle_samples`] does, [`shade::shade_small_lane_samples`]), the
-/// others with
-/// `one(band, queue, l)` (record `l` through `shade_record`). `one` is called from this one
-/// place, so that it is inlined: from two, it was left out of line, a call per record (bunny
-/// 3-5% slower on two threads).
+/// others with `one(band, queue, l)` (record `l` through `shade_record`). `one` is called
+/// from this one place, so that it is inlined: from two, it was left out of line, a call
+/// per record (bunny 3-5% slower on two threads).
 #[inline(always)]
 pub(crate) fn shade_eight<'a, S, K, F>(
     band: &mut TargetBand<'_>,
