@@ -1557,13 +1557,17 @@ pub fn small_samples_scalar(eight: &mut SmallEight, span: [usize; 2], out: &mut 
 }
 
 /// The pixels any of whose [`SMALL_SAMPLES`] the snapped box of `setup` holds: the union of
-/// the sample boxes, as [`crate::shade::shade_triangle`] takes them (before clipping).
+/// the sample boxes, as [`crate::shade::shade_triangle`] takes them (before clipping). Each
+/// side of a sample's box moves against its offset, so the union takes each side from the
+/// sample farthest that way: on both axes the 4x pattern reaches its `reach` each way, so
+/// two boxes give it (`samples_box_is_the_union_of_the_sample_boxes`): the default render,
+/// load and four frames, 1.0110 -> 0.9872 G instructions against the four and their union.
 #[must_use]
 pub fn samples_box(setup: &TriangleSetup) -> PixelRect {
-    let extent = setup.extent();
-    let boxes =
-        (0..SMALL_SAMPLES.count()).map(|s| setup::sample_bounds(extent, SMALL_SAMPLES.offset(s)));
-    boxes.reduce(|a, b| a.union(&b)).expect("four samples")
+    let (extent, reach) = (setup.extent(), SMALL_SAMPLES.reach());
+    let first = setup::sample_bounds(extent, [reach, reach]);
+    let last = setup::sample_bounds(extent, [-reach, -reach]);
+    PixelRect { x0: first.x0, y0: first.y0, x1: last.x1, y1: last.y1 }
 }
 
 /// [`small_run_geometry`] for a 4x target ([`SMALL_SAMPLES`]): each lane's box the pixels any
@@ -2298,6 +2302,28 @@ mod tests {
     use super::*;
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
+
+    /// [`samples_box`] is the union of the four sample positions' boxes, for random snapped
+    /// boxes (degenerate, sub-pixel and large, at negative and positive coordinates).
+    #[test]
+    fn samples_box_is_the_union_of_the_sample_boxes() {
+        let mut rng = SmallRng::seed_from_u64(5);
+        for round in 0..20_000 {
+            let size = [0, 1, 40, 300, 5000][round % 5];
+            let mut corner = || {
+                let x0 = rng.random_range(-4000..4000);
+                [x0, x0 + rng.random_range(0..=size)]
+            };
+            let ([x0, x1], [y0, y1]) = (corner(), corner());
+            let setup = TriangleSetup::from_kept([[x0, y0], [x1, y0], [x0, y1]], true);
+            let extent = setup.extent();
+            let union = (0..SMALL_SAMPLES.count())
+                .map(|s| setup::sample_bounds(extent, SMALL_SAMPLES.offset(s)))
+                .reduce(|a, b| a.union(&b))
+                .unwrap();
+            assert_eq!(samples_box(&setup), union, "{extent:?}");
+        }
+    }
 
     /// The vector floor is `f64::floor` of the clamped value for every finite and infinite
     /// input (integers, halves, values just off integers, huge, tiny, negative zero), and
