@@ -42,13 +42,13 @@ impl SampleCount {
 
     /// Number of samples.
     #[must_use]
-    pub const fn count(self) -> usize {
+    pub fn count(self) -> usize {
         self.pattern().len()
     }
 
     /// Offsets in 1/16 pixel from the pixel centre, y down.
     #[must_use]
-    pub const fn pattern(self) -> &'static [[i32; 2]] {
+    pub fn pattern(self) -> &'static [[i32; 2]] {
         match self {
             Self::X1 => &PATTERN_1X,
             Self::X4 => &PATTERN_4X,

@@ -1685,30 +1685,21 @@ pub(crate) fn shade_small_lane_samples<'a, T, F: TriangleFragments<T>>(
     stage: &F,
     queue: &mut SharedLaneQueue<'a, T>,
 ) -> u64 {
-    const N: usize = simd::SMALL_SAMPLES.count();
     debug_assert_eq!(target.samples(), simd::SMALL_SAMPLES, "a 4x target");
     let small = simd::SMALL_BOX;
     debug_assert!(r.x1 - r.x0 < small && r.y1 - r.y0 < small, "a box of at most 8 x 8 pixels");
     // The box's pixels (the coverage bits run on over the widest box of the eight).
     let cells = simd::box_cells((r.x1 - r.x0 + 1) as u32, (r.y1 - r.y0 + 1) as u32);
     let mut inside = eight.inside[l] & cells;
-    let numerator = |k: usize, (c, row): (i32, i32)| {
-        let v = eight.edges[k][l] + row * eight.step_y[k][l] + c * eight.step_x[k][l];
-        i64::from(v - eight.bias[k - 1][l])
-    };
-    let offsets: [[i64; 2]; N] = std::array::from_fn(|s| {
-        let o = simd::sample_offsets(eight, l, s);
-        [i64::from(o[1]), i64::from(o[2])]
-    });
+    let offsets = eight.sample_numerator_offsets(l);
     let mut covered = 0u64;
     while inside != 0 {
         let bit = inside.trailing_zeros();
         inside &= inside - 1;
-        let mask = (0..N).fold(0u32, |m, s| m | ((samples.inside[s][l] >> bit) as u32 & 1) << s);
-        let (c, row) = ((bit & 7) as i32, (bit >> 3) as i32);
-        let centre = (numerator(1, (c, row)), numerator(2, (c, row)));
-        let (at, offsets) = ((r.x0 + c, r.y0 + row), &offsets[..]);
-        let pixel = SmallSamplePixel { at, mask, centre, offsets };
+        let [c1, c2] = eight.numerators(l, bit).map(i64::from);
+        let at = (r.x0 + (bit & 7) as i32, r.y0 + (bit >> 3) as i32);
+        let (mask, centre) = (samples.mask(l, bit), (c1, c2));
+        let pixel = SmallSamplePixel { at, mask, centre, offsets: &offsets };
         covered += queue_sample_pixel(target, pixel, depth, (depth_test, id), (t, stage), queue);
     }
     covered

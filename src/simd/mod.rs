@@ -1149,6 +1149,32 @@ pub struct SmallEight {
     pub inside: [u64; 8],
 }
 
+impl SmallEight {
+    /// Lane `l`'s barycentric numerators (edges 1 and 2, their fill-rule biases taken off)
+    /// at the centre of pixel `bit` (`8 r + c`) of its box: exact in `i32` within the box.
+    #[inline(always)]
+    #[must_use]
+    pub fn numerators(&self, l: usize, bit: u32) -> [i32; 2] {
+        let (c, r) = ((bit & 7) as i32, (bit >> 3) as i32);
+        let at = |k: usize| {
+            let v = self.edges[k][l] + r * self.step_y[k][l] + c * self.step_x[k][l];
+            v - self.bias[k - 1][l]
+        };
+        [at(1), at(2)]
+    }
+
+    /// Lane `l`'s barycentric numerators' change from a pixel centre to each sample of
+    /// [`SMALL_SAMPLES`] ([`sample_offsets`] of edges 1 and 2).
+    #[inline(always)]
+    #[must_use]
+    pub fn sample_numerator_offsets(&self, l: usize) -> [[i64; 2]; 4] {
+        std::array::from_fn(|s| {
+            let o = sample_offsets(self, l, s);
+            [i64::from(o[1]), i64::from(o[2])]
+        })
+    }
+}
+
 /// The widest and tallest box (pixels, before clipping) of a triangle [`small_eight`] takes.
 pub const SMALL_BOX: i32 = 8;
 
@@ -1465,15 +1491,11 @@ pub fn shade_small_eight_scalar(
         let mut t = shading.kernel_target(l, &color, depth_test, target);
         covered += u64::from(inside.count_ones());
         while inside != 0 {
-            let bit = inside.trailing_zeros() as i32;
+            let bit = inside.trailing_zeros();
             inside &= inside - 1;
-            let (c, r) = (bit & 7, bit >> 3);
-            let f = |k: usize, b: usize| {
-                let v = eight.edges[k][l] + r * eight.step_y[k][l] + c * eight.step_x[k][l];
-                f64::from(v - eight.bias[b][l])
-            };
-            let i = first + r as usize * stride + c as usize;
-            t.pixel(i, f(1, 0), f(2, 1));
+            let (c, r) = ((bit & 7) as usize, (bit >> 3) as usize);
+            let [f1, f2] = eight.numerators(l, bit).map(f64::from);
+            t.pixel(first + r * stride + c, f1, f2);
         }
     }
     covered
@@ -1502,12 +1524,22 @@ pub struct SmallSamples {
     pub inside: [[u64; 8]; 4],
 }
 
+impl SmallSamples {
+    /// The covered samples of pixel `bit` (`8 r + c`) of lane `l`'s box, bit `s` for
+    /// sample `s`.
+    #[inline(always)]
+    #[must_use]
+    pub fn mask(&self, l: usize, bit: u32) -> u32 {
+        (0..self.inside.len()).fold(0, |m, s| m | ((self.inside[s][l] >> bit) as u32 & 1) << s)
+    }
+}
+
 /// Each edge's change (edges 1 and 2's: the barycentric numerators') from lane `l`'s pixel
 /// centres to sample `s` of [`SMALL_SAMPLES`]: `A ox + B oy`, the edge's coefficients being its steps
 /// over a pixel (`256 A`, `256 B`, exact multiples) over 256. Below 2^12 * 2 * 112 in
 /// magnitude for a small triangle.
 #[inline(always)]
-pub(crate) fn sample_offsets(eight: &SmallEight, l: usize, s: usize) -> [i32; 3] {
+fn sample_offsets(eight: &SmallEight, l: usize, s: usize) -> [i32; 3] {
     let [ox, oy] = SMALL_SAMPLES.offset(s).map(|v| v as i32);
     std::array::from_fn(|k| (eight.step_x[k][l] >> 8) * ox + (eight.step_y[k][l] >> 8) * oy)
 }
@@ -1655,23 +1687,16 @@ pub fn shade_small_samples_scalar(
             continue;
         }
         let first = target.index(shading.x0[l], shading.y0[l]);
-        let offsets: [[i64; 2]; 4] = std::array::from_fn(|s| {
-            let o = sample_offsets(eight, l, s);
-            [i64::from(o[1]), i64::from(o[2])]
-        });
+        let offsets = eight.sample_numerator_offsets(l);
         let color = SpanColor::Perspective(shading.color(l));
         let mut t = shading.kernel_target(l, &color, depth_test, target);
         while any != 0 {
-            let bit = any.trailing_zeros() as i32;
+            let bit = any.trailing_zeros();
             any &= any - 1;
-            let mask = (0..n).fold(0, |m, s| m | ((samples.inside[s][l] >> bit) as u32 & 1) << s);
-            let (c, r) = (bit & 7, bit >> 3);
-            let f = |k: usize, b: usize| {
-                let v = eight.edges[k][l] + r * eight.step_y[k][l] + c * eight.step_x[k][l];
-                i64::from(v - eight.bias[b][l])
-            };
-            let p = n * (first + r as usize * stride + c as usize);
-            t.pixel_samples(p, mask, (f(1, 0), f(2, 1)), &offsets);
+            let mask = samples.mask(l, bit);
+            let (c, r) = ((bit & 7) as usize, (bit >> 3) as usize);
+            let [f1, f2] = eight.numerators(l, bit).map(i64::from);
+            t.pixel_samples(n * (first + r * stride + c), mask, (f1, f2), &offsets);
             covered += u64::from(mask.count_ones());
         }
     }
