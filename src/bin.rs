@@ -452,6 +452,26 @@ impl<T> Sink<'_, Prepared<T>> {
         }
     }
 
+    /// Takes one piece of a triangle that clipping may have cut into several, counted as
+    /// `count` says ([`crate::pipeline::Count`]).
+    #[inline]
+    pub(crate) fn take_piece(
+        &mut self,
+        piece: Result<Prepared<T>, Skipped>,
+        count: crate::pipeline::Count,
+    ) {
+        if count == crate::pipeline::Count::Triangle {
+            return self.take(piece);
+        }
+        self.stats.extra_pieces += 1;
+        if let Ok(p) = piece {
+            // Pushed as `take` pushes it, which counts it as rasterized: not here.
+            let rasterized = self.stats.rasterized;
+            self.push(p);
+            self.stats.rasterized = rasterized;
+        }
+    }
+
     /// Takes one prepared piece (as `take(Ok(piece))`, without building a `Result` of a
     /// record first); see [`Sink::push_record`].
     #[inline]

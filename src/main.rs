@@ -1883,14 +1883,12 @@ fn report(stats: &trirast::DrawStats) {
             stats.non_finite
         );
     }
-    // Clipping can cut a triangle into several (three of them into seven, say): counting the
-    // pieces against the triangles without saying so read as a mistake.
-    let clipped = if stats.rasterized + stats.culled + stats.degenerate + stats.non_finite
-        > stats.submitted
-    {
-        " (clipping cut some into pieces, each counted)"
-    } else {
-        ""
+    // Clipping can cut a triangle into several (three of them into seven, say): each is
+    // counted once, and the pieces it added are said.
+    let clipped = match stats.extra_pieces {
+        0 => String::new(),
+        1 => " (clipping added a piece)".to_string(),
+        n => format!(" (clipping added {n} pieces)"),
     };
     note!(
         "{} triangles: {} rasterized{clipped}, {} culled or clipped away, {} degenerate; {} \

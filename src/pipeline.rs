@@ -437,8 +437,11 @@ impl Pipeline {
                         input,
                         || tri.map(position),
                         id,
-                        |r| {
-                            count(&mut stats, &r);
+                        |r, counted| {
+                            match counted {
+                                Count::Triangle => count(&mut stats, &r),
+                                Count::Piece => stats.extra_pieces += 1,
+                            }
                             let Ok(p) = r else { return };
                             stats.fragments += shade::shade_triangle(
                                 &mut target.band(),
@@ -576,7 +579,7 @@ impl Pipeline {
                                         front.vertex(ClipVertex { position, varyings })
                                     });
                                     let positions = || out.map(|(position, _)| position);
-                                    let take = |p| sink.take(p);
+                                    let take = |p, counted| sink.take_piece(p, counted);
                                     front.prepare(owned.each_ref(), positions, first + k, take);
                                 }
                             }
@@ -968,6 +971,20 @@ where
     }
 }
 
+/// How a piece of a triangle counts in [`DrawStats`]: a triangle clipping cut into pieces
+/// counts once, with one of them, as rasterized if any piece reaches the rasterizer (set up,
+/// or holding no sample) and otherwise as its first piece's rejection; the others that
+/// reach it count as extra pieces ([`DrawStats::extra_pieces`]), and rejected pieces of a
+/// rasterized triangle not at all. Whether a piece holds a sample depends on the clip
+/// rectangle (a band's, in the banded schedule), which these counts do not.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Count {
+    /// The piece the triangle is counted with.
+    Triangle,
+    /// Another piece of a rasterized triangle.
+    Piece,
+}
+
 /// The fixed-function stages between the vertex shader and the rasterizer.
 #[derive(Clone, Copy)]
 struct FrontEnd {
@@ -1142,7 +1159,8 @@ impl FrontEnd {
                     }
                 } else {
                     let positions = || batch[k].map(&position);
-                    self.prepare(each_ref(&vertices(k)), positions, first_id + k, |p| sink.take(p));
+                    let take = |p, counted| sink.take_piece(p, counted);
+                    self.prepare(each_ref(&vertices(k)), positions, first_id + k, take);
                 }
             }
         }
@@ -1203,25 +1221,26 @@ impl FrontEnd {
         true
     }
 
-    /// Clip, viewport and setup of triangle `id`: each piece (the triangle, nothing, or a
-    /// clipped fan) goes to `emit`; `Err` pieces count as rejected. `positions` gives the
-    /// vertices' clip-space positions, asked for only when the triangle is clipped.
+    /// Clip, viewport and setup of triangle `id`: its pieces (the triangle, nothing, or a
+    /// clipped fan) go to `emit(piece, count)`, the triangle counted once (see [`Count`]).
+    /// `positions` gives the vertices' clip-space positions, asked for only when the
+    /// triangle is clipped.
     fn prepare<V: Varyings>(
         &self,
         input: [&ShadedVertex<V>; 3],
         positions: impl FnOnce() -> [Vec4; 3],
         id: usize,
-        mut emit: impl FnMut(Result<Prepared<TriangleData<V>>, Skipped>),
+        mut emit: impl FnMut(Result<Prepared<TriangleData<V>>, Skipped>, Count),
     ) {
         if input.iter().all(|v| v.outcode == 0) {
-            emit(self.setup_inside(input, id));
+            emit(self.setup_inside(input, id), Count::Triangle);
             return;
         }
         // Rejected before clipping so that a triangle with a NaN or infinite coordinate is
         // counted once, as non-finite: clipped, it could make a fan of pieces, each counted.
         let positions = positions();
         if !positions.iter().all(|p| p.is_finite()) {
-            emit(Err(Skipped::Rejected(Rejection::NonFinite)));
+            emit(Err(Skipped::Rejected(Rejection::NonFinite)), Count::Triangle);
             return;
         }
         // Coordinates past 2^100 are scaled down by a power of two (exact): the same
@@ -1236,11 +1255,24 @@ impl FrontEnd {
         }));
         if polygon.is_empty() {
             // Entirely outside the view volume: counted with the culled.
-            emit(Err(Skipped::Rejected(Rejection::Culled)));
+            emit(Err(Skipped::Rejected(Rejection::Culled)), Count::Triangle);
             return;
         }
-        for k in 1..polygon.len() - 1 {
-            emit(self.setup([polygon[0], polygon[k], polygon[k + 1]], id));
+        // The triangle counts once: as rasterized when a piece is set up or merely holds no
+        // sample (which also depends on the clip rectangle, a band's or the target's: the
+        // count must not), with the first such piece; otherwise with its first rejection.
+        let pieces: Vec<_> = (1..polygon.len() - 1)
+            .map(|k| self.setup([polygon[0], polygon[k], polygon[k + 1]], id))
+            .collect();
+        let reaches = |p: &Result<_, Skipped>| matches!(p, Ok(_) | Err(Skipped::Empty));
+        let Some(first) = pieces.iter().position(reaches) else {
+            if let Some(Err(why)) = pieces.into_iter().next() {
+                emit(Err(why), Count::Triangle);
+            }
+            return;
+        };
+        for (k, piece) in pieces.into_iter().enumerate().filter(|(_, p)| reaches(p)) {
+            emit(piece, if k == first { Count::Triangle } else { Count::Piece });
         }
     }
 

@@ -159,8 +159,11 @@ impl RenderOptions {
 pub struct DrawStats {
     /// Triangles submitted.
     pub submitted: usize,
-    /// Triangles that reached the rasterizer.
+    /// Triangles that reached the rasterizer (a triangle clipping cut into pieces once).
     pub rasterized: usize,
+    /// The pieces of rasterized triangles beyond one each: what clipping added (a triangle
+    /// through a corner of the view volume can become a fan of up to seven).
+    pub extra_pieces: usize,
     /// Dropped for a NaN or infinite coordinate.
     pub non_finite: usize,
     /// Dropped for zero area after snapping.
@@ -178,6 +181,7 @@ impl DrawStats {
         Self {
             submitted: self.submitted + other.submitted,
             rasterized: self.rasterized + other.rasterized,
+            extra_pieces: self.extra_pieces + other.extra_pieces,
             non_finite: self.non_finite + other.non_finite,
             degenerate: self.degenerate + other.degenerate,
             culled: self.culled + other.culled,

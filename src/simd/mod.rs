@@ -1164,7 +1164,7 @@ impl SmallEight {
     }
 
     /// Lane `l`'s barycentric numerators' change from a pixel centre to each sample of
-    /// [`SMALL_SAMPLES`] ([`sample_offsets`] of edges 1 and 2).
+    /// [`SMALL_SAMPLES`] (`sample_offsets` of edges 1 and 2).
     #[inline(always)]
     #[must_use]
     pub fn sample_numerator_offsets(&self, l: usize) -> [[i64; 2]; 4] {
