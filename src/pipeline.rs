@@ -437,8 +437,8 @@ impl Pipeline {
                         input,
                         || tri.map(position),
                         id,
-                        |r, counted| {
-                            match counted {
+                        |r, how| {
+                            match how {
                                 Count::Triangle => count(&mut stats, &r),
                                 Count::Piece => stats.extra_pieces += 1,
                             }
@@ -579,7 +579,7 @@ impl Pipeline {
                                         front.vertex(ClipVertex { position, varyings })
                                     });
                                     let positions = || out.map(|(position, _)| position);
-                                    let take = |p, counted| sink.take_piece(p, counted);
+                                    let take = |p, how| sink.take_piece(p, how);
                                     front.prepare(owned.each_ref(), positions, first + k, take);
                                 }
                             }
@@ -1159,7 +1159,7 @@ impl FrontEnd {
                     }
                 } else {
                     let positions = || batch[k].map(&position);
-                    let take = |p, counted| sink.take_piece(p, counted);
+                    let take = |p, how| sink.take_piece(p, how);
                     self.prepare(each_ref(&vertices(k)), positions, first_id + k, take);
                 }
             }

@@ -161,8 +161,8 @@ pub struct DrawStats {
     pub submitted: usize,
     /// Triangles that reached the rasterizer (a triangle clipping cut into pieces once).
     pub rasterized: usize,
-    /// The pieces of rasterized triangles beyond one each: what clipping added (a triangle
-    /// through a corner of the view volume can become a fan of up to seven).
+    /// The pieces of rasterized triangles beyond one each: what clipping added (each clip
+    /// plane a triangle crosses can add a vertex to its fan).
     pub extra_pieces: usize,
     /// Dropped for a NaN or infinite coordinate.
     pub non_finite: usize,
