@@ -1237,7 +1237,7 @@ impl FrontEnd {
             return;
         }
         // Rejected before clipping so that a triangle with a NaN or infinite coordinate is
-        // counted once, as non-finite: clipped, it could make a fan of pieces, each counted.
+        // counted as non-finite: the clip returns no polygon for it, which counts as culled.
         let positions = positions();
         if !positions.iter().all(|p| p.is_finite()) {
             emit(Err(Skipped::Rejected(Rejection::NonFinite)), Count::Triangle);
