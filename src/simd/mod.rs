@@ -3,7 +3,8 @@
 //! (the 3D front end, eight vertices or triangles at once), index ranges (the 3D pipeline's pass
 //! over a mesh's indices), row masks (coverage of a run of rows of a narrow box), and small
 //! SSE2 helpers (four floors, the sRGB encoder's clamp, four columns of edge values, cache
-//! prefetch hints): the only module with `unsafe` and `core::arch`. Each has a scalar path it
+//! prefetch hints) and the buffers' clear (string stores): the only module with `unsafe`,
+//! `core::arch` and inline assembly. Each has a scalar path it
 //! is tested against.
 //!
 //! The shading kernels shade a 1x span, or a whole narrow triangle, of a window-space
@@ -163,6 +164,81 @@ pub fn prefetch<T>(value: &T) {
     }
     #[cfg(not(target_arch = "x86_64"))]
     let _ = value;
+}
+
+/// A four-byte value a buffer is cleared to ([`fill_words`]).
+pub trait Word: Copy {
+    /// The value's four bytes in memory, as one native-endian word.
+    fn bits(self) -> u32;
+}
+
+impl Word for u32 {
+    fn bits(self) -> u32 {
+        self
+    }
+}
+
+impl Word for i32 {
+    fn bits(self) -> u32 {
+        u32::from_ne_bytes(self.to_ne_bytes())
+    }
+}
+
+impl Word for f32 {
+    fn bits(self) -> u32 {
+        self.to_bits()
+    }
+}
+
+impl Word for [u8; 4] {
+    fn bits(self) -> u32 {
+        u32::from_ne_bytes(self)
+    }
+}
+
+/// Sets every element of `buffer` to `value`, as [`slice::fill`] does, with `rep stosd`
+/// where the CPU has enhanced fast strings (ERMS) and the level is not forced to scalar. The
+/// string store writes whole cache lines without first reading them in, which a loop of
+/// vector stores cannot ask for: a 1080p target's colour and depth (16 MB, two threads) took
+/// 0.37-0.47 ms against 0.52-0.63 with `fill` and 0.53 with aligned AVX-512 stores (Xeon with
+/// AVX-512), a tenth of the Stanford bunny's frame; and the lines stay cached for the draw
+/// that reads them next, which non-temporal stores (0.45-0.55 ms) would have sent to memory.
+pub fn fill_words<T: Word>(buffer: &mut [T], value: T) {
+    #[cfg(target_arch = "x86_64")]
+    fill_words_with(buffer, value, fast_strings());
+    #[cfg(not(target_arch = "x86_64"))]
+    buffer.fill(value);
+}
+
+/// [`fill_words`], with the string store or with `fill` as `string_store` says (tests run
+/// the string store on any x86_64 CPU: ERMS only makes it fast).
+#[cfg(target_arch = "x86_64")]
+fn fill_words_with<T: Word>(buffer: &mut [T], value: T, string_store: bool) {
+    const { assert!(size_of::<T>() == 4, "a word is four bytes") };
+    if string_store {
+        // SAFETY: `rep stosd` stores the word in `eax` `rcx` times from `rdi` upwards (the
+        // direction flag is clear on entry to inline assembly, as the ABI requires), so it
+        // writes exactly the `4 * len` bytes of `buffer`, which is borrowed uniquely; each
+        // element's four bytes become `value.bits()`, `value`'s own bytes, so each element
+        // is `value`. The instruction reads no memory, uses no stack and sets no flags.
+        unsafe {
+            std::arch::asm!(
+                "rep stosd",
+                inout("rcx") buffer.len() => _,
+                inout("rdi") buffer.as_mut_ptr() => _,
+                in("eax") value.bits(),
+                options(nostack, preserves_flags),
+            );
+        }
+        return;
+    }
+    buffer.fill(value);
+}
+
+/// Whether [`fill_words`] takes the string store: ERMS, at a level above scalar.
+#[cfg(target_arch = "x86_64")]
+fn fast_strings() -> bool {
+    SimdLevel::detected() > SimdLevel::Scalar && std::arch::is_x86_feature_detected!("ermsb")
 }
 
 /// [`prefetch`] for every cache line of a slice.
@@ -2327,6 +2403,29 @@ mod tests {
     use super::*;
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
+
+    /// The string store fills exactly the slice it is given, as `fill` does: every length
+    /// from 0 to 67 at every start within a line's first words, for each kind of word, the
+    /// words around it left as they were.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn string_store_fills_as_fill_does() {
+        fn check<T: Word + PartialEq + std::fmt::Debug>(around: T, value: T) {
+            for start in 0..5 {
+                for len in 0..68 {
+                    let mut strings = vec![around; 80];
+                    let mut plain = strings.clone();
+                    fill_words_with(&mut strings[start..start + len], value, true);
+                    plain[start..start + len].fill(value);
+                    assert_eq!(strings, plain, "start {start}, length {len}");
+                }
+            }
+        }
+        check(7u32, 0xDEAD_BEEF);
+        check(-5i32, -1);
+        check(0.5f32, 1.0);
+        check([1u8, 2, 3, 4], [0, 0, 0, 255]);
+    }
 
     /// [`samples_box`] is the union of the four sample positions' boxes, for random snapped
     /// boxes (degenerate, sub-pixel and large, at negative and positive coordinates).
