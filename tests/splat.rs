@@ -104,6 +104,73 @@ fn every_point_lies_in_every_ancestor_sphere() {
     assert!(SplatTree::build(&PointCloud::default()).unwrap().nodes.is_empty());
 }
 
+/// Clouds far out along the axes, up to the ends of `f32`: every node's centre finite, and its
+/// sphere holding every point below it (in `f64`, where the distances do not overflow). The
+/// spheres' arithmetic had been `f32`, whose squares of distances overflow past about 1.8e19:
+/// a cloud 1e20 across had NaN centres above its leaves. Past `f32::MAX` a radius is infinite,
+/// a sphere holding everything (packed as `f32::MAX`, the largest the format stores), and the
+/// cloud still renders, packs and reads back.
+#[test]
+fn clouds_near_the_ends_of_f32_get_finite_centres_and_containing_spheres() {
+    let mut rng = SmallRng::seed_from_u64(9);
+    let mut clouds = Vec::new();
+    for (scale, offset) in [(1e20f32, 0.0f32), (1e30, 0.0), (1e37, 0.0), (1e20, 3e38)] {
+        for radii in [false, true] {
+            let mut cloud = random_cloud(&mut rng, 300, radii);
+            for p in &mut cloud.positions {
+                *p = p.map(|c| c * scale + offset);
+            }
+            if let Some(r) = &mut cloud.radii {
+                r.iter_mut().for_each(|r| *r *= scale);
+            }
+            clouds.push((cloud, true));
+        }
+    }
+    // The corners of a cube 6e38 across, and points within: no sphere of finite `f32` radius
+    // holds them.
+    let mut corners = random_cloud(&mut rng, 300, false);
+    for (k, p) in corners.positions.iter_mut().enumerate() {
+        *p = if k < 8 {
+            [0, 1, 2].map(|a| if k >> a & 1 == 1 { 3e38 } else { -3e38 })
+        } else {
+            p.map(|c| c * 1e37)
+        };
+    }
+    clouds.push((corners, false));
+    for (cloud, finite_root) in &clouds {
+        let tree = SplatTree::build(cloud).unwrap();
+        assert_eq!(tree.leaf_count(), 300);
+        for (i, node) in tree.nodes.iter().enumerate() {
+            assert!(node.centre.iter().all(|c| c.is_finite()), "node {i}: {:?}", node.centre);
+            assert!(node.radius >= 0.0, "node {i}: radius {}", node.radius);
+            let mut leaves = Vec::new();
+            subtree_points(&tree, i, &mut leaves);
+            for l in leaves {
+                let leaf = tree.nodes[l];
+                let d: f64 = (0..3)
+                    .map(|a| (f64::from(leaf.centre[a]) - f64::from(node.centre[a])).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                assert!(
+                    d + f64::from(leaf.radius) <= f64::from(node.radius),
+                    "leaf {l} outside node {i}"
+                );
+            }
+        }
+        assert_eq!(tree.nodes[0].radius.is_finite(), *finite_root);
+        let camera = framing(cloud, 1.0);
+        let mut target = Target::new(32, 32).unwrap();
+        render::render(&mut target, &tree, &camera, &SplatOptions::default());
+        // Packed and read back: every point kept, with a finite sphere.
+        let packed = trirast::splat::format::encode(&tree).unwrap();
+        let read = trirast::splat::format::decode(&packed).unwrap();
+        assert_eq!(read.leaf_count(), 300);
+        assert!(read.nodes.iter().all(|n| n.centre.iter().all(|c| c.is_finite())));
+        let leaves = read.nodes.iter().filter(|n| n.child_count == 0);
+        assert!(leaves.clone().all(|n| n.radius.is_finite()), "{:?}", leaves.collect::<Vec<_>>());
+    }
+}
+
 fn framing(cloud: &PointCloud, aspect: f32) -> Camera {
     let (centre, radius) = trirast::camera::bounding_sphere(&cloud.positions);
     Camera::framing_sphere(centre, radius, 0.4, 0.3, aspect, Projection::Perspective { fov_y: 0.7 })

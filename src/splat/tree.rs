@@ -236,19 +236,7 @@ impl SplatTree {
             let children = self.children(i);
             let kids = &self.nodes[children.clone()];
             let ws = &weight[children];
-            let mut lo = [f32::INFINITY; 3];
-            let mut hi = [f32::NEG_INFINITY; 3];
-            for k in kids {
-                for a in 0..3 {
-                    lo[a] = lo[a].min(k.centre[a] - k.radius);
-                    hi[a] = hi[a].max(k.centre[a] + k.radius);
-                }
-            }
-            let centre: [f32; 3] = std::array::from_fn(|a| 0.5 * (lo[a] + hi[a]));
-            // Grown by a relative 1e-6 so f32 rounding never leaves a child poking out.
-            let radius =
-                kids.iter().map(|k| distance(centre, k.centre) + k.radius).fold(0.0f32, f32::max)
-                    * (1.0 + 1e-6);
+            let (centre, radius) = bounding_sphere(kids);
             let total: u32 = ws.iter().sum();
             let mut n = [0.0f32; 3];
             let mut color = [0u64; 3];
@@ -304,10 +292,13 @@ impl SplatTree {
                     !c.is_empty() && c.clone().all(|k| self.nodes[k].child_count == 0)
                 })
                 .map(|i| self.nodes[i].radius)
-                .filter(|r| *r > 0.0),
+                .filter(|r| *r > 0.0 && r.is_finite()),
         );
         if radii.is_empty() {
-            return Ok(self.nodes.first().map_or(0.0, |r| r.radius * 0.01));
+            // Points that coincide in fours: a hundredth of the root (none if the root's
+            // radius is infinite).
+            let root = self.nodes.first().map_or(0.0, |r| r.radius);
+            return Ok(if root.is_finite() { root * 0.01 } else { 0.0 });
         }
         let mid = radii.len() / 2;
         let (_, m, _) = radii.select_nth_unstable_by(mid, f32::total_cmp);
@@ -416,8 +407,40 @@ fn split2(slice: &mut [Item]) -> usize {
     mid
 }
 
-fn distance(a: [f32; 3], b: [f32; 3]) -> f32 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+/// A sphere holding the spheres of `kids`: centred in their bounding box, reaching the
+/// farthest. In `f64`, where nothing overflows: in `f32` the squares of distances past about
+/// 1.8e19 were infinite, and so was a radius, and a box with an infinite side has a NaN
+/// middle, so every node above such a child had a NaN centre. A radius past `f32::MAX` (a
+/// cloud spanning about 3.4e38, near the ends of `f32`) is infinite, a sphere holding
+/// everything, and the centre then comes from the children's centres alone, so it stays
+/// finite; traversal refines such a node whatever the view.
+fn bounding_sphere(kids: &[SplatNode]) -> ([f32; 3], f32) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for k in kids {
+        let r = if k.radius.is_finite() { f64::from(k.radius) } else { 0.0 };
+        for a in 0..3 {
+            lo[a] = lo[a].min(f64::from(k.centre[a]) - r);
+            hi[a] = hi[a].max(f64::from(k.centre[a]) + r);
+        }
+    }
+    // Between the least and the greatest child centre on each axis (the box's lower side is
+    // at most the centre of the child that sets the upper side, and the other way round), so
+    // it is an `f32` as finite as theirs.
+    let centre: [f32; 3] = std::array::from_fn(|a| (0.5 * lo[a] + 0.5 * hi[a]) as f32);
+    // Grown by a relative 1e-6 so the rounding to `f32` never leaves a child poking out.
+    let radius = kids
+        .iter()
+        .map(|k| distance(centre, k.centre) + f64::from(k.radius))
+        .fold(0.0f64, f64::max)
+        * (1.0 + 1e-6);
+    (centre, radius as f32)
+}
+
+/// The distance between two points, in `f64`: their difference's squares do not overflow.
+fn distance(a: [f32; 3], b: [f32; 3]) -> f64 {
+    let d = [0, 1, 2].map(|k| f64::from(a[k]) - f64::from(b[k]));
+    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
 }
 
 /// Angle between two vectors, as `atan2(|a x b|, a . b)`: accurate near 0 and pi, where
