@@ -77,18 +77,24 @@ pub fn pixel_centre(p: i32) -> i64 {
     i64::from(p) * i64::from(ONE) + i64::from(HALF)
 }
 
-/// The smallest pixel index whose centre is `>= v` (a fixed-point coordinate).
+/// The smallest pixel index whose centre is `>= v` (a fixed-point coordinate), for every
+/// `v`: with `v = ONE q + r` (`0 <= r < ONE`), the centres `ONE p + HALF` from `q`'s on are
+/// at or after `v` when `r <= HALF`, from `q + 1`'s otherwise. (`ceil((v - HALF) / ONE)`
+/// overflowed at `i64::MIN`.)
 #[inline]
 #[must_use]
 pub fn first_centre_at_or_after(v: i64) -> i64 {
-    ceil_div(v - i64::from(HALF), i64::from(ONE))
+    let (q, r) = (v.div_euclid(i64::from(ONE)), v.rem_euclid(i64::from(ONE)));
+    q + i64::from(r > i64::from(HALF))
 }
 
-/// The largest pixel index whose centre is `<= v` (a fixed-point coordinate).
+/// The largest pixel index whose centre is `<= v` (a fixed-point coordinate), for every `v`:
+/// `q` (as in [`first_centre_at_or_after`]) when `r >= HALF`, else `q - 1`.
 #[inline]
 #[must_use]
 pub fn last_centre_at_or_before(v: i64) -> i64 {
-    (v - i64::from(HALF)).div_euclid(i64::from(ONE))
+    let (q, r) = (v.div_euclid(i64::from(ONE)), v.rem_euclid(i64::from(ONE)));
+    q - i64::from(r < i64::from(HALF))
 }
 
 /// `ceil(n / d)` for `d > 0`, exact for every `n` (`i64::MIN` too, which the negation of
@@ -171,6 +177,30 @@ mod tests {
         values.extend((0..200_000).map(|_| rng.random_range(-33000.0..33000.0f32)));
         for x in values {
             assert_eq!(snaps(x), snap(x).is_some(), "{x:e} ({:#x})", x.to_bits());
+        }
+    }
+
+    /// The centre searches are exact for every `v`: against `i128` at the ends of `i64`, on
+    /// and beside centres and pixel edges, and at random.
+    #[test]
+    fn centre_searches_are_exact_at_every_coordinate() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::SmallRng::seed_from_u64(8);
+        let mut vs = vec![i64::MIN, i64::MIN + 1, i64::MIN + 128, i64::MAX, i64::MAX - 127];
+        for p in [-3i64, -1, 0, 1, 5, 1 << 40, -(1 << 40)] {
+            for d in -2..=2 {
+                vs.extend([p * 256 + 128 + d, p * 256 + d]);
+            }
+        }
+        vs.extend((0..100_000).map(|_| rng.random::<i64>()));
+        let (one, half) = (i128::from(ONE), i128::from(HALF));
+        for v in vs {
+            let w = i128::from(v);
+            // The smallest p with one p + half >= w, the largest with one p + half <= w.
+            let first = -(-(w - half)).div_euclid(one);
+            let last = (w - half).div_euclid(one);
+            assert_eq!(i128::from(first_centre_at_or_after(v)), first, "first at or after {v}");
+            assert_eq!(i128::from(last_centre_at_or_before(v)), last, "last at or before {v}");
         }
     }
 

@@ -165,10 +165,13 @@ impl PixelRect {
     /// A rectangle containing no pixel.
     pub const EMPTY: Self = Self { x0: 0, y0: 0, x1: -1, y1: -1 };
 
-    /// The rectangle of a whole `width x height` target.
+    /// The rectangle of a whole `width x height` target. A side past `i32::MAX` (no target's:
+    /// they stop at [`crate::fixed::MAX_TARGET_SIZE`]) is taken as `i32::MAX`, where the
+    /// subtraction had wrapped it to a negative bound.
     #[must_use]
     pub fn of_target(width: u32, height: u32) -> Self {
-        Self { x0: 0, y0: 0, x1: width as i32 - 1, y1: height as i32 - 1 }
+        let last = |side: u32| side.min(i32::MAX as u32) as i32 - 1;
+        Self { x0: 0, y0: 0, x1: last(width), y1: last(height) }
     }
 
     /// Intersection; `None` when empty.
@@ -506,6 +509,18 @@ mod tests {
 
     fn tri(p: [[f32; 2]; 3]) -> [Vertex; 3] {
         p.map(|[x, y]| Vertex::new(x, y, 0.5, [255; 4]))
+    }
+
+    /// A target's rectangle ends at its last pixel, is empty for a side of zero, and stays
+    /// within `i32` for sides past it.
+    #[test]
+    fn target_rectangles() {
+        let r = PixelRect::of_target(1920, 1080);
+        assert_eq!((r.x0, r.y0, r.x1, r.y1), (0, 0, 1919, 1079));
+        assert!(PixelRect::of_target(0, 5).intersect(&r).is_none());
+        let huge = PixelRect::of_target(u32::MAX, 1 << 31);
+        assert_eq!((huge.x1, huge.y1), (i32::MAX - 1, i32::MAX - 1));
+        assert_eq!(huge.intersect(&r), Some(r));
     }
 
     /// `edges_at` gives what the edge functions give: their values at a point, their pixel
