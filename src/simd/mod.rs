@@ -4,8 +4,7 @@
 //! over a mesh's indices), row masks (coverage of a run of rows of a narrow box), and small
 //! SSE2 helpers (four floors, the sRGB encoder's clamp, four columns of edge values, cache
 //! prefetch hints) and the buffers' clear (string stores): the only module with `unsafe`,
-//! `core::arch` and inline assembly. Each has a scalar path it
-//! is tested against.
+//! `core::arch` and inline assembly. Each has a scalar path it is tested against.
 //!
 //! The shading kernels shade a 1x span, or a whole narrow triangle, of a window-space
 //! triangle with flat or smooth colour: the same arithmetic as the reference per-pixel loop in
@@ -166,10 +165,21 @@ pub fn prefetch<T>(value: &T) {
     let _ = value;
 }
 
-/// A four-byte value a buffer is cleared to ([`fill_words`]).
-pub trait Word: Copy {
+/// A four-byte value a buffer is cleared to ([`fill_words`]). Sealed: the string store
+/// writes `bits` into the buffer's memory, so it must be the value's own bytes, which holds
+/// for the four types here and need not for another crate's.
+pub trait Word: Copy + sealed::Sealed {
     /// The value's four bytes in memory, as one native-endian word.
     fn bits(self) -> u32;
+}
+
+/// Keeps [`Word`] to the types implemented here.
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for u32 {}
+    impl Sealed for i32 {}
+    impl Sealed for f32 {}
+    impl Sealed for [u8; 4] {}
 }
 
 impl Word for u32 {
@@ -219,8 +229,9 @@ fn fill_words_with<T: Word>(buffer: &mut [T], value: T, string_store: bool) {
         // SAFETY: `rep stosd` stores the word in `eax` `rcx` times from `rdi` upwards (the
         // direction flag is clear on entry to inline assembly, as the ABI requires), so it
         // writes exactly the `4 * len` bytes of `buffer`, which is borrowed uniquely; each
-        // element's four bytes become `value.bits()`, `value`'s own bytes, so each element
-        // is `value`. The instruction reads no memory, uses no stack and sets no flags.
+        // element's four bytes become `value.bits()`, `value`'s own bytes (`Word` is sealed
+        // to types whose `bits` are), so each element is `value`. The instruction reads no
+        // memory, uses no stack and sets no flags.
         unsafe {
             std::arch::asm!(
                 "rep stosd",
