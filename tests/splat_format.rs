@@ -489,10 +489,10 @@ fn golden_two_node_file() {
 
 /// The bytes of a few trees, pinned by their length and a CRC-32 of the whole file (recorded
 /// before the encoder's allocations became fallible, which changed no byte; the built tree's
-/// again when the builder's spheres moved to `f64`, which rounds them differently): the test's own
-/// trees, the crate's builder with chains, a tree without normals or colours, a malformed tree
-/// and the empty one. Re-encoding a decoded tree gives a file of the same shape, flags,
-/// counts and root centre.
+/// again when the builder's spheres moved to `f64`, which rounds them differently): the
+/// test's own trees, the crate's builder with chains, a tree without normals or colours, a
+/// malformed tree and the empty one. Re-encoding a decoded tree gives a file of the same
+/// shape, flags, counts and root centre.
 #[test]
 fn encoded_bytes_are_pinned() {
     let (_, ours, _) = tree_of(1000, 11);
