@@ -1563,11 +1563,6 @@ mod tests {
         assert_eq!(std::mem::size_of::<ShadedVertex<Vec4>>(), 48);
     }
 
-    /// `chunk_rows` bounds the rows of every pixel any sample of a chunk's triangles may
-    /// cover (`bin::coverage_bounds`, multisampled: the widest reach), is `None` when a
-    /// vertex of the blocks it reads lies outside the clip volume or the indices spread over
-    /// too many blocks, and otherwise bounds chunks of nearby vertices (random corners, some
-    /// outside; chunks of triangles on nearby indices, some spread out).
     /// Each block's rows are the least and greatest `y` of its corners, or `None` when one
     /// is `OUTSIDE`, for corners anywhere in the fixed-point range.
     #[test]
@@ -1598,6 +1593,11 @@ mod tests {
         }
     }
 
+    /// `chunk_rows` bounds the rows of every pixel any sample of a chunk's triangles may
+    /// cover (`bin::coverage_bounds`, multisampled: the widest reach), is `None` when a
+    /// vertex of the blocks it reads lies outside the clip volume or the indices spread over
+    /// too many blocks, and otherwise bounds chunks of nearby vertices (random corners, some
+    /// outside; chunks of triangles on nearby indices, some spread out).
     #[test]
     fn chunk_rows_hold_every_sample_their_triangles_reach() {
         let mut rng = SmallRng::seed_from_u64(12);
