@@ -61,13 +61,16 @@ def main():
     args = parser.parse_args()
     if args.rounds < 1 or args.frames < 1 or args.threads < 1:
         parser.error("--rounds, --frames and --threads take 1 or more")
+    labels = [label for label, _, _ in args.builds]
+    if len(set(labels)) < len(labels):
+        parser.error(f"each build needs a label of its own, got {', '.join(labels)}")
 
     runs = {label: [] for label, _, _ in args.builds}
     for _ in range(args.rounds):
         for label, binary, env in args.builds:
             runs[label].append(run(binary, env, args.scene, args.frames, args.threads))
 
-    width = max(len(label) for label in runs)
+    width = max(len(label) for label in ["build", *runs])
     print(f"{args.scene}, {args.rounds} alternated runs of {args.frames} frames each, "
           f"{args.threads} threads (ms)")
     print(f"{'build':{width}}  fastest  median of fastest  median of medians")
