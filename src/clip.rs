@@ -12,6 +12,9 @@
 //! They are computed in `f64`: any finite `f32` positions' differences and distances are then
 //! finite (in `f32`, coordinates near `f32::MAX` overflowed to NaN vertices), and the new
 //! vertex lies between the edge's ends, so it is finite in `f32` too.
+//!
+//! Window-space triangles, which have no clip space, are clipped the same way to the same
+//! band around the origin when a vertex lies past the fixed-point range (`window_fan`).
 
 use glam::{DVec4, Vec4};
 
@@ -163,4 +166,103 @@ impl ClipVolume {
         }
         poly
     }
+}
+
+/// A window-space vertex being clipped: position, depth, `1 / w`, and colour (times `1 / w`
+/// for perspective shading, so that every value is affine in screen space).
+#[derive(Clone, Copy, Debug)]
+struct WindowPoint {
+    x: f64,
+    y: f64,
+    z: f64,
+    inv_w: f64,
+    color: [f64; 4],
+}
+
+impl WindowPoint {
+    /// The point `t` of the way from `self` (inside) to `to` (outside).
+    fn toward(&self, to: &Self, t: f64) -> Self {
+        let lerp = |a: f64, b: f64| a + t * (b - a);
+        Self {
+            x: lerp(self.x, to.x),
+            y: lerp(self.y, to.y),
+            z: lerp(self.z, to.z),
+            inv_w: lerp(self.inv_w, to.inv_w),
+            color: std::array::from_fn(|k| lerp(self.color[k], to.color[k])),
+        }
+    }
+}
+
+/// A window-space triangle with a vertex outside the fixed-point range (its vertices
+/// finite), clipped to the guard band `|x|, |y| <=` [`GUARD_BAND_PIXELS`] and cut into a fan
+/// in its winding: what [`crate::render::draw`] draws in its place, which the fixed-point
+/// range could not hold. Empty where nothing of it lies in the band.
+///
+/// Depth, `1 / w` and colour are affine in screen space (colour times `1 / w` with
+/// `perspective`), so the new vertices' values lie on the triangle's own planes, up to the
+/// rounding of colours to 8 bits at those vertices (over 15,000 pixels from any image, on
+/// which that moves a colour by at most half a step before its own rounding, so by one step
+/// at most). As in the homogeneous clip, each new vertex is computed from its edge's inside
+/// end, with the bounded coordinate set on the plane exactly, so triangles sharing a
+/// clipped edge share its new vertices and stay watertight. With `flat`, every piece's
+/// vertices take the triangle's flat colour, so each piece's flat colour is the triangle's.
+pub(crate) fn window_fan(
+    tri: &[crate::setup::Vertex; 3],
+    perspective: bool,
+    flat: bool,
+) -> Vec<[crate::setup::Vertex; 3]> {
+    let guard = f64::from(GUARD_BAND_PIXELS);
+    let mut poly: Vec<WindowPoint> = tri
+        .iter()
+        .map(|v| {
+            let weight = if perspective { f64::from(v.inv_w) } else { 1.0 };
+            WindowPoint {
+                x: f64::from(v.x),
+                y: f64::from(v.y),
+                z: f64::from(v.z),
+                inv_w: f64::from(v.inv_w),
+                color: v.color.map(|c| f64::from(c) * weight),
+            }
+        })
+        .collect();
+    // x >= -guard, x <= guard, y >= -guard, y <= guard: (axis, side).
+    for (axis, side) in [(0, -1.0), (0, 1.0), (1, -1.0), (1, 1.0)] {
+        let at = |p: &WindowPoint| if axis == 0 { p.x } else { p.y };
+        let inside = |p: &WindowPoint| side * at(p) <= guard;
+        let plane = side * guard;
+        let mut next = Vec::with_capacity(poly.len() + 1);
+        for i in 0..poly.len() {
+            let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+            if inside(&a) {
+                next.push(a);
+            }
+            if inside(&a) != inside(&b) {
+                let (from, to) = if inside(&a) { (a, b) } else { (b, a) };
+                let mut p = from.toward(&to, (plane - at(&from)) / (at(&to) - at(&from)));
+                *(if axis == 0 { &mut p.x } else { &mut p.y }) = plane;
+                next.push(p);
+            }
+        }
+        poly = next;
+        if poly.len() < 3 {
+            return Vec::new();
+        }
+    }
+    let flat_color = flat.then(|| crate::shade::flat_color(tri));
+    let vertex = |p: &WindowPoint| {
+        let weight = if perspective { p.inv_w } else { 1.0 };
+        crate::setup::Vertex {
+            // Within the band (new coordinates lie between their edge's ends, whose rounding
+            // in `f64` the clamp absorbs).
+            x: p.x.clamp(-guard, guard) as f32,
+            y: p.y.clamp(-guard, guard) as f32,
+            z: p.z as f32,
+            inv_w: p.inv_w as f32,
+            color: flat_color
+                .unwrap_or_else(|| p.color.map(|c| crate::shade::quantize_channel(c / weight))),
+        }
+    };
+    (1..poly.len() - 1)
+        .map(|k| [vertex(&poly[0]), vertex(&poly[k]), vertex(&poly[k + 1])])
+        .collect()
 }

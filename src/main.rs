@@ -1131,15 +1131,7 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
         .with_shading(shading)
         .with_cull(cull)
         .with_depth_test(args.depth_test.into());
-    draw_timed(target, args.frames, clear, |t| {
-        trirast::draw(t, &triangles, &options).map_err(|e| match (&args.file, e) {
-            // The triangle is the file's: say which file.
-            (Some(path), e @ Error::CoordinateOutOfRange { .. }) => {
-                usage(format!("{}: {e}", path.display()))
-            }
-            (_, e) => e,
-        })
-    })
+    draw_timed(target, args.frames, clear, |t| trirast::draw(t, &triangles, &options))
 }
 
 /// `out.png` -> `out_007.png`: frame `k` of `total`, numbered with at least three digits and

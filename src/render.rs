@@ -217,12 +217,14 @@ impl DrawStats {
 
 /// Draws `triangles` into `target`; triangle `i` has id `i`.
 ///
-/// Vertices outside the fixed-point range are an error, reported before anything is drawn;
-/// NaN or infinite vertices drop their triangle and are counted in the returned stats.
+/// A triangle with a vertex outside the fixed-point range ([-32768, 32768) pixels) is clipped
+/// to a guard band within it (+-32000 pixels) and drawn as the pieces of its clipped
+/// polygon, with its id, counting once, as the 3D pipeline counts a clipped triangle; NaN or
+/// infinite vertices drop their triangle and are counted in the returned stats.
 ///
 /// # Errors
-/// [`Error::CoordinateOutOfRange`] for such a vertex; [`Error::TargetBuffer`] when one of
-/// `target`'s buffers was replaced by one of another length ([`Target::check_buffers`]).
+/// [`Error::TargetBuffer`] when one of `target`'s buffers was replaced by one of another
+/// length ([`Target::check_buffers`]).
 pub fn draw(
     target: &mut Target,
     triangles: &[[Vertex; 3]],
@@ -230,7 +232,20 @@ pub fn draw(
 ) -> Result<DrawStats, Error> {
     target.set_schedule(None);
     target.check_buffers()?;
-    check_range(triangles)?;
+    if reaches_past_range(triangles) {
+        return Ok(draw_clipped(target, triangles, options));
+    }
+    Ok(draw_in_range(target, triangles, None, options))
+}
+
+/// [`draw`] of triangles whose vertices are all within the fixed-point range (or not
+/// finite): triangle `k` has id `ids[k]`, or `k` without `ids`.
+fn draw_in_range(
+    target: &mut Target,
+    triangles: &[[Vertex; 3]],
+    ids: Option<&[u32]>,
+    options: &RenderOptions,
+) -> DrawStats {
     let clip = match options.scissor {
         Some(s) => s.intersect(&target.rect()),
         None => Some(target.rect()),
@@ -241,7 +256,7 @@ pub fn draw(
             Shading::Perspective => draw_tiled::<TriangleColor>,
             Shading::Flat | Shading::Smooth => draw_tiled::<SpanColor>,
         };
-        return Ok(tiled(target, triangles, options, clip, stats));
+        return tiled(target, (triangles, ids), options, clip, stats);
     }
     let color = |color: &TriangleColor, e1, e2| FragmentOutput {
         color: color.color_at(e1, e2),
@@ -265,18 +280,66 @@ pub fn draw(
             &clip,
             &depth,
             options.depth_test,
-            id as i32,
+            ids.map_or(id, |ids| ids[id] as usize) as i32,
             None,
             |_, _, e1, e2, _| Some(color(&shader, e1, e2)),
         );
     }
-    Ok(stats)
+    stats
+}
+
+/// [`draw`] of triangles some of which have a finite vertex outside the fixed-point range:
+/// each such triangle is clipped to the guard band ([`crate::clip::window_fan`]) and its
+/// pieces drawn in its place, with its id. It counts once, as the 3D pipeline counts a
+/// clipped triangle ([`crate::pipeline`]'s `Count`): as culled when nothing of it lies in
+/// the band; as rasterized when a piece is set up, the others set up counting as
+/// [`DrawStats::extra_pieces`]; otherwise as its first piece's rejection (pieces that setup
+/// rejects are not drawn). The pieces are set up one at a time in the tiled backend, not
+/// eight at once.
+fn draw_clipped(
+    target: &mut Target,
+    triangles: &[[Vertex; 3]],
+    options: &RenderOptions,
+) -> DrawStats {
+    let mut pieces = Vec::with_capacity(triangles.len());
+    let mut ids = Vec::with_capacity(triangles.len());
+    let mut counts = DrawStats::default();
+    let mut extra = 0;
+    for (id, tri) in triangles.iter().enumerate() {
+        if !past_range(tri) {
+            pieces.push(*tri);
+            ids.push(id as u32);
+            continue;
+        }
+        let perspective = options.shading == Shading::Perspective;
+        let fan = crate::clip::window_fan(tri, perspective, options.shading == Shading::Flat);
+        let setups: Vec<_> = fan.iter().map(|p| TriangleSetup::new(p, options.cull)).collect();
+        let kept = setups.iter().filter(|s| s.is_ok()).count();
+        match setups.iter().find_map(|s| s.err()) {
+            _ if fan.is_empty() => counts.culled += 1,
+            Some(why) if kept == 0 => counts.reject(why),
+            _ => {
+                extra += kept - 1;
+                for (piece, _) in fan.iter().zip(&setups).filter(|(_, s)| s.is_ok()) {
+                    pieces.push(*piece);
+                    ids.push(id as u32);
+                }
+            }
+        }
+    }
+    let drawn = draw_in_range(target, &pieces, Some(&ids), options);
+    let mut stats = drawn.merged(&counts);
+    // Each clipped triangle's pieces were counted as triangles by the backends.
+    stats.submitted = triangles.len();
+    stats.rasterized -= extra;
+    stats.extra_pieces += extra;
+    stats
 }
 
 /// The tiled backend of [`draw`], keeping colour `C` per triangle.
 fn draw_tiled<C: WindowColor>(
     target: &mut Target,
-    triangles: &[[Vertex; 3]],
+    (triangles, ids): (&[[Vertex; 3]], Option<&[u32]>),
     options: &RenderOptions,
     clip: Option<PixelRect>,
     mut stats: DrawStats,
@@ -310,7 +373,7 @@ fn draw_tiled<C: WindowColor>(
             (kernel, eight),
             window_fragment,
             |range, sink: &mut bin::Sink<'_, C::Record>| {
-                set_up_window::<C>(triangles, 0, range, options, level, sink);
+                set_up_window::<C>((triangles, ids), 0, range, options, level, sink);
             },
             |_| None,
         );
@@ -323,7 +386,7 @@ fn draw_tiled<C: WindowColor>(
     let bin_target = bin::BinTarget::of(target, options.depth_test);
     let prepare = |b, first: usize, batch: &[_], prepared: &mut bin::PreparedBatch<_>| {
         let counts = prepared.prepare_ranges(batch.len(), coverage, |range, sink| {
-            set_up_window::<C>(batch, first, range, options, level, sink);
+            set_up_window::<C>((batch, ids), first, range, options, level, sink);
         });
         stats = stats.merged(&counts);
         // Binned here, except the first batch (see `PreparedBatch::bin`).
@@ -365,10 +428,12 @@ fn window_fragment<C: WindowColor>(
 }
 
 /// The tiled backend's front end for window triangles `range` of `batch` (the first of
-/// which has id `first`): each set up into `sink`, eight at a time in AVX-512 or AVX2 for flat
-/// and smooth colours ([`simd::window_group`]), one at a time otherwise.
+/// which is triangle `first` of the draw call; triangle `k` has id `ids[k]`, or `k` without
+/// `ids`): each set up into `sink`, eight at a time in AVX-512 or AVX2 for flat and smooth
+/// colours ([`simd::window_group`]) where ids are the triangles' numbers, one at a time
+/// otherwise.
 fn set_up_window<C: WindowColor>(
-    batch: &[[Vertex; 3]],
+    (batch, ids): (&[[Vertex; 3]], Option<&[u32]>),
     first: usize,
     range: std::ops::Range<usize>,
     options: &RenderOptions,
@@ -385,7 +450,8 @@ fn set_up_window<C: WindowColor>(
             return sink.skip_many(Skipped::Empty, 1);
         }
         let inv_area2 = 1.0 / setup.area2 as f64;
-        let record = C::record(tri, setup, inv_area2, options.shading, (first + k) as i32);
+        let id = ids.map_or(first + k, |ids| ids[first + k] as usize) as i32;
+        let record = C::record(tri, setup, inv_area2, options.shading, id);
         sink.push_record(&setup, record);
     };
     let mut k = range.start;
@@ -395,7 +461,7 @@ fn set_up_window<C: WindowColor>(
     // (the same records; the rest, and perspective colours, one at a time).
     let mut group = simd::WindowGroup::default();
     let mut records = simd::WindowRecords::default();
-    while k + 8 <= range.end && options.shading != Shading::Perspective {
+    while k + 8 <= range.end && options.shading != Shading::Perspective && ids.is_none() {
         let Ok(tris) = <&[[Vertex; 3]; 8]>::try_from(&batch[k..k + 8]) else { break };
         sink.prefetch(8, 8);
         if !simd::window_group(level, tris, options.cull, &mut group) {
@@ -646,33 +712,27 @@ impl bin::Record for WindowRecord {
 /// Triangles per parallel task of the range check.
 const RANGE_CHUNK: usize = 1 << 14;
 
-/// Rejects any finite vertex outside [-32768, 32768) pixels, naming the first one.
-fn check_range(triangles: &[[Vertex; 3]]) -> Result<(), Error> {
-    // First, without a branch per vertex (vectorized; a search one vertex at a time with a
-    // snap each was a fifteenth of a frame of small triangles); the loop below then names the
-    // first culprit.
-    // In parallel beyond one chunk: a million triangles took 4 ms of one thread, a twentieth
-    // of a two-thread frame, before any drawing started.
+/// Whether a triangle has a finite vertex outside [-32768, 32768) pixels (to be clipped).
+fn reaches_past_range(triangles: &[[Vertex; 3]]) -> bool {
+    // Without a branch per vertex (vectorized; a search one vertex at a time with a snap
+    // each was a fifteenth of a frame of small triangles), and in parallel beyond one chunk: a
+    // million triangles took 4 ms of one thread, a twentieth of a two-thread frame, before
+    // any drawing started.
     let out = |x: f32| x.is_finite() & !fixed::snaps(x);
     let any_out =
         |c: &[[Vertex; 3]]| c.iter().flatten().fold(false, |any, v| any | out(v.x) | out(v.y));
-    let found = if triangles.len() <= RANGE_CHUNK {
+    if triangles.len() <= RANGE_CHUNK {
         any_out(triangles)
     } else {
         triangles.par_chunks(RANGE_CHUNK).any(any_out)
-    };
-    if !found {
-        return Ok(());
     }
-    for (triangle, tri) in triangles.iter().enumerate() {
-        for (vertex, v) in tri.iter().enumerate() {
-            let finite = v.x.is_finite() && v.y.is_finite();
-            if finite && (fixed::snap(v.x).is_none() || fixed::snap(v.y).is_none()) {
-                return Err(Error::CoordinateOutOfRange { triangle, vertex, x: v.x, y: v.y });
-            }
-        }
-    }
-    Ok(())
+}
+
+/// Whether triangle `tri` is to be clipped: its vertices finite (as setup asks, so that one
+/// with a non-finite value is still dropped and counted as such), one outside the range.
+fn past_range(tri: &[Vertex; 3]) -> bool {
+    let finite = tri.iter().all(|v| [v.x, v.y, v.z, v.inv_w].iter().all(|c| c.is_finite()));
+    finite && tri.iter().any(|v| fixed::snap(v.x).is_none() || fixed::snap(v.y).is_none())
 }
 
 #[cfg(test)]

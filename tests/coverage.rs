@@ -7,8 +7,9 @@ use common::*;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use trirast::raster::{self, Algorithm};
+use trirast::render::Backend;
 use trirast::sample::SampleCount;
-use trirast::{CullMode, PixelRect, RenderOptions, Target, TriangleSetup, Vertex};
+use trirast::{CullMode, PixelRect, RenderOptions, Shading, Target, TriangleSetup, Vertex};
 
 /// Tilings of rectangles (inside the image, overlapping it, and reaching thousands of pixels
 /// outside) cover every pixel centre of the half-open rectangle exactly once and nothing else.
@@ -396,37 +397,136 @@ fn range_extremes_do_not_overflow() {
     }
 }
 
+/// Triangles past the fixed-point range are clipped to the guard band, not refused: squares
+/// with corners far outside it (up to the end of `f32`), split along either diagonal, cover
+/// every pixel of the target exactly once, at the depth their corners share, on both backends;
+/// each triangle counts once, as rasterized (the pieces clipping added apart).
 #[test]
-fn beyond_the_range_is_a_clear_error() {
-    let v = |x: f32, y: f32| Vertex::new(x, y, 0.5, [255; 4]);
-    let mut target = Target::new(8, 8).unwrap();
-    // 32767.999 rounds to 2^23 sub-pixels: just past the range.
-    for bad in [32768.0, 32767.999, -32768.5, 1e9] {
-        // The culprit is named among good triangles, and before a second bad one.
-        let good = [v(0.0, 0.0), v(5.0, 0.0), v(0.0, 5.0)];
-        let mut tris = vec![good; 40];
-        tris[17][1].y = bad;
-        tris[30][2].x = bad;
-        let err = trirast::draw(&mut target, &tris, &RenderOptions::default()).unwrap_err();
-        let msg = err.to_string();
-        assert!(msg.contains("outside the supported window range"), "{msg}");
-        assert!(msg.contains("triangle 17") && msg.contains("vertex 1"), "{msg}");
-        // Many triangles (checked in parallel chunks): still the first culprit, whichever
-        // chunk finds one first.
-        let mut tris = vec![good; 100_000];
-        tris[70_000][0].x = bad;
-        tris[40_000][2].y = bad;
-        let err = trirast::draw(&mut target, &tris, &RenderOptions::default()).unwrap_err();
-        let msg = err.to_string();
-        assert!(msg.contains("triangle 40000") && msg.contains("vertex 2"), "{msg}");
-        // None out of range: drawn.
-        tris[70_000] = good;
-        tris[40_000] = good;
-        assert!(trirast::draw(&mut target, &tris, &RenderOptions::default()).is_ok());
+fn squares_past_the_range_cover_the_target_once() {
+    let v = |x: f32, y: f32| Vertex::new(x, y, 0.25, [1, 2, 3, 255]);
+    for far in [32768.0, 32767.999, 40000.5, 1e6, 1e20, 3e38] {
+        let (l, h) = (-far, far);
+        let splits = [
+            [[v(l, l), v(h, l), v(h, h)], [v(l, l), v(h, h), v(l, h)]],
+            [[v(l, l), v(h, l), v(l, h)], [v(h, l), v(h, h), v(l, h)]],
+        ];
+        for (w, ht) in [(64u32, 48u32), (16384, 2), (2, 16384)] {
+            for quad in splits {
+                for backend in [Backend::Reference, Backend::Tiled] {
+                    let mut target = Target::new(w, ht).unwrap().with_overdraw().with_ids();
+                    let options = RenderOptions::default().with_backend(backend);
+                    let stats = trirast::draw(&mut target, &quad, &options).unwrap();
+                    let what = format!("corners at {far}, {w} x {ht}, {backend:?}");
+                    assert!(target.overdraw.as_ref().unwrap().iter().all(|&o| o == 1), "{what}");
+                    assert!(target.depth.iter().all(|&z| z == 0.25), "{what}");
+                    assert!(target.ids.as_ref().unwrap().iter().all(|&id| id == 0 || id == 1));
+                    assert_eq!((stats.submitted, stats.rasterized), (2, 2), "{what}");
+                    assert_eq!(stats.culled + stats.degenerate + stats.non_finite, 0, "{what}");
+                }
+            }
+        }
     }
-    assert!(Target::new(16385, 1).is_err());
-    assert!(Target::new(0, 1).is_err());
-    assert!(Target::new(16384, 16384).is_ok() || cfg!(target_pointer_width = "32"));
+}
+
+/// A clipped triangle covers the pixel centres that the exact edges of the triangle it stands
+/// for cover (its corners snapped, the edges evaluated in 128-bit integers, the top-left rule
+/// included: `oracle_covers`), but for centres within 1/64 pixel of one of those edges: its
+/// new corners on the guard band are rounded to the grid, which may turn an edge by a few
+/// thousandths of a pixel across the image. Random triangles with one to three corners past
+/// the range (up to 1e9 pixels away), at 1x.
+#[test]
+fn clipped_triangles_cover_what_their_exact_edges_cover() {
+    let mut rng = SmallRng::seed_from_u64(4242);
+    let (w, h) = (96u32, 64u32);
+    let snap = |x: f32| (f64::from(x) * 256.0).round_ties_even() as i64;
+    let (mut drawn_rounds, mut near_edges) = (0, 0);
+    for round in 0..300 {
+        let far_corners = 1 + round % 3;
+        let tri: [Vertex; 3] = std::array::from_fn(|k| {
+            let (x, y) = if k < far_corners {
+                // Far along a random direction, often near an axis so edges cross the image.
+                let angle = rng.random_range(0.0..std::f32::consts::TAU);
+                let distance = 10f32.powf(rng.random_range(4.6..9.0));
+                let (cx, cy) = (rng.random_range(0.0..w as f32), rng.random_range(0.0..h as f32));
+                (cx + distance * angle.cos(), cy + distance * angle.sin())
+            } else {
+                (rng.random_range(-30.0..w as f32 + 30.0), rng.random_range(-30.0..h as f32 + 30.0))
+            };
+            Vertex::new(x, y, 0.5, [255; 4])
+        });
+        let mut target = Target::new(w, h).unwrap().with_ids();
+        let options = RenderOptions::default().with_backend(Backend::Reference);
+        trirast::draw(&mut target, &[tri], &options).unwrap();
+        let corners: [P; 3] = tri.map(|v| [snap(v.x), snap(v.y)]);
+        // Distance in pixels from centre `s` to the nearest edge line.
+        let nearest_edge = |s: P| {
+            (0..3)
+                .map(|i| {
+                    let (a, b) = (corners[i], corners[(i + 1) % 3]);
+                    let (dx, dy) = ((b[0] - a[0]) as f64, (b[1] - a[1]) as f64);
+                    let cross = dx * (s[1] - a[1]) as f64 - dy * (s[0] - a[0]) as f64;
+                    cross.abs() / dx.hypot(dy) / 256.0
+                })
+                .fold(f64::INFINITY, f64::min)
+        };
+        let ids = target.ids.as_ref().unwrap();
+        drawn_rounds += usize::from(ids.contains(&0));
+        for y in 0..h as i64 {
+            for x in 0..w as i64 {
+                let s = [centre(x), centre(y)];
+                let drawn = ids[(y * w as i64 + x) as usize] == 0;
+                if drawn != oracle_covers(corners, s) {
+                    let d = nearest_edge(s);
+                    assert!(d < 1.0 / 64.0, "round {round}: pixel ({x}, {y}) {d} px from an edge");
+                    near_edges += 1;
+                }
+            }
+        }
+    }
+    // Not passing on empty images: most triangles reach the image.
+    assert!(drawn_rounds > 150, "{drawn_rounds} of 300 rounds drew a pixel");
+    assert!(near_edges < 300, "{near_edges} centres near an edge differed");
+}
+
+/// Among triangles within the range, one past it keeps its id, its flat colour (every piece
+/// takes the triangle's, not its own corners' average) and its place in the order; one
+/// wholly outside the guard band counts as culled, one with a NaN corner as non-finite;
+/// both backends agree.
+#[test]
+fn a_clipped_triangle_keeps_its_id_colour_and_count() {
+    let v = |x: f32, y: f32, z: f32, color: [u8; 4]| Vertex::new(x, y, z, color);
+    let red = [255, 0, 0, 255];
+    let tris = [
+        [v(2.0, 2.0, 0.5, red), v(30.0, 2.0, 0.5, red), v(2.0, 30.0, 0.5, red)],
+        // Past the range, nearer, the rows below y = 20: drawn over triangle 0 there.
+        [
+            v(-1e7, 20.0, 0.25, [10, 200, 30, 255]),
+            v(1e7, 20.0, 0.25, [250, 20, 90, 255]),
+            v(20.0, 1e7, 0.25, [40, 40, 255, 255]),
+        ],
+        [v(1e7, 0.0, 0.1, red), v(2e7, 0.0, 0.1, red), v(1e7, 1e7, 0.1, red)],
+        [v(f32::NAN, 0.0, 0.1, red), v(1e9, 0.0, 0.1, red), v(0.0, 40.0, 0.1, red)],
+    ];
+    let flat = trirast::shade::flat_color(&tris[1]);
+    let mut targets = [Backend::Reference, Backend::Tiled].map(|backend| {
+        let mut target = Target::new(48, 40).unwrap().with_ids().with_overdraw();
+        let options = RenderOptions::default().with_shading(Shading::Flat).with_backend(backend);
+        let stats = trirast::draw(&mut target, &tris, &options).unwrap();
+        assert_eq!(stats.submitted, 4);
+        assert_eq!((stats.rasterized, stats.culled, stats.non_finite), (2, 1, 1), "{stats:?}");
+        (stats, target)
+    });
+    let [(ref_stats, reference), (stats, tiled)] = &mut targets;
+    assert_eq!(ref_stats, stats);
+    assert!(reference.color == tiled.color && reference.ids == tiled.ids);
+    let ids = reference.ids.as_ref().unwrap();
+    assert!(ids.contains(&0) && ids.contains(&1) && !ids.iter().any(|&id| id > 1));
+    for (p, &id) in ids.iter().enumerate() {
+        if id == 1 {
+            assert_eq!(reference.color[p], flat, "pixel {p}");
+            assert_eq!(reference.depth[p], 0.25);
+        }
+    }
 }
 
 #[test]

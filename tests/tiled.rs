@@ -124,23 +124,68 @@ fn window_scenes_match_the_reference() {
             let target = Target::multisampled(w, h, samples).unwrap().with_ids();
             if round % 2 == 0 { target.with_overdraw() } else { target }
         };
-        let mut reference = fresh();
-        let ref_stats =
-            trirast::draw(&mut reference, &tris, &options.with_backend(Backend::Reference))
-                .unwrap();
-        for threads in [1, 2, 7] {
-            for level in SimdLevel::available() {
-                for schedule in SCHEDULES {
-                    let mut tiled = fresh();
-                    let opts = options.with_simd(level).with_schedule(schedule);
-                    let stats =
-                        pool(threads).install(|| trirast::draw(&mut tiled, &tris, &opts)).unwrap();
-                    let what = format!("round {round}, {threads} threads, {level:?}, {schedule:?}");
-                    assert_eq!(stats, ref_stats, "{what}");
-                    assert_same(&reference, &tiled, &what);
-                }
+        assert_every_tiled_draw_matches(fresh, &tris, &options, &format!("round {round}"));
+    }
+}
+
+/// Draws `tris` with `options` on the reference backend and with the tiled one on 1, 2 and 7
+/// threads at every SIMD level and schedule, into targets made by `fresh`: the same counts
+/// and buffers. Returns the counts.
+fn assert_every_tiled_draw_matches(
+    fresh: impl Fn() -> Target,
+    tris: &[[Vertex; 3]],
+    options: &RenderOptions,
+    what: &str,
+) -> trirast::DrawStats {
+    let mut reference = fresh();
+    let ref_stats =
+        trirast::draw(&mut reference, tris, &options.with_backend(Backend::Reference)).unwrap();
+    for threads in [1, 2, 7] {
+        for level in SimdLevel::available() {
+            for schedule in SCHEDULES {
+                let mut tiled = fresh();
+                let opts = options.with_simd(level).with_schedule(schedule);
+                let stats =
+                    pool(threads).install(|| trirast::draw(&mut tiled, tris, &opts)).unwrap();
+                let what = format!("{what}, {threads} threads, {level:?}, {schedule:?}");
+                assert_eq!(stats, ref_stats, "{what}");
+                assert_same(&reference, &tiled, &what);
             }
         }
+    }
+    ref_stats
+}
+
+/// Window scenes with corners past the fixed-point range (a quarter of the triangles, one or
+/// two corners each, up to 1e12 pixels away), which `draw` clips to the guard band: the tiled
+/// backend draws the pieces as the reference does, with the same counts, for each shading,
+/// sample count, thread count, SIMD level and schedule.
+#[test]
+fn window_scenes_past_the_range_match_the_reference() {
+    let mut rng = SmallRng::seed_from_u64(707);
+    let (w, h) = (157u32, 101u32);
+    for round in 0..9 {
+        let count = rng.random_range(40..400);
+        let mut tris = scene(&mut rng, count, w as f32, h as f32);
+        for tri in &mut tris {
+            if rng.random_range(0..4) != 0 {
+                continue;
+            }
+            let corners = rng.random_range(1..3);
+            for v in tri.iter_mut().take(corners) {
+                let far = 10f32.powf(rng.random_range(4.6..12.0));
+                let angle = rng.random_range(0.0..std::f32::consts::TAU);
+                (v.x, v.y) = (v.x + far * angle.cos(), v.y + far * angle.sin());
+            }
+        }
+        let samples = [SampleCount::X1, SampleCount::X4, SampleCount::X8][round % 3];
+        let shading = [Shading::Flat, Shading::Smooth, Shading::Perspective][(round / 3) % 3];
+        let cull = [CullMode::None, CullMode::Clockwise][round % 2];
+        let options = RenderOptions::default().with_shading(shading).with_cull(cull);
+        let fresh = || Target::multisampled(w, h, samples).unwrap().with_ids().with_overdraw();
+        let what = format!("round {round}");
+        let stats = assert_every_tiled_draw_matches(fresh, &tris, &options, &what);
+        assert!(stats.extra_pieces > 0, "round {round}: no triangle was cut");
     }
 }
 
@@ -1110,9 +1155,11 @@ fn last_schedule_reports_the_schedule_used() {
         trirast::draw(&mut target, &tris, &RenderOptions::default().with_schedule(forced)).unwrap();
         assert_eq!(target.last_schedule(), Some(forced), "window, {forced:?}");
     }
-    let far = [Vertex::new(1e9, 0.0, 0.5, [0; 4]); 3];
-    assert!(trirast::draw(&mut target, &[far], &RenderOptions::default()).is_err());
+    // A depth buffer of another length: refused before drawing.
+    let depth = std::mem::take(&mut target.depth);
+    assert!(trirast::draw(&mut target, &tris, &RenderOptions::default()).is_err());
     assert_eq!(target.last_schedule(), None, "failed draw call");
+    target.depth = depth;
 }
 
 /// A shader whose colour is the interpolated vertex colour times a tint, with a constant alpha,
