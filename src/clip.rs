@@ -169,7 +169,8 @@ impl ClipVolume {
 }
 
 /// A window-space vertex being clipped: position, depth, `1 / w`, and colour (times `1 / w`
-/// for perspective shading, so that every value is affine in screen space).
+/// for perspective shading, so that every value is affine in screen space), with the
+/// triangle's own vertex where it is one (kept as it was, not rebuilt from these).
 #[derive(Clone, Copy, Debug)]
 struct WindowPoint {
     x: f64,
@@ -177,6 +178,7 @@ struct WindowPoint {
     z: f64,
     inv_w: f64,
     color: [f64; 4],
+    corner: Option<crate::setup::Vertex>,
 }
 
 impl WindowPoint {
@@ -189,6 +191,7 @@ impl WindowPoint {
             z: lerp(self.z, to.z),
             inv_w: lerp(self.inv_w, to.inv_w),
             color: std::array::from_fn(|k| lerp(self.color[k], to.color[k])),
+            corner: None,
         }
     }
 }
@@ -222,6 +225,7 @@ pub(crate) fn window_fan(
                 z: f64::from(v.z),
                 inv_w: f64::from(v.inv_w),
                 color: v.color.map(|c| f64::from(c) * weight),
+                corner: Some(*v),
             }
         })
         .collect();
@@ -251,6 +255,9 @@ pub(crate) fn window_fan(
     let flat_color = flat.then(|| crate::shade::flat_color(tri));
     let vertex = |p: &WindowPoint| {
         let weight = if perspective { p.inv_w } else { 1.0 };
+        if let Some(corner) = p.corner {
+            return crate::setup::Vertex { color: flat_color.unwrap_or(corner.color), ..corner };
+        }
         crate::setup::Vertex {
             // Within the band (new coordinates lie between their edge's ends, whose rounding
             // in `f64` the clamp absorbs).

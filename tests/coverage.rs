@@ -426,6 +426,10 @@ fn squares_past_the_range_cover_the_target_once() {
             }
         }
     }
+    // Targets, unlike vertices, have a hard limit.
+    assert!(Target::new(16385, 1).is_err());
+    assert!(Target::new(0, 1).is_err());
+    assert!(Target::new(16384, 16384).is_ok() || cfg!(target_pointer_width = "32"));
 }
 
 /// A clipped triangle covers the pixel centres that the exact edges of the triangle it stands
