@@ -139,32 +139,52 @@ impl ClipVolume {
         let crossing = codes[0] | codes[1] | codes[2];
         let mut next = Vec::with_capacity(10);
         for plane in (0..PLANES).filter(|&i| crossing & (1 << i) != 0) {
-            next.clear();
-            for i in 0..poly.len() {
-                let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
-                let (pa, pb) = (a.position.as_dvec4(), b.position.as_dvec4());
-                let (da, db) = (self.distance_f64(plane, pa), self.distance_f64(plane, pb));
-                let (a_in, b_in) = (da >= 0.0, db >= 0.0);
-                if a_in {
-                    next.push(a);
-                }
-                if a_in != b_in {
-                    // From the inside end, so shared edges give identical vertices.
-                    let (inside, outside, p, q, di, d_o) =
-                        if a_in { (a, b, pa, pb, da, db) } else { (b, a, pb, pa, db, da) };
+            let distance = |v: &ClipVertex<V>| self.distance_f64(plane, v.position.as_dvec4());
+            clip_polygon(
+                &poly,
+                &mut next,
+                |v| distance(v) >= 0.0,
+                |inside, outside| {
+                    let (p, q) = (inside.position.as_dvec4(), outside.position.as_dvec4());
+                    let (di, d_o) = (distance(inside), distance(outside));
                     let t = di / (di - d_o);
-                    next.push(ClipVertex {
+                    ClipVertex {
                         position: self.on_plane(plane, p + (q - p) * t).as_vec4(),
                         varyings: V::lerp(&inside.varyings, &outside.varyings, t as f32),
-                    });
-                }
-            }
+                    }
+                },
+            );
             std::mem::swap(&mut poly, &mut next);
             if poly.is_empty() {
                 break;
             }
         }
         poly
+    }
+}
+
+/// One Sutherland-Hodgman step: the part of the convex polygon `poly` where `inside` holds,
+/// written to `out` in `poly`'s winding, with `cross(a, b)` the point where the edge from
+/// `a` (inside) to `b` (outside) leaves. Edges are always handed over inside end first,
+/// whichever way the polygon runs along them, so that two polygons sharing an edge get
+/// the same new vertex on it (bit for bit, `cross` being a function of its arguments) and
+/// stay watertight.
+fn clip_polygon<P: Copy>(
+    poly: &[P],
+    out: &mut Vec<P>,
+    inside: impl Fn(&P) -> bool,
+    cross: impl Fn(&P, &P) -> P,
+) {
+    out.clear();
+    for (i, a) in poly.iter().enumerate() {
+        let b = &poly[(i + 1) % poly.len()];
+        let (a_in, b_in) = (inside(a), inside(b));
+        if a_in {
+            out.push(*a);
+        }
+        if a_in != b_in {
+            out.push(if a_in { cross(a, b) } else { cross(b, a) });
+        }
     }
 }
 
@@ -230,24 +250,21 @@ pub(crate) fn window_fan(
         })
         .collect();
     // x >= -guard, x <= guard, y >= -guard, y <= guard: (axis, side).
+    let mut next = Vec::with_capacity(7);
     for (axis, side) in [(0, -1.0), (0, 1.0), (1, -1.0), (1, 1.0)] {
         let at = |p: &WindowPoint| if axis == 0 { p.x } else { p.y };
-        let inside = |p: &WindowPoint| side * at(p) <= guard;
         let plane = side * guard;
-        let mut next = Vec::with_capacity(poly.len() + 1);
-        for i in 0..poly.len() {
-            let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
-            if inside(&a) {
-                next.push(a);
-            }
-            if inside(&a) != inside(&b) {
-                let (from, to) = if inside(&a) { (a, b) } else { (b, a) };
-                let mut p = from.toward(&to, (plane - at(&from)) / (at(&to) - at(&from)));
+        clip_polygon(
+            &poly,
+            &mut next,
+            |p| side * at(p) <= guard,
+            |from, to| {
+                let mut p = from.toward(to, (plane - at(from)) / (at(to) - at(from)));
                 *(if axis == 0 { &mut p.x } else { &mut p.y }) = plane;
-                next.push(p);
-            }
-        }
-        poly = next;
+                p
+            },
+        );
+        std::mem::swap(&mut poly, &mut next);
         if poly.len() < 3 {
             return Vec::new();
         }
@@ -272,4 +289,61 @@ pub(crate) fn window_fan(
     (1..poly.len() - 1)
         .map(|k| [vertex(&poly[0]), vertex(&poly[k]), vertex(&poly[k + 1])])
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
+
+    /// A polygon run either way round makes each new vertex from the same (inside, outside)
+    /// pair, so its neighbour across the edge gets the same one.
+    #[test]
+    fn new_vertices_are_made_from_the_inside_end() {
+        // (label, inside); a new vertex is labelled 10 * inside end + outside end.
+        let poly = [(0, true), (1, false), (2, false), (3, true)];
+        let cross = |a: &(u8, bool), b: &(u8, bool)| (10 * a.0 + b.0, true);
+        let mut out = Vec::new();
+        clip_polygon(&poly, &mut out, |p| p.1, cross);
+        assert_eq!(out, [(0, true), (1, true), (32, true), (3, true)]);
+        let reversed: Vec<_> = poly.iter().rev().copied().collect();
+        clip_polygon(&reversed, &mut out, |p| p.1, cross);
+        assert_eq!(out, [(3, true), (32, true), (1, true), (0, true)]);
+        clip_polygon(&[], &mut out, |p: &(u8, bool)| p.1, cross);
+        assert!(out.is_empty());
+    }
+
+    /// Two triangles sharing an edge through the near plane, wound the same way (so each runs
+    /// the edge the other way round), get the same new vertex on it, bit for bit.
+    #[test]
+    fn triangles_sharing_a_clipped_edge_share_its_new_vertex() {
+        let volume = ClipVolume::for_target(640, 480);
+        let mut rng = SmallRng::seed_from_u64(5);
+        let mut point = |z: std::ops::Range<f32>| {
+            let w = rng.random_range(0.5..50.0f32);
+            let (x, y) = (rng.random_range(-w..w), rng.random_range(-w..w));
+            Vec4::new(x, y, rng.random_range(z) * w, w)
+        };
+        for _ in 0..2000 {
+            // `a`, `c` and `d` inside, `b` in front of the near plane only.
+            let [a, b, c, d] =
+                [point(0.0..1.0), point(-3.0..-1e-3), point(0.0..1.0), point(0.0..1.0)];
+            let vertex = |position: Vec4| ClipVertex {
+                position,
+                varyings: [position.x * 0.37, 1.0 / position.w],
+            };
+            let one = volume.clip([vertex(a), vertex(b), vertex(c)]);
+            let other = volume.clip([vertex(b), vertex(a), vertex(d)]);
+            // [a, ab, bc, c] and [ab, a, d, db].
+            assert_eq!((one.len(), other.len()), (4, 4));
+            let (p, q) = (one[1], other[0]);
+            assert_eq!(
+                p.position.to_array().map(f32::to_bits),
+                q.position.to_array().map(f32::to_bits)
+            );
+            assert_eq!(p.varyings.map(f32::to_bits), q.varyings.map(f32::to_bits));
+            assert_eq!(p.position.z, 0.0, "on the near plane");
+        }
+    }
 }

@@ -7,6 +7,7 @@ use rand::{Rng, SeedableRng};
 use trirast::Target;
 use trirast::camera::{self, Camera, Projection};
 use trirast::pipeline::{FaceCull, Fragment, Pipeline};
+use trirast::render::Backend;
 use trirast::texture::{Filter, Texture, Wrap};
 
 const W: u32 = 160;
@@ -705,6 +706,87 @@ fn replaced_target_buffers_of_another_length_are_errors() {
                     (_, other) => panic!("{buffer}: {other:?}"),
                 }
             }
+        }
+    }
+}
+
+/// A floor mesh (`y = -1`) whose shared edges cross the eye plane, the near plane, the far
+/// plane and the guard band, of cells from centimetres to a hundred kilometres: its visible
+/// part is covered exactly once, as one unclipped plane would be. Each shared edge is
+/// clipped from both its triangles, so the new vertices on it must be the same bits on
+/// both sides, or the mesh would leak or double-cover along it.
+#[test]
+fn a_mesh_clipped_on_every_plane_stays_watertight() {
+    let xs = [-1e5, -300.0, -7.0, -1.3, -0.01, 0.9, 11.0, 500.0, 1e5];
+    let zs = [5.0, 2.0, 0.3, 0.0, -0.05, -0.7, -3.0, -40.0, -99.9, -900.0, -1e5];
+    let at = |i: usize, j: usize| Vec3::new(xs[i], -1.0, zs[j]);
+    let mut tris = Vec::new();
+    for i in 0..xs.len() - 1 {
+        for j in 0..zs.len() - 1 {
+            let [a, b, c, d] = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
+            // Diagonals alternating, so vertices meet four or eight triangles.
+            if (i + j) % 2 == 0 {
+                tris.extend([[a, b, c], [a, c, d]]);
+            } else {
+                tris.extend([[a, b, d], [b, c, d]]);
+            }
+        }
+    }
+    // Whether the ray through a pixel centre meets the floor in the view volume: the floor
+    // reaches past the far plane and the sides of the view, so only depth bounds it.
+    let floor_visible = |cam: &Camera, px, py| {
+        let plane = [Vec3::new(0.0, -1.0, 0.0), Vec3::X - Vec3::Y, Vec3::NEG_Y + Vec3::NEG_Z];
+        let Some((_, _, hit)) = ray_hit(cam, plane, px, py) else { return Some(false) };
+        let depth = -hit.z;
+        let (near, far) = (f64::from(cam.near), f64::from(cam.far));
+        let margin = 2e-3;
+        if depth < near * (1.0 - margin) || depth > far * (1.0 + margin) {
+            Some(false)
+        } else if depth > near * (1.0 + margin) && depth < far * (1.0 - margin) {
+            Some(true)
+        } else {
+            None
+        }
+    };
+    let vertices: Vec<Vec3> = tris.iter().flatten().copied().collect();
+    let indices: Vec<[u32; 3]> =
+        (0..tris.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+    for near in [0.05, 0.5] {
+        let cam = camera(near);
+        let vp = cam.view_projection(W as f32 / H as f32);
+        for backend in [Backend::Reference, Backend::Tiled] {
+            let mut target = Target::new(W, H).unwrap().with_overdraw();
+            let vs = |v: &Vec3| (vp * v.extend(1.0), ());
+            let fs = |_: &Fragment<()>| Some(Vec4::ONE);
+            Pipeline::default()
+                .with_cull(FaceCull::None)
+                .with_backend(backend)
+                .draw(&mut target, &vs, &fs, &vertices, &indices)
+                .unwrap();
+            let overdraw = target.overdraw.unwrap();
+            let (mut inside, mut outside) = (0, 0);
+            for py in 0..H {
+                for px in 0..W {
+                    let got = overdraw[(py * W + px) as usize];
+                    assert!(got <= 1, "pixel ({px}, {py}) covered {got} times, {backend:?}");
+                    match floor_visible(&cam, px, py) {
+                        Some(true) => {
+                            assert_eq!(got, 1, "({px}, {py}) left open, {backend:?}, near {near}");
+                            inside += 1;
+                        }
+                        Some(false) => {
+                            assert_eq!(got, 0, "({px}, {py}) drawn, {backend:?}, near {near}");
+                            outside += 1;
+                        }
+                        None => {}
+                    }
+                }
+            }
+            // The floor fills the lower part of the view up to the horizon.
+            assert!(
+                inside > (W * H / 3) as usize && outside > (W * H / 4) as usize,
+                "{inside} {outside}"
+            );
         }
     }
 }
