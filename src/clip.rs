@@ -13,8 +13,8 @@
 //! finite (in `f32`, coordinates near `f32::MAX` overflowed to NaN vertices), and the new
 //! vertex lies between the edge's ends, so it is finite in `f32` too.
 //!
-//! Window-space triangles, which have no clip space, are clipped the same way to the same
-//! band around the origin when a vertex lies past the fixed-point range (`window_fan`).
+//! Window-space triangles, which have no clip space, are clipped the same way to the
+//! fixed-point range itself when a vertex lies past it (`window_fan`).
 
 use glam::{DVec4, Vec4};
 
@@ -188,6 +188,15 @@ fn clip_polygon<P: Copy>(
     }
 }
 
+/// The bounds `[lo, hi]` of the window coordinates [`window_fan`] clips to: the `f32` values
+/// that snap into the fixed-point range.
+const WINDOW_BOX: [f32; 2] = [crate::fixed::MIN_COORD, crate::fixed::MAX_COORD - 1.0 / 256.0];
+
+const _: () = {
+    // The first `f32` above the upper bound is the first that does not snap.
+    assert!(crate::fixed::SNAP_LIMIT == WINDOW_BOX[1] + 1.0 / 512.0);
+};
+
 /// A window-space vertex being clipped: position, depth, `1 / w`, and colour (times `1 / w`
 /// for perspective shading, so that every value is affine in screen space), with the
 /// triangle's own vertex where it is one (kept as it was, not rebuilt from these).
@@ -217,24 +226,35 @@ impl WindowPoint {
 }
 
 /// A window-space triangle with a vertex outside the fixed-point range (its vertices
-/// finite), clipped to the guard band `|x|, |y| <=` [`GUARD_BAND_PIXELS`] and cut into a fan
-/// in its winding: what [`crate::render::draw`] draws in its place, which the fixed-point
-/// range could not hold. Empty where nothing of it lies in the band.
+/// finite), clipped to that range and cut into a fan in its winding: what
+/// [`crate::render::draw`] draws in its place. Empty where nothing of it lies in the range.
+///
+/// The planes are the range's own bounds, `-32768 <= x, y <= 32768 - 1/256` ([`WINDOW_BOX`]):
+/// an `f32` coordinate lies within them exactly when it snaps into the range (no `f32` lies
+/// between `32768 - 1/256` and the first that does not, `32768 - 1/512`). So a triangle is
+/// clipped exactly when one of its corners cannot be snapped, and an edge is cut exactly when
+/// one of its ends cannot: an edge between two corners in the range is never cut, and its
+/// neighbour across it, clipped or not, meets the same edge. (A band inside the range, as the
+/// 3D guard band is, would have cut such an edge in a clipped triangle and not in an
+/// unclipped neighbour, the rounded new corner turning the one edge away from the other.)
+/// Edges the planes cut belong only to clipped triangles, and as in the homogeneous clip each
+/// new vertex is computed from its edge's inside end, with the bounded coordinate set on the
+/// plane exactly, so neighbours share their new vertices. New coordinates lie within the
+/// planes in `f64`, so within them as `f32` too (the bounds are `f32` values, and rounding
+/// keeps order).
 ///
 /// Depth, `1 / w` and colour are affine in screen space (colour times `1 / w` with
 /// `perspective`), so the new vertices' values lie on the triangle's own planes, up to the
-/// rounding of colours to 8 bits at those vertices (over 15,000 pixels from any image, on
-/// which that moves a colour by at most half a step before its own rounding, so by one step
-/// at most). As in the homogeneous clip, each new vertex is computed from its edge's inside
-/// end, with the bounded coordinate set on the plane exactly, so triangles sharing a
-/// clipped edge share its new vertices and stay watertight. With `flat`, every piece's
-/// vertices take the triangle's flat colour, so each piece's flat colour is the triangle's.
+/// rounding of colours to 8 bits at those vertices (at least 16,384 pixels from any image,
+/// on which that moves a colour by at most half a step before its own rounding, so by one
+/// step at most). With `flat`, every piece's vertices take the triangle's flat colour, so
+/// each piece's flat colour is the triangle's.
 pub(crate) fn window_fan(
     tri: &[crate::setup::Vertex; 3],
     perspective: bool,
     flat: bool,
 ) -> Vec<[crate::setup::Vertex; 3]> {
-    let guard = f64::from(GUARD_BAND_PIXELS);
+    let [lo, hi] = WINDOW_BOX.map(f64::from);
     let mut poly: Vec<WindowPoint> = tri
         .iter()
         .map(|v| {
@@ -249,21 +269,16 @@ pub(crate) fn window_fan(
             }
         })
         .collect();
-    // x >= -guard, x <= guard, y >= -guard, y <= guard: (axis, side).
+    // x >= lo, x <= hi, y >= lo, y <= hi: (axis, bound, whether it is an upper bound).
     let mut next = Vec::with_capacity(7);
-    for (axis, side) in [(0, -1.0), (0, 1.0), (1, -1.0), (1, 1.0)] {
+    for (axis, plane, upper) in [(0, lo, false), (0, hi, true), (1, lo, false), (1, hi, true)] {
         let at = |p: &WindowPoint| if axis == 0 { p.x } else { p.y };
-        let plane = side * guard;
-        clip_polygon(
-            &poly,
-            &mut next,
-            |p| side * at(p) <= guard,
-            |from, to| {
-                let mut p = from.toward(to, (plane - at(from)) / (at(to) - at(from)));
-                *(if axis == 0 { &mut p.x } else { &mut p.y }) = plane;
-                p
-            },
-        );
+        let inside = |p: &WindowPoint| if upper { at(p) <= plane } else { at(p) >= plane };
+        clip_polygon(&poly, &mut next, inside, |from, to| {
+            let mut p = from.toward(to, (plane - at(from)) / (at(to) - at(from)));
+            *(if axis == 0 { &mut p.x } else { &mut p.y }) = plane;
+            p
+        });
         std::mem::swap(&mut poly, &mut next);
         if poly.len() < 3 {
             return Vec::new();
@@ -276,10 +291,10 @@ pub(crate) fn window_fan(
             return crate::setup::Vertex { color: flat_color.unwrap_or(corner.color), ..corner };
         }
         crate::setup::Vertex {
-            // Within the band (new coordinates lie between their edge's ends, whose rounding
+            // Within the box (new coordinates lie between their edge's ends, whose rounding
             // in `f64` the clamp absorbs).
-            x: p.x.clamp(-guard, guard) as f32,
-            y: p.y.clamp(-guard, guard) as f32,
+            x: p.x.clamp(lo, hi) as f32,
+            y: p.y.clamp(lo, hi) as f32,
             z: p.z as f32,
             inv_w: p.inv_w as f32,
             color: flat_color

@@ -199,7 +199,7 @@ impl DrawStats {
         match why {
             Skipped::Rejected(Rejection::NonFinite) => self.non_finite += n,
             Skipped::Rejected(Rejection::Culled) => self.culled += n,
-            // Out-of-range vertices are an error before drawing in `draw`; where a clipped
+            // `draw` clips triangles with out-of-range vertices before setup; where a clipped
             // piece is involved they are a degenerate leftover of the guard band.
             Skipped::Rejected(Rejection::Degenerate | Rejection::OutOfRange) => {
                 self.degenerate += n;
@@ -218,9 +218,10 @@ impl DrawStats {
 /// Draws `triangles` into `target`; triangle `i` has id `i`.
 ///
 /// A triangle with a vertex outside the fixed-point range ([-32768, 32768) pixels) is clipped
-/// to a guard band within it (+-32000 pixels) and drawn as the pieces of its clipped
-/// polygon, with its id, counting once, as the 3D pipeline counts a clipped triangle; NaN or
-/// infinite vertices drop their triangle and are counted in the returned stats.
+/// to that range and drawn as the pieces of its clipped polygon, with its id (only edges
+/// with an end past the range are cut, so its neighbours still meet it edge to edge),
+/// counting once, as the 3D pipeline counts a clipped triangle; NaN or infinite vertices
+/// drop their triangle and are counted in the returned stats.
 ///
 /// # Errors
 /// [`Error::TargetBuffer`] when one of `target`'s buffers was replaced by one of another
@@ -289,10 +290,10 @@ fn draw_in_range(
 }
 
 /// [`draw`] of triangles some of which have a finite vertex outside the fixed-point range:
-/// each such triangle is clipped to the guard band ([`crate::clip::window_fan`]) and its
-/// pieces drawn in its place, with its id. It counts once, as the 3D pipeline counts a
-/// clipped triangle ([`crate::pipeline`]'s `Count`): as culled when nothing of it lies in
-/// the band; as rasterized when a piece is set up, the others set up counting as
+/// each such triangle is clipped to the range ([`crate::clip::window_fan`]) and its pieces
+/// drawn in its place, with its id. It counts once, as the 3D pipeline counts a clipped
+/// triangle ([`crate::pipeline`]'s `Count`): as culled when nothing of it lies in the
+/// range; as rasterized when a piece is set up, the others set up counting as
 /// [`DrawStats::extra_pieces`]; otherwise as its first piece's rejection (pieces that setup
 /// rejects are not drawn). The pieces are set up one at a time in the tiled backend, not
 /// eight at once.

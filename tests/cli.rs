@@ -664,7 +664,7 @@ fn unsupported_sizes_are_rejected() {
     assert_eq!((img.width, img.height), (16384, 1));
 }
 
-/// A vertex past the fixed-point range is clipped to the guard band, not refused: the
+/// A vertex past the fixed-point range is clipped to the range, not refused: the
 /// triangle from the origin to 40000 pixels along x and 10 down covers the image's top rows
 /// (about 10 rows near the origin), with its id.
 #[test]

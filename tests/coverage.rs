@@ -397,7 +397,7 @@ fn range_extremes_do_not_overflow() {
     }
 }
 
-/// Triangles past the fixed-point range are clipped to the guard band, not refused: squares
+/// Triangles past the fixed-point range are clipped to the range, not refused: squares
 /// with corners far outside it (up to the end of `f32`), split along either diagonal, cover
 /// every pixel of the target exactly once, at the depth their corners share, on both backends;
 /// each triangle counts once, as rasterized (the pieces clipping added apart).
@@ -432,10 +432,67 @@ fn squares_past_the_range_cover_the_target_once() {
     assert!(Target::new(16384, 16384).is_ok() || cfg!(target_pointer_width = "32"));
 }
 
+/// A mesh mixing clipped and unclipped triangles stays watertight: a fan around a pixel
+/// centre whose rim alternates pairs of corners inside the fixed-point range but far out
+/// (beyond 32,000 pixels) with corners past the range. Each spoke to an in-range corner is
+/// shared by a triangle drawn as it is and one that is clipped, and runs through pixel
+/// centres of the image (its direction a small integer step from the centre), so a clipped
+/// triangle that cut it and rounded the new corner would leave such a centre uncovered or
+/// cover it twice. Every pixel is covered exactly once, on both backends.
+#[test]
+fn meshes_of_clipped_and_unclipped_triangles_stay_watertight() {
+    let mut rng = SmallRng::seed_from_u64(77);
+    let (w, h) = (160u32, 120u32);
+    for round in 0..40 {
+        let c = [rng.random_range(4..w - 4) as f32 + 0.5, rng.random_range(4..h - 4) as f32 + 0.5];
+        let big = [4e4f32, 1e7, 1e12, 3e38][round % 4];
+        // Steps (long, short) from the centre, and how far past 32,000 pixels a corner lies.
+        let steps: [(i32, i32); 4] =
+            std::array::from_fn(|_| (rng.random_range(29..47), rng.random_range(1..4)));
+        let beyond: [f32; 8] = std::array::from_fn(|_| rng.random_range(1.0..700.0));
+        // A corner whole steps of (dx, dy) from the centre: in range, just past 32,000 pixels
+        // along the step's long axis.
+        let far_along = |dx: i32, dy: i32, k: usize| {
+            let n = ((32_000.0 + beyond[k]) / dx.abs().max(dy.abs()) as f32).floor();
+            [c[0] + n * dx as f32, c[1] + n * dy as f32]
+        };
+        let [(a0, a1), (b0, b1), (e0, e1), (f0, f1)] = steps;
+        // In angular order (clockwise on screen): right, down, left, up, a pair in range near
+        // each axis, then a corner past the range on the diagonal after it.
+        let rim = [
+            far_along(a0, -a1, 0),
+            far_along(b0, b1, 1),
+            [big, big],
+            far_along(e1, e0, 2),
+            far_along(-f1, f0, 3),
+            [-big, big],
+            far_along(-a0, a1, 4),
+            far_along(-b0, -b1, 5),
+            [-big, -big],
+            far_along(-e1, -e0, 6),
+            far_along(f1, -f0, 7),
+            [big, -big],
+        ];
+        let v = |p: [f32; 2]| Vertex::new(p[0], p[1], 0.5, [9, 9, 9, 255]);
+        let fan: Vec<[Vertex; 3]> =
+            (0..rim.len()).map(|k| [v(c), v(rim[k]), v(rim[(k + 1) % rim.len()])]).collect();
+        for backend in [Backend::Reference, Backend::Tiled] {
+            let mut target = Target::new(w, h).unwrap().with_overdraw();
+            let options = RenderOptions::default().with_backend(backend);
+            trirast::draw(&mut target, &fan, &options).unwrap();
+            let overdraw = target.overdraw.unwrap();
+            for (i, &o) in overdraw.iter().enumerate() {
+                let (px, py) = (i as u32 % w, i as u32 / w);
+                assert_eq!(o, 1, "pixel ({px}, {py}), round {round}, {backend:?}: {rim:?} {c:?}");
+            }
+        }
+    }
+}
+
 /// A clipped triangle covers the pixel centres that the exact edges of the triangle it stands
 /// for cover (its corners snapped, the edges evaluated in 128-bit integers, the top-left rule
 /// included: `oracle_covers`), but for centres within 1/64 pixel of one of those edges: its
-/// new corners on the guard band are rounded to the grid, which may turn an edge by a few
+/// new corners on the range's bounds are rounded to the grid, which may turn an edge by a few
 /// thousandths of a pixel across the image. Random triangles with one to three corners past
 /// the range (up to 1e9 pixels away), at 1x.
 #[test]
@@ -494,7 +551,7 @@ fn clipped_triangles_cover_what_their_exact_edges_cover() {
 
 /// Among triangles within the range, one past it keeps its id, its flat colour (every piece
 /// takes the triangle's, not its own corners' average) and its place in the order; one
-/// wholly outside the guard band counts as culled, one with a NaN corner as non-finite;
+/// wholly outside the range counts as culled, one with a NaN corner as non-finite;
 /// both backends agree.
 #[test]
 fn a_clipped_triangle_keeps_its_id_colour_and_count() {

@@ -157,7 +157,7 @@ fn assert_every_tiled_draw_matches(
 }
 
 /// Window scenes with corners past the fixed-point range (a quarter of the triangles, one or
-/// two corners each, up to 1e12 pixels away), which `draw` clips to the guard band: the tiled
+/// two corners each, up to 1e12 pixels away), which `draw` clips to the range: the tiled
 /// backend draws the pieces as the reference does, with the same counts, for each shading,
 /// sample count, thread count, SIMD level and schedule.
 #[test]
