@@ -53,21 +53,6 @@ pub enum Error {
         /// Bytes available.
         available: u128,
     },
-    /// A vertex lies outside the fixed-point range.
-    #[error(
-        "triangle {triangle}: vertex {vertex} at ({x}, {y}) is outside the supported window \
-         range [-32768, 32768) pixels"
-    )]
-    CoordinateOutOfRange {
-        /// Triangle index in submission order.
-        triangle: usize,
-        /// Vertex 0, 1 or 2.
-        vertex: usize,
-        /// The offending x.
-        x: f32,
-        /// The offending y.
-        y: f32,
-    },
     /// A triangle refers to a vertex that does not exist.
     #[error("triangle {triangle} has indices {indices:?} but there are only {vertices} vertices")]
     IndexOutOfRange {

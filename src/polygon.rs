@@ -327,10 +327,17 @@ pub fn triangulate_snapped(rings: &[Vec<[i32; 2]>]) -> Vec<[usize; 3]> {
 /// other input is drawn as it is triangulated, without panicking, except that rings
 /// passing through one point more than twice are not drawn ([`triangulate_snapped`]).
 ///
-/// Errors: a finite vertex outside [-32768, 32768) pixels gives
-/// [`Error::CoordinateOutOfRange`], with `triangle` the ring and `vertex` the index in the
-/// ring. A NaN or infinite vertex makes the polygon undefined: nothing is drawn and the stats
-/// report `non_finite: 1`.
+/// Rings may reach past the fixed-point range ([-32768, 32768) pixels): such a polygon is
+/// triangulated over its corners in the range snapped and those past it as given (with
+/// exact predicates still), and [`draw`] clips the triangles reaching past the range to it,
+/// cutting only their edges with an end past it. The pixels are then the same, but that a
+/// centre within a few thousandths of a pixel of such an edge may fall on the other side of
+/// it (the clip's new corners are rounded to the grid, alike in the triangles sharing them). A NaN or
+/// infinite vertex makes the polygon undefined: nothing is drawn and the stats report
+/// `non_finite: 1`.
+///
+/// # Errors
+/// Those of [`draw`]: a target whose buffers were replaced by ones of other lengths.
 pub fn fill_polygon(
     target: &mut Target,
     rings: &[Vec<[f32; 2]>],
@@ -350,31 +357,75 @@ pub fn fill_polygon_with(
     color: [u8; 4],
     options: &RenderOptions,
 ) -> Result<DrawStats, Error> {
-    let mut snapped = Vec::with_capacity(rings.len());
-    let mut non_finite = false;
-    for (r, ring) in rings.iter().enumerate() {
-        let mut s = Vec::with_capacity(ring.len());
-        for (i, &[x, y]) in ring.iter().enumerate() {
+    // Corners in 1/256-pixel units: snapped where they can be, as given (exact in `f64`)
+    // where a coordinate lies past the range.
+    let mut units: Vec<Vec<[f64; 2]>> = Vec::with_capacity(rings.len());
+    let (mut non_finite, mut past_range) = (false, false);
+    for ring in rings {
+        let mut ring_units = Vec::with_capacity(ring.len());
+        for &[x, y] in ring {
             if !(x.is_finite() && y.is_finite()) {
                 non_finite = true;
                 continue;
             }
-            let (Some(sx), Some(sy)) = (fixed::snap(x), fixed::snap(y)) else {
-                return Err(Error::CoordinateOutOfRange { triangle: r, vertex: i, x, y });
-            };
-            s.push([sx, sy]);
+            ring_units.push(match (fixed::snap(x), fixed::snap(y)) {
+                (Some(sx), Some(sy)) => [f64::from(sx), f64::from(sy)],
+                _ => {
+                    past_range = true;
+                    [x, y].map(|c| f64::from(c) * f64::from(fixed::ONE))
+                }
+            });
         }
-        snapped.push(s);
+        units.push(ring_units);
     }
     if non_finite {
         return Ok(DrawStats { non_finite: 1, ..DrawStats::default() });
     }
-    let tris = triangulate_snapped(&snapped);
-    // The original coordinates snap to exactly the integers that were triangulated.
+    let tris = if past_range {
+        triangulate_past_range(&units)
+    } else {
+        // Snapped integers, exact in `f64`.
+        let snapped: Vec<Vec<[i32; 2]>> =
+            units.iter().map(|r| r.iter().map(|p| p.map(|c| c as i32)).collect()).collect();
+        triangulate_snapped(&snapped)
+    };
+    // The original coordinates snap to exactly the integers that were triangulated (those
+    // past the range are the triangulated values over 256, exactly).
     let all: Vec<[f32; 2]> = rings.iter().flatten().copied().collect();
     let triangles: Vec<[Vertex; 3]> =
         tris.iter().map(|t| t.map(|i| Vertex::new(all[i][0], all[i][1], 0.0, color))).collect();
     draw(target, &triangles, options)
+}
+
+/// Triangulates rings in 1/256-pixel units some of whose corners lie past the fixed-point
+/// range (those in it snapped, those past it as given): the triangulation [`fill_polygon`]
+/// draws there, leaving `draw` to clip the triangles that reach past the range. Such
+/// coordinates go far beyond the 2^26 units within which earcut's orientation tests are
+/// exact in `f64`, and spade's are exact on any `f64` (adaptive precision), so the
+/// constrained Delaunay triangulation takes every polygon it can triangulate over all its
+/// corners, and the triangles tile the polygon exactly. Rings it refuses for crossing sides
+/// get none, as elsewhere; those it refuses otherwise (a corner twice: a pinch, or a hole
+/// touching the outer ring) go to earcut in `f64`, as [`triangulate_polygon`]'s do.
+fn triangulate_past_range(rings: &[Vec<[f64; 2]>]) -> Vec<[usize; 3]> {
+    let Some(outer) = rings.first() else {
+        return Vec::new();
+    };
+    // The sign decides the winding; |units| < 2^137, so the sum cannot overflow.
+    let area = shoelace(outer);
+    if area == 0.0 {
+        return Vec::new();
+    }
+    let (data, holes, map) = flatten(rings, |ring| shoelace(ring) != 0.0);
+    if most_corners_at_one_point(&data, &holes) > MAX_CORNERS_AT_ONE_POINT {
+        return Vec::new();
+    }
+    let tris = match cdt_rings(&data, &holes, area > 0.0) {
+        Ok(tris) => tris,
+        Err(Refusal::Crossing) => Vec::new(),
+        Err(Refusal::Other) if data.len() > EARCUT_AT_MOST_CORNERS => Vec::new(),
+        Err(Refusal::Other) => earcut_f64(&data, &holes, area > 0.0),
+    };
+    tris.into_iter().map(|t| t.map(|i| map[i])).collect()
 }
 
 /// How many corners of the rings in `points` (the first, then one from each start in
