@@ -245,8 +245,8 @@ impl WindowPoint {
 ///
 /// Depth, `1 / w` and colour are affine in screen space (colour times `1 / w` with
 /// `perspective`), so the new vertices' values lie on the triangle's own planes, up to the
-/// rounding of colours to 8 bits at those vertices (at least 16,384 pixels from any image,
-/// on which that moves a colour by at most half a step before its own rounding, so by one
+/// rounding of colours to 8 bits at those vertices (over 16,383 pixels from any pixel
+/// centre, where that moves a colour by at most half a step before its own rounding, so by one
 /// step at most). With `flat`, every piece's vertices take the triangle's flat colour, so
 /// each piece's flat colour is the triangle's.
 pub(crate) fn window_fan(
@@ -317,14 +317,14 @@ mod tests {
     #[test]
     fn new_vertices_are_made_from_the_inside_end() {
         // (label, inside); a new vertex is labelled 10 * inside end + outside end.
-        let poly = [(0, true), (1, false), (2, false), (3, true)];
+        let poly = [(1, true), (2, false), (3, false), (4, true)];
         let cross = |a: &(u8, bool), b: &(u8, bool)| (10 * a.0 + b.0, true);
         let mut out = Vec::new();
         clip_polygon(&poly, &mut out, |p| p.1, cross);
-        assert_eq!(out, [(0, true), (1, true), (32, true), (3, true)]);
+        assert_eq!(out, [(1, true), (12, true), (43, true), (4, true)]);
         let reversed: Vec<_> = poly.iter().rev().copied().collect();
         clip_polygon(&reversed, &mut out, |p| p.1, cross);
-        assert_eq!(out, [(3, true), (32, true), (1, true), (0, true)]);
+        assert_eq!(out, [(4, true), (43, true), (12, true), (1, true)]);
         clip_polygon(&[], &mut out, |p: &(u8, bool)| p.1, cross);
         assert!(out.is_empty());
     }

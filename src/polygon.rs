@@ -21,11 +21,13 @@
 //!
 //! [`fill_polygon`] is the exact 2D fill. It snaps the vertices to the rasterizer's 1/256-pixel
 //! grid *first* and triangulates the snapped integers with exact predicates, so the triangles
-//! tile the snapped polygon exactly. The top-left rule is watertight for any tiling (a sample on
-//! an edge or vertex belongs to the one triangle containing the sample nudged right by `ε` and
-//! down by `ε²`), hence: a pixel is lit iff its centre is inside the snapped polygon, a centre
-//! exactly on the polygon's boundary is lit iff that nudged point is inside (the top-left rule
-//! applied to the polygon), and no pixel is lit twice.
+//! tile the snapped polygon exactly (corners past the fixed-point range, which cannot be
+//! snapped, are kept as they are, and the triangles reaching them clipped by `draw`). The
+//! top-left rule is watertight for any tiling (a sample on an edge or vertex belongs to the
+//! one triangle containing the sample nudged right by `ε` and down by `ε²`), hence: a pixel is
+//! lit iff its centre is inside the snapped polygon, a centre exactly on the polygon's
+//! boundary is lit iff that nudged point is inside (the top-left rule applied to the
+//! polygon), and no pixel is lit twice.
 
 use crate::error::Error;
 use crate::fixed;
@@ -329,10 +331,12 @@ pub fn triangulate_snapped(rings: &[Vec<[i32; 2]>]) -> Vec<[usize; 3]> {
 ///
 /// Rings may reach past the fixed-point range ([-32768, 32768) pixels): such a polygon is
 /// triangulated over its corners in the range snapped and those past it as given (with
-/// exact predicates still), and [`draw`] clips the triangles reaching past the range to it,
-/// cutting only their edges with an end past it. The pixels are then the same, but that a
-/// centre within a few thousandths of a pixel of such an edge may fall on the other side of
-/// it (the clip's new corners are rounded to the grid, alike in the triangles sharing them). A NaN or
+/// exact predicates where the polygon is simple and has no corner twice), and [`draw`]
+/// clips the triangles reaching past the range to it, cutting only their edges with an end
+/// past it. A pixel is then lit iff its centre is inside that polygon, as above, except
+/// that a centre within a few thousandths of a pixel of an edge with an end past the range
+/// may fall on the other side of it (the clip's new corners are rounded to the grid, alike
+/// in the triangles sharing them). A NaN or
 /// infinite vertex makes the polygon undefined: nothing is drawn and the stats report
 /// `non_finite: 1`.
 ///
@@ -401,31 +405,68 @@ pub fn fill_polygon_with(
 /// range (those in it snapped, those past it as given): the triangulation [`fill_polygon`]
 /// draws there, leaving `draw` to clip the triangles that reach past the range. Such
 /// coordinates go far beyond the 2^26 units within which earcut's orientation tests are
-/// exact in `f64`, and spade's are exact on any `f64` (adaptive precision), so the
+/// exact in `f64`, while spade's are exact on any `f64` (adaptive precision), so the
 /// constrained Delaunay triangulation takes every polygon it can triangulate over all its
-/// corners, and the triangles tile the polygon exactly. Rings it refuses for crossing sides
-/// get none, as elsewhere; those it refuses otherwise (a corner twice: a pinch, or a hole
-/// touching the outer ring) go to earcut in `f64`, as [`triangulate_polygon`]'s do.
+/// corners (every simple one without a corner twice), and its triangles tile the polygon
+/// exactly. What it refuses goes where [`triangulate_snapped`] sends it: crossing rings of
+/// more than 1024 corners and any of more than 16,384 get none, the others earcut's
+/// triangles in `f64`, whose tests may round at such magnitudes (two corners on one point:
+/// a pinch, or a hole bridged to the outer ring).
+///
+/// The winding is the outer ring's, taken exactly at its lowest corner (for a simple ring,
+/// a corner of its convex hull), the `f64` area deciding only where that corner's sides are
+/// collinear; holes whose corners all lie on one line are dropped, as holes of no area are
+/// in the range.
 fn triangulate_past_range(rings: &[Vec<[f64; 2]>]) -> Vec<[usize; 3]> {
     let Some(outer) = rings.first() else {
         return Vec::new();
     };
-    // The sign decides the winding; |units| < 2^137, so the sum cannot overflow.
-    let area = shoelace(outer);
-    if area == 0.0 {
+    let Some(ccw) = orientation(outer) else {
         return Vec::new();
-    }
-    let (data, holes, map) = flatten(rings, |ring| shoelace(ring) != 0.0);
+    };
+    let (data, holes, map) = flatten(rings, |ring| orientation(ring).is_some());
     if most_corners_at_one_point(&data, &holes) > MAX_CORNERS_AT_ONE_POINT {
         return Vec::new();
     }
-    let tris = match cdt_rings(&data, &holes, area > 0.0) {
+    let tris = match cdt_rings(&data, &holes, ccw) {
         Ok(tris) => tris,
-        Err(Refusal::Crossing) => Vec::new(),
-        Err(Refusal::Other) if data.len() > EARCUT_AT_MOST_CORNERS => Vec::new(),
-        Err(Refusal::Other) => earcut_f64(&data, &holes, area > 0.0),
+        Err(Refusal::Crossing) if data.len() > CDT_ABOVE_CORNERS => Vec::new(),
+        Err(_) if data.len() > EARCUT_AT_MOST_CORNERS => Vec::new(),
+        Err(_) => earcut_f64(&data, &holes, ccw),
     };
     tris.into_iter().map(|t| t.map(|i| map[i])).collect()
+}
+
+/// Whether `ring` runs counter-clockwise (positive area, y up), exactly for a simple ring of
+/// any `f64` coordinates: the turn at its lowest (then leftmost) corner, a corner of its
+/// convex hull, from the corners before and after it that differ from it. Where those
+/// three are collinear (a spike), the sign of the `f64` area. `None` when every corner lies
+/// on one line (no area; the area's sign alone is not exact).
+fn orientation(ring: &[[f64; 2]]) -> Option<bool> {
+    let point = |p: [f64; 2]| robust::Coord { x: p[0], y: p[1] };
+    let (&first, rest) = ring.split_first()?;
+    // Two corners that differ, then whether any third leaves their line.
+    let other = rest.iter().copied().find(|&p| p != first)?;
+    let flat = |p: &[f64; 2]| robust::orient2d(point(first), point(other), point(*p)) == 0.0;
+    if ring.iter().all(flat) {
+        return None;
+    }
+    let lowest = (0..ring.len())
+        .min_by(|&i, &j| {
+            let (a, b) = (ring[i], ring[j]);
+            a[1].total_cmp(&b[1]).then(a[0].total_cmp(&b[0]))
+        })
+        .unwrap_or(0);
+    let v = ring[lowest];
+    let n = ring.len();
+    let before = (1..n).map(|k| ring[(lowest + n - k) % n]).find(|&p| p != v)?;
+    let after = (1..n).map(|k| ring[(lowest + k) % n]).find(|&p| p != v)?;
+    let turn = robust::orient2d(point(before), point(v), point(after));
+    if turn != 0.0 {
+        return Some(turn > 0.0);
+    }
+    let area = shoelace(ring);
+    (area != 0.0).then_some(area > 0.0)
 }
 
 /// How many corners of the rings in `points` (the first, then one from each start in

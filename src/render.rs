@@ -199,8 +199,8 @@ impl DrawStats {
         match why {
             Skipped::Rejected(Rejection::NonFinite) => self.non_finite += n,
             Skipped::Rejected(Rejection::Culled) => self.culled += n,
-            // `draw` clips triangles with out-of-range vertices before setup; where a clipped
-            // piece is involved they are a degenerate leftover of the guard band.
+            // `draw` clips triangles with out-of-range vertices before setup, so these are
+            // the 3D pipeline's: a clipped piece's degenerate leftover of the guard band.
             Skipped::Rejected(Rejection::Degenerate | Rejection::OutOfRange) => {
                 self.degenerate += n;
             }
@@ -295,8 +295,9 @@ fn draw_in_range(
 /// triangle ([`crate::pipeline`]'s `Count`): as culled when nothing of it lies in the
 /// range; as rasterized when a piece is set up, the others set up counting as
 /// [`DrawStats::extra_pieces`]; otherwise as its first piece's rejection (pieces that setup
-/// rejects are not drawn). The pieces are set up one at a time in the tiled backend, not
-/// eight at once.
+/// rejects are not drawn; a triangle meeting the range only along its bounds leaves
+/// degenerate pieces, and counts as degenerate). The pieces are set up one at a time in the
+/// tiled backend, not eight at once.
 fn draw_clipped(
     target: &mut Target,
     triangles: &[[Vertex; 3]],

@@ -6,6 +6,7 @@ mod common;
 use common::*;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
+use trirast::fixed;
 use trirast::raster::{self, Algorithm};
 use trirast::render::Backend;
 use trirast::sample::SampleCount;
@@ -449,12 +450,15 @@ fn meshes_of_clipped_and_unclipped_triangles_stay_watertight() {
         // Steps (long, short) from the centre, and how far past 32,000 pixels a corner lies.
         let steps: [(i32, i32); 4] =
             std::array::from_fn(|_| (rng.random_range(29..47), rng.random_range(1..4)));
-        let beyond: [f32; 8] = std::array::from_fn(|_| rng.random_range(1.0..700.0));
-        // A corner whole steps of (dx, dy) from the centre: in range, just past 32,000 pixels
-        // along the step's long axis.
+        let beyond: [f32; 8] = std::array::from_fn(|_| rng.random_range(1.0..400.0));
+        // A corner whole steps of (dx, dy) from the centre: in range, past 32,000 pixels along
+        // the step's long axis (at least 32,160 + 1 pixels from the centre, at most 32,606).
         let far_along = |dx: i32, dy: i32, k: usize| {
-            let n = ((32_000.0 + beyond[k]) / dx.abs().max(dy.abs()) as f32).floor();
-            [c[0] + n * dx as f32, c[1] + n * dy as f32]
+            let long = dx.abs().max(dy.abs()) as f32;
+            let n = ((32_160.0 + beyond[k]) / long).floor() + 1.0;
+            let p = [c[0] + n * dx as f32, c[1] + n * dy as f32];
+            assert!(p.iter().all(|&v| fixed::snaps(v)) && p[0].abs().max(p[1].abs()) > 32_000.0);
+            p
         };
         let [(a0, a1), (b0, b1), (e0, e1), (f0, f1)] = steps;
         // In angular order (clockwise on screen): right, down, left, up, a pair in range near

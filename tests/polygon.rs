@@ -16,7 +16,7 @@ use rand::{Rng, SeedableRng};
 use trirast::polygon::{
     fill_polygon, fill_polygon_with, triangulate_face, triangulate_polygon, triangulate_snapped,
 };
-use trirast::{Algorithm, CullMode, RenderOptions, Target};
+use trirast::{Algorithm, CullMode, RenderOptions, Target, fixed};
 
 /// A fixed-point point, 1/256 pixel units.
 type P = [i64; 2];
@@ -475,9 +475,9 @@ fn fill_lights_exactly_the_centres_inside() {
 
 /// Polygons reaching past the fixed-point range are drawn, not refused: star-shaped rings
 /// (every other one of nine corners or more holding a hole around its centre) with corners
-/// from a few pixels to 1e9 pixels away light exactly the centres inside the polygon (corners in the range snapped,
-/// those past it as given, integers in 1/256-pixel units either way), but for centres within
-/// 1/64 pixel of an edge with an end past the range, whose clipped pieces' new corners are
+/// from a few pixels to 1e9 pixels away light exactly the centres inside the polygon (corners
+/// in the range snapped, those past it whole 1/256ths of a pixel, as given), but for centres
+/// within 1/64 pixel of an edge with an end past the range, whose clipped pieces' new corners are
 /// rounded; no pixel is lit twice.
 #[test]
 fn fill_reaches_past_the_range() {
@@ -490,15 +490,16 @@ fn fill_reaches_past_the_range() {
         ];
         let n = rng.random_range(3..16);
         let step = std::f64::consts::TAU / n as f64;
-        // A corner at `r` pixels from the centre: the polygon's input and its exact units.
+        // A corner at `r` pixels from the centre: the polygon's input and its exact units,
+        // snapped in the range; past it, both coordinates whole 1/256ths of a pixel (as any
+        // `f32` past the range is), which the fill keeps as they are.
         let corner = |angle: f64, r: f64| -> ([f32; 2], P) {
             let p = [c[0] + r * angle.cos(), c[1] + r * angle.sin()].map(|v| v as f32);
-            let units = if p.iter().all(|v| (-32768.0..32767.99).contains(v)) {
-                p.map(|v| (f64::from(v) * 256.0).round_ties_even() as i64)
-            } else {
-                p.map(|v| (f64::from(v) * 256.0) as i64)
-            };
-            (p, units)
+            if let [Some(x), Some(y)] = p.map(fixed::snap) {
+                return (p, [i64::from(x), i64::from(y)]);
+            }
+            let p = p.map(|v| ((f64::from(v) * 256.0).round() / 256.0) as f32);
+            (p, p.map(|v| (f64::from(v) * 256.0) as i64))
         };
         let outer: Vec<([f32; 2], P)> = (0..n)
             .map(|k| {
@@ -560,6 +561,48 @@ fn fill_reaches_past_the_range() {
     assert!(lit > 300 * (W * H) as usize / 3, "{lit}");
     assert!(near_far_edges < 300 * (W * H) as usize / 1000, "{near_far_edges}");
     assert!(far_rounds > 250, "{far_rounds}");
+}
+
+/// Corners past the range at the ends of `f32` (a square over the whole plane, cut along
+/// either diagonal by the triangulation), and a keyhole ring past the range: a square hole
+/// bridged to the outer ring, its two bridge corners each visited twice, which the Delaunay
+/// triangulation refuses and earcut takes. Each lights exactly the centres inside, once.
+#[test]
+fn fill_past_the_range_at_the_ends_of_f32_and_through_a_keyhole() {
+    let square = |r: f32| vec![[-r, -r], [r, -r], [r, r], [-r, r]];
+    let keyhole = vec![
+        [-4e4, -4e4],
+        [4e4, -4e4],
+        [4e4, 4e4],
+        [-4e4, 4e4],
+        [-4e4, 10.0],
+        [10.0, 10.0],
+        [10.0, 30.0],
+        [30.0, 30.0],
+        [30.0, 10.0],
+        [10.0, 10.0],
+        [-4e4, 10.0],
+    ];
+    let in_hole = |x: u32, y: u32| (10..30).contains(&x) && (10..30).contains(&y);
+    // Each ring, and whether it has the hole.
+    let cases = [
+        (square(3e38), false),
+        (square(f32::MAX).into_iter().rev().collect(), false),
+        (keyhole, true),
+    ];
+    for (ring, holed) in cases {
+        let inside = |x, y| !(holed && in_hole(x, y));
+        let mut target = Target::new(W, H).unwrap().with_overdraw();
+        let stats = fill_polygon(&mut target, std::slice::from_ref(&ring), [1, 2, 3, 255]).unwrap();
+        let overdraw = target.overdraw.unwrap();
+        for py in 0..H {
+            for px in 0..W {
+                let got = overdraw[(py * W + px) as usize];
+                assert_eq!(got, u32::from(inside(px, py)), "pixel ({px}, {py}) of {ring:?}");
+            }
+        }
+        assert_eq!(stats.fragments, overdraw.iter().map(|&o| u64::from(o)).sum::<u64>());
+    }
 }
 
 #[test]
