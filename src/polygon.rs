@@ -336,9 +336,8 @@ pub fn triangulate_snapped(rings: &[Vec<[i32; 2]>]) -> Vec<[usize; 3]> {
 /// past it. A pixel is then lit iff its centre is inside that polygon, as above, except
 /// that a centre within a few thousandths of a pixel of an edge with an end past the range
 /// may fall on the other side of it (the clip's new corners are rounded to the grid, alike
-/// in the triangles sharing them). A NaN or
-/// infinite vertex makes the polygon undefined: nothing is drawn and the stats report
-/// `non_finite: 1`.
+/// in the triangles sharing them). A NaN or infinite vertex makes the polygon undefined:
+/// nothing is drawn and the stats report `non_finite: 1`.
 ///
 /// # Errors
 /// Those of [`draw`]: a target whose buffers were replaced by ones of other lengths.
