@@ -307,14 +307,15 @@ fn draw_clipped(
     let mut ids = Vec::with_capacity(triangles.len());
     let mut counts = DrawStats::default();
     let mut extra = 0;
+    let perspective = options.shading == Shading::Perspective;
+    let flat = options.shading == Shading::Flat;
     for (id, tri) in triangles.iter().enumerate() {
         if !past_range(tri) {
             pieces.push(*tri);
             ids.push(id as u32);
             continue;
         }
-        let perspective = options.shading == Shading::Perspective;
-        let fan = crate::clip::window_fan(tri, perspective, options.shading == Shading::Flat);
+        let fan = crate::clip::window_fan(tri, perspective, flat);
         let setups: Vec<_> = fan.iter().map(|p| TriangleSetup::new(p, options.cull)).collect();
         let kept = setups.iter().filter(|s| s.is_ok()).count();
         match setups.iter().find_map(|s| s.err()) {
@@ -734,7 +735,7 @@ fn reaches_past_range(triangles: &[[Vertex; 3]]) -> bool {
 /// with a non-finite value is still dropped and counted as such), one outside the range.
 fn past_range(tri: &[Vertex; 3]) -> bool {
     let finite = tri.iter().all(|v| [v.x, v.y, v.z, v.inv_w].iter().all(|c| c.is_finite()));
-    finite && tri.iter().any(|v| fixed::snap(v.x).is_none() || fixed::snap(v.y).is_none())
+    finite && tri.iter().any(|v| !fixed::snaps(v.x) || !fixed::snaps(v.y))
 }
 
 #[cfg(test)]
