@@ -410,6 +410,18 @@ impl<'a, S> Sink<'a, S> {
         }
     }
 
+    /// Takes a piece of a triangle that clipping cut into several, other than the one the
+    /// triangle is counted with, as `record` with setup `setup`: counted as an extra piece
+    /// ([`DrawStats::extra_pieces`]), whether or not it covers a sample.
+    #[inline]
+    pub fn push_extra_record(&mut self, setup: &TriangleSetup, record: S) {
+        self.stats.extra_pieces += 1;
+        if let Some(r) = self.coverage.of(setup) {
+            self.covers.push(r);
+            self.out.push(record);
+        }
+    }
+
     /// Takes one piece, as `record`, whose coverage rectangle (`self.coverage().of` its
     /// setup, not empty) the caller computed.
     #[inline]
@@ -463,12 +475,12 @@ impl<T> Sink<'_, Prepared<T>> {
         if count == crate::pipeline::Count::Triangle {
             return self.take(piece);
         }
-        self.stats.extra_pieces += 1;
-        if let Ok(p) = piece {
-            // Pushed as `take` pushes it, which counts it as rasterized: not here.
-            let rasterized = self.stats.rasterized;
-            self.push(p);
-            self.stats.rasterized = rasterized;
+        match piece {
+            Ok(p) => {
+                let setup = p.setup;
+                self.push_extra_record(&setup, p);
+            }
+            Err(_) => self.stats.extra_pieces += 1,
         }
     }
 

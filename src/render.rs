@@ -1,11 +1,8 @@
 //! The draw call: runs `setup -> raster -> shade` over a triangle list, in submission order.
 
-use rayon::prelude::*;
-
 use crate::band::{self, Plan};
 use crate::bin::{self, Prepared, Skipped};
 use crate::error::Error;
-use crate::fixed;
 use crate::raster::Algorithm;
 use crate::setup::{CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
 use crate::shade::{self, DepthTest, FragmentOutput, Shading, TriangleColor, TriangleShader};
@@ -233,20 +230,6 @@ pub fn draw(
 ) -> Result<DrawStats, Error> {
     target.set_schedule(None);
     target.check_buffers()?;
-    if reaches_past_range(triangles) {
-        return Ok(draw_clipped(target, triangles, options));
-    }
-    Ok(draw_in_range(target, triangles, None, options))
-}
-
-/// [`draw`] of triangles whose vertices are all within the fixed-point range (or not
-/// finite): triangle `k` has id `ids[k]`, or `k` without `ids`.
-fn draw_in_range(
-    target: &mut Target,
-    triangles: &[[Vertex; 3]],
-    ids: Option<&[u32]>,
-    options: &RenderOptions,
-) -> DrawStats {
     let clip = match options.scissor {
         Some(s) => s.intersect(&target.rect()),
         None => Some(target.rect()),
@@ -257,92 +240,84 @@ fn draw_in_range(
             Shading::Perspective => draw_tiled::<TriangleColor>,
             Shading::Flat | Shading::Smooth => draw_tiled::<SpanColor>,
         };
-        return tiled(target, (triangles, ids), options, clip, stats);
+        return Ok(tiled(target, triangles, options, clip, stats));
     }
     let color = |color: &TriangleColor, e1, e2| FragmentOutput {
         color: color.color_at(e1, e2),
         normal: None,
     };
-    for (id, tri) in triangles.iter().enumerate() {
-        let setup = match TriangleSetup::new(tri, options.cull) {
-            Ok(s) => s,
-            Err(why) => {
-                stats.reject(why);
-                continue;
-            }
-        };
-        stats.rasterized += 1;
-        let Some(clip) = clip else { continue };
-        let (depth, shader) = TriangleShader::new(tri, &setup, options.shading).into_parts();
-        stats.fragments += shade::shade_triangle(
+    let mut shade = |tri: &[Vertex; 3], setup: &TriangleSetup, id: usize| {
+        let Some(clip) = clip else { return 0 };
+        let (depth, shader) = TriangleShader::new(tri, setup, options.shading).into_parts();
+        shade::shade_triangle(
             &mut target.band(),
-            &setup,
+            setup,
             options.algorithm,
             &clip,
             &depth,
             options.depth_test,
-            ids.map_or(id, |ids| ids[id] as usize) as i32,
+            id as i32,
             None,
             |_, _, e1, e2, _| Some(color(&shader, e1, e2)),
-        );
+        )
+    };
+    for (id, tri) in triangles.iter().enumerate() {
+        match TriangleSetup::new(tri, options.cull) {
+            Ok(setup) => {
+                stats.rasterized += 1;
+                stats.fragments += shade(tri, &setup, id);
+            }
+            Err(Rejection::OutOfRange) => match clipped_pieces(tri, options) {
+                Ok(pieces) => {
+                    stats.rasterized += 1;
+                    stats.extra_pieces += pieces.len() - 1;
+                    for (piece, setup) in &pieces {
+                        stats.fragments += shade(piece, setup, id);
+                    }
+                }
+                Err(why) => stats.reject(why),
+            },
+            Err(why) => stats.reject(why),
+        }
     }
-    stats
+    Ok(stats)
 }
 
-/// [`draw`] of triangles some of which have a finite vertex outside the fixed-point range:
-/// each such triangle is clipped to the range ([`crate::clip::window_fan`]) and its pieces
-/// drawn in its place, with its id. It counts once, as the 3D pipeline counts a clipped
-/// triangle ([`crate::pipeline`]'s `Count`): as culled when nothing of it lies in the
-/// range; as rasterized when a piece is set up, the others set up counting as
-/// [`DrawStats::extra_pieces`]; otherwise as its first piece's rejection (pieces that setup
-/// rejects are not drawn; a triangle meeting the range only along its bounds leaves
-/// degenerate pieces, and counts as degenerate). The pieces are set up one at a time in the
-/// tiled backend, not eight at once.
-fn draw_clipped(
-    target: &mut Target,
-    triangles: &[[Vertex; 3]],
+/// The pieces of window triangle `tri`, which setup refused as reaching past the fixed-point
+/// range ([`Rejection::OutOfRange`]): its polygon clipped to the range
+/// ([`crate::clip::window_fan`]) and fanned, each piece set up, in order, those setup
+/// rejects left out; or, when none is left, how the triangle counts: culled when nothing
+/// of it lies in the range, else as its first piece's rejection (one meeting the range only
+/// along its bounds leaves degenerate pieces). Clipped here, in the front end, where setup
+/// finds such a triangle: a scan of the draw call's vertices for them first read every
+/// vertex once more (a twentieth of a frame of a million small triangles). The triangle
+/// counts once, as the 3D pipeline counts a clipped triangle: its first piece as the
+/// triangle, the others as [`DrawStats::extra_pieces`].
+fn clipped_pieces(
+    tri: &[Vertex; 3],
     options: &RenderOptions,
-) -> DrawStats {
-    let mut pieces = Vec::with_capacity(triangles.len());
-    let mut ids = Vec::with_capacity(triangles.len());
-    let mut counts = DrawStats::default();
-    let mut extra = 0;
+) -> Result<Vec<([Vertex; 3], TriangleSetup)>, Rejection> {
     let perspective = options.shading == Shading::Perspective;
-    let flat = options.shading == Shading::Flat;
-    for (id, tri) in triangles.iter().enumerate() {
-        if !past_range(tri) {
-            pieces.push(*tri);
-            ids.push(id as u32);
-            continue;
-        }
-        let fan = crate::clip::window_fan(tri, perspective, flat);
-        let setups: Vec<_> = fan.iter().map(|p| TriangleSetup::new(p, options.cull)).collect();
-        let kept = setups.iter().filter(|s| s.is_ok()).count();
-        match setups.iter().find_map(|s| s.err()) {
-            _ if fan.is_empty() => counts.culled += 1,
-            Some(why) if kept == 0 => counts.reject(why),
-            _ => {
-                extra += kept - 1;
-                for (piece, _) in fan.iter().zip(&setups).filter(|(_, s)| s.is_ok()) {
-                    pieces.push(*piece);
-                    ids.push(id as u32);
-                }
-            }
+    let fan = crate::clip::window_fan(tri, perspective, options.shading == Shading::Flat);
+    let mut first_rejection = None;
+    let mut pieces = Vec::with_capacity(fan.len());
+    for piece in fan {
+        match TriangleSetup::new(&piece, options.cull) {
+            Ok(setup) => pieces.push((piece, setup)),
+            Err(why) => _ = first_rejection.get_or_insert(why),
         }
     }
-    let drawn = draw_in_range(target, &pieces, Some(&ids), options);
-    let mut stats = drawn.merged(&counts);
-    // Each clipped triangle's pieces were counted as triangles by the backends.
-    stats.submitted = triangles.len();
-    stats.rasterized -= extra;
-    stats.extra_pieces += extra;
-    stats
+    match first_rejection {
+        _ if !pieces.is_empty() => Ok(pieces),
+        Some(why) => Err(why),
+        None => Err(Rejection::Culled),
+    }
 }
 
 /// The tiled backend of [`draw`], keeping colour `C` per triangle.
 fn draw_tiled<C: WindowColor>(
     target: &mut Target,
-    (triangles, ids): (&[[Vertex; 3]], Option<&[u32]>),
+    triangles: &[[Vertex; 3]],
     options: &RenderOptions,
     clip: Option<PixelRect>,
     mut stats: DrawStats,
@@ -376,7 +351,7 @@ fn draw_tiled<C: WindowColor>(
             (kernel, eight),
             window_fragment,
             |range, sink: &mut bin::Sink<'_, C::Record>| {
-                set_up_window::<C>((triangles, ids), 0, range, options, level, sink);
+                set_up_window::<C>(triangles, 0, range, options, level, sink);
             },
             |_| None,
         );
@@ -389,7 +364,7 @@ fn draw_tiled<C: WindowColor>(
     let bin_target = bin::BinTarget::of(target, options.depth_test);
     let prepare = |b, first: usize, batch: &[_], prepared: &mut bin::PreparedBatch<_>| {
         let counts = prepared.prepare_ranges(batch.len(), coverage, |range, sink| {
-            set_up_window::<C>((batch, ids), first, range, options, level, sink);
+            set_up_window::<C>(batch, first, range, options, level, sink);
         });
         stats = stats.merged(&counts);
         // Binned here, except the first batch (see `PreparedBatch::bin`).
@@ -431,29 +406,49 @@ fn window_fragment<C: WindowColor>(
 }
 
 /// The tiled backend's front end for window triangles `range` of `batch` (the first of
-/// which is triangle `first` of the draw call; triangle `k` has id `ids[k]`, or `k` without
-/// `ids`): each set up into `sink`, eight at a time in AVX-512 or AVX2 for flat and smooth
-/// colours ([`simd::window_group`]) where ids are the triangles' numbers, one at a time
-/// otherwise.
+/// which is triangle `first` of the draw call, and has that id): each set up into `sink`,
+/// eight at a time in AVX-512 or AVX2 for flat and smooth colours ([`simd::window_group`]),
+/// one at a time otherwise; one reaching past the fixed-point range as its clipped pieces
+/// ([`clipped_pieces`]).
 fn set_up_window<C: WindowColor>(
-    (batch, ids): (&[[Vertex; 3]], Option<&[u32]>),
+    batch: &[[Vertex; 3]],
     first: usize,
     range: std::ops::Range<usize>,
     options: &RenderOptions,
     level: SimdLevel,
     sink: &mut bin::Sink<'_, C::Record>,
 ) {
+    // A triangle setup refused: its pieces, when it was refused for reaching past the range.
+    let refused =
+        |tri: &[Vertex; 3], why: Rejection, id: i32, sink: &mut bin::Sink<'_, C::Record>| {
+            if why != Rejection::OutOfRange {
+                return sink.skip_many(why.into(), 1);
+            }
+            match clipped_pieces(tri, options) {
+                Ok(pieces) => {
+                    for (k, (piece, setup)) in pieces.into_iter().enumerate() {
+                        let inv_area2 = 1.0 / setup.area2 as f64;
+                        let record = C::record(&piece, setup, inv_area2, options.shading, id);
+                        if k == 0 {
+                            sink.push_record(&setup, record);
+                        } else {
+                            sink.push_extra_record(&setup, record);
+                        }
+                    }
+                }
+                Err(why) => sink.skip_many(why.into(), 1),
+            }
+        };
     let set_up_one = |k: usize, sink: &mut bin::Sink<'_, C::Record>| {
-        let tri = &batch[k];
+        let (tri, id) = (&batch[k], (first + k) as i32);
         let setup = match TriangleSetup::new(tri, options.cull) {
             Ok(setup) => setup,
-            Err(why) => return sink.skip_many(why.into(), 1),
+            Err(why) => return refused(tri, why, id, sink),
         };
         if sink.coverage().of(&setup).is_none() {
             return sink.skip_many(Skipped::Empty, 1);
         }
         let inv_area2 = 1.0 / setup.area2 as f64;
-        let id = ids.map_or(first + k, |ids| ids[first + k] as usize) as i32;
         let record = C::record(tri, setup, inv_area2, options.shading, id);
         sink.push_record(&setup, record);
     };
@@ -464,26 +459,30 @@ fn set_up_window<C: WindowColor>(
     // (the same records; the rest, and perspective colours, one at a time).
     let mut group = simd::WindowGroup::default();
     let mut records = simd::WindowRecords::default();
-    while k + 8 <= range.end && options.shading != Shading::Perspective && ids.is_none() {
+    while k + 8 <= range.end && options.shading != Shading::Perspective {
         let Ok(tris) = <&[[Vertex; 3]; 8]>::try_from(&batch[k..k + 8]) else { break };
         sink.prefetch(8, 8);
         if !simd::window_group(level, tris, options.cull, &mut group) {
             break;
         }
         let id = (first + k) as i32;
-        if C::push_eight((tris, &group, id), (options.shading, level), &mut records, sink) {
+        // A lane past the range takes the lane-by-lane path, which clips it.
+        let past_range = group.rejected.contains(&Some(Rejection::OutOfRange));
+        if !past_range
+            && C::push_eight((tris, &group, id), (options.shading, level), &mut records, sink)
+        {
             k += 8;
             continue;
         }
         for (l, tri) in tris.iter().enumerate() {
+            let id = (first + k + l) as i32;
             let (setup, inv_area2) = match group.lane(l) {
                 Ok(lane) => lane,
                 Err(why) => {
-                    sink.skip_many(why.into(), 1);
+                    refused(tri, why, id, sink);
                     continue;
                 }
             };
-            let id = (first + k + l) as i32;
             let record = C::record(tri, setup, inv_area2, options.shading, id);
             sink.push_record(&setup, record);
         }
@@ -710,32 +709,6 @@ impl bin::Record for WindowRecord {
             TriangleShader::span_parts_of(self.z, self.colors, self.inv_area2, self.smooth);
         f(&Prepared { setup: self.setup(), depth, id: self.id, payload })
     }
-}
-
-/// Triangles per parallel task of the range check.
-const RANGE_CHUNK: usize = 1 << 14;
-
-/// Whether a triangle has a finite vertex outside [-32768, 32768) pixels (to be clipped).
-fn reaches_past_range(triangles: &[[Vertex; 3]]) -> bool {
-    // Without a branch per vertex (vectorized; a search one vertex at a time with a snap
-    // each was a fifteenth of a frame of small triangles), and in parallel beyond one chunk: a
-    // million triangles took 4 ms of one thread, a twentieth of a two-thread frame, before
-    // any drawing started.
-    let out = |x: f32| x.is_finite() & !fixed::snaps(x);
-    let any_out =
-        |c: &[[Vertex; 3]]| c.iter().flatten().fold(false, |any, v| any | out(v.x) | out(v.y));
-    if triangles.len() <= RANGE_CHUNK {
-        any_out(triangles)
-    } else {
-        triangles.par_chunks(RANGE_CHUNK).any(any_out)
-    }
-}
-
-/// Whether triangle `tri` is to be clipped: its vertices finite (as setup asks, so that one
-/// with a non-finite value is still dropped and counted as such), one outside the range.
-fn past_range(tri: &[Vertex; 3]) -> bool {
-    let finite = tri.iter().all(|v| [v.x, v.y, v.z, v.inv_w].iter().all(|c| c.is_finite()));
-    finite && tri.iter().any(|v| !fixed::snaps(v.x) || !fixed::snaps(v.y))
 }
 
 #[cfg(test)]
@@ -969,7 +942,7 @@ mod tests {
                 };
                 assert_eq!(lanes >> l & 1, 1, "round {round}, lane {l}: {record:?} {tile:?}");
                 lanes_set_up += 1;
-                let (x, y) = (fixed::pixel_centre(r.x0), fixed::pixel_centre(r.y0));
+                let (x, y) = (crate::fixed::pixel_centre(r.x0), crate::fixed::pixel_centre(r.y0));
                 let (edges, step_x, step_y, bias) = setup.edges_at(x, y);
                 let bits = |v: [f64; 3]| v.map(f64::to_bits);
                 let lane = |rows: &[[f64; 8]; 3]| bits([rows[0][l], rows[1][l], rows[2][l]]);
