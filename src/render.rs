@@ -196,8 +196,8 @@ impl DrawStats {
         match why {
             Skipped::Rejected(Rejection::NonFinite) => self.non_finite += n,
             Skipped::Rejected(Rejection::Culled) => self.culled += n,
-            // `draw` clips triangles with out-of-range vertices before setup, so these are
-            // the 3D pipeline's: a clipped piece's degenerate leftover of the guard band.
+            // Setup refuses a triangle past the range, which `draw` then clips, so these are
+            // clipped pieces' (in the 3D pipeline, a degenerate leftover of the guard band).
             Skipped::Rejected(Rejection::Degenerate | Rejection::OutOfRange) => {
                 self.degenerate += n;
             }
@@ -290,7 +290,7 @@ pub fn draw(
 /// of it lies in the range, else as its first piece's rejection (one meeting the range only
 /// along its bounds leaves degenerate pieces). Clipped here, in the front end, where setup
 /// finds such a triangle: a scan of the draw call's vertices for them first read every
-/// vertex once more (a twentieth of a frame of a million small triangles). The triangle
+/// vertex once more (a fourteenth of a frame of a million small triangles). The triangle
 /// counts once, as the 3D pipeline counts a clipped triangle: its first piece as the
 /// triangle, the others as [`DrawStats::extra_pieces`].
 fn clipped_pieces(

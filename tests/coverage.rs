@@ -8,7 +8,7 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use trirast::fixed;
 use trirast::raster::{self, Algorithm};
-use trirast::render::Backend;
+use trirast::render::{Backend, Schedule};
 use trirast::sample::SampleCount;
 use trirast::{CullMode, PixelRect, RenderOptions, Shading, Target, TriangleSetup, Vertex};
 
@@ -590,6 +590,42 @@ fn a_clipped_triangle_keeps_its_id_colour_and_count() {
         if id == 1 {
             assert_eq!(reference.color[p], flat, "pixel {p}");
             assert_eq!(reference.depth[p], 0.25);
+        }
+    }
+}
+
+/// Exact counts of clipped triangles, in both backends and both schedules: one corner past
+/// one bound makes a quadrilateral, two pieces (one rasterized triangle, one extra piece;
+/// every pixel centre of the target lit once); a triangle meeting the range
+/// only along its bound leaves pieces of zero area and counts as degenerate; one wholly
+/// past it counts as culled.
+#[test]
+fn clipped_triangles_count_their_pieces_exactly() {
+    let v = |x: f32, y: f32| Vertex::new(x, y, 0.5, [200, 100, 50, 255]);
+    // The last `f32` that snaps: the range's bound, where the clip sets new corners.
+    let bound = 32768.0 - 1.0 / 256.0;
+    let tris = [
+        // Its far corner past x's bound, its edges to it crossing the plane once each.
+        [v(0.0, 0.0), v(0.0, 40.0), v(1e6, 20.0)],
+        // Only its left edge, on the bound, within the range.
+        [v(bound, 0.0), v(bound, 100.0), v(1e6, 50.0)],
+        // Wholly past the range.
+        [v(4e4, 0.0), v(5e4, 0.0), v(4e4, 1e4)],
+    ];
+    for backend in [Backend::Reference, Backend::Tiled] {
+        for schedule in [Schedule::Binned, Schedule::Banded] {
+            let mut target = Target::new(40, 40).unwrap().with_overdraw();
+            let options = RenderOptions::default().with_backend(backend).with_schedule(schedule);
+            let stats = trirast::draw(&mut target, &tris, &options).unwrap();
+            let what = format!("{backend:?}, {schedule:?}: {stats:?}");
+            assert_eq!(stats.submitted, 3, "{what}");
+            assert_eq!((stats.rasterized, stats.extra_pieces), (1, 1), "{what}");
+            assert_eq!((stats.degenerate, stats.culled, stats.non_finite), (1, 1, 0), "{what}");
+            // Within the target the first triangle's edges to its far corner stay within
+            // 0.001 of its top and bottom rows' outer sides: every pixel centre, once.
+            let overdraw = target.overdraw.unwrap();
+            assert!(overdraw.iter().all(|&n| n == 1), "{what}");
+            assert_eq!(stats.fragments, 40 * 40, "{what}");
         }
     }
 }
