@@ -14,7 +14,8 @@
 //! slower on two). [`plan`] chooses from a sample of the draw call.
 //!
 //! **Determinism.** Every pixel lies in one band, and a band draws its triangles in submission
-//! order, so the output is the reference's whatever the bands.
+//! order, so the output is the reference's whatever the bands: their rows follow the times
+//! earlier draw calls' bands took ([`BandBalance`]), and only decide which thread draws what.
 //!
 //! **Skipped chunks.** Where the caller can bound the rows a chunk of triangles reaches (a
 //! mesh's vertices, all inside the clip volume, in a small range of indices), a band whose
@@ -104,7 +105,7 @@ const FOOTPRINT: i64 = 1 << 20;
 const PIECE: usize = bin::CHUNK / 4;
 
 /// Which schedule [`plan`] chose.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Plan {
     /// Bin into tiles ([`crate::bin`]).
     Binned,
@@ -125,12 +126,81 @@ impl Plan {
 }
 
 /// The bands a draw call's triangles are drawn in ([`Bands::draw`]).
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Bands {
     /// The bands' first rows (ascending, the first 0).
     starts: Vec<u32>,
     /// Triangles in the draw call.
     triangles: usize,
+    /// Each thread's share of the sampled work the starts were found for (see
+    /// [`BandBalance`]).
+    shares: Vec<f64>,
+}
+
+/// Units of a whole draw call's work in which [`band_starts`] places the bands' boundaries.
+const SHARE_UNIT: i64 = 1 << 12;
+
+/// How the banded schedule shares a draw call's work among its bands, from the times its
+/// bands took before: each band's share of the sampled cost, moved after each banded draw
+/// call a quarter of the way toward shares that would have made its bands take equal times
+/// (each band's share divided by its time, normalized), kept from falling below half an
+/// even share or rising above twice one (then normalized). A quarter, not half: the virtual
+/// CPUs' speeds also change from one frame to the next, and shares chasing each frame made
+/// the frames that found both CPUs fast slower (Xeon VM, two threads, alternated runs of the
+/// build without balance, with a half step and with a quarter, median of the runs' median
+/// frames: grid 25.4, 22.7 and 21.1 ms, bunny 6.03, 5.29 and 5.15 ms; fastest frames
+/// 19.4, 20.0 and 19.4 ms and 4.33, 4.24 and 4.22 ms).
+/// Why: a band cannot hand rows to another band once it has started (every band walks the
+/// whole draw call in order), so the frame waits for the slowest band, and on a virtual
+/// machine one virtual CPU can run slower than the other for seconds at a time (the Stanford
+/// bunny's two bands took 3.9 and 5.8 ms, then 4.4 and 3.6 ms in another run, where the
+/// same split had taken 3.74 and 3.77 ms). The bands' rows only decide which thread draws a
+/// pixel, never what it holds: every pixel lies in one band, drawn in submission order.
+#[derive(Clone, Debug, Default)]
+pub struct BandBalance {
+    /// Each band's share, summing to 1; empty (even shares) until a banded draw call.
+    shares: Vec<f64>,
+}
+
+#[cfg(test)]
+impl BandBalance {
+    /// Given shares, as a test forces them.
+    pub(crate) fn with_shares(shares: Vec<f64>) -> Self {
+        Self { shares }
+    }
+}
+
+impl BandBalance {
+    /// The shares of `bands` bands: the kept ones, or even shares when the kept ones are for
+    /// another number of bands.
+    #[must_use]
+    pub fn shares(&self, bands: usize) -> Vec<f64> {
+        if self.shares.len() == bands {
+            self.shares.clone()
+        } else {
+            vec![1.0 / bands.max(1) as f64; bands.max(1)]
+        }
+    }
+
+    /// Moves the shares after a draw call whose bands, given `used`, took `times` (seconds):
+    /// a quarter of the way toward each band's share over its time, normalized (see
+    /// [`BandBalance`]). Unchanged for times that are not all positive and finite.
+    pub fn update(&mut self, used: &[f64], times: &[f64]) {
+        let n = used.len();
+        if n < 2 || times.len() != n || !times.iter().all(|t| t.is_finite() && *t > 0.0) {
+            return;
+        }
+        let speeds: Vec<f64> = used.iter().zip(times).map(|(s, t)| s / t).collect();
+        let total: f64 = speeds.iter().sum();
+        let even = 1.0 / n as f64;
+        let moved: Vec<f64> = used
+            .iter()
+            .zip(&speeds)
+            .map(|(s, v)| (0.75 * s + 0.25 * v / total).clamp(0.5 * even, 2.0 * even))
+            .collect();
+        let sum: f64 = moved.iter().sum();
+        self.shares = moved.iter().map(|s| s / sum).collect();
+    }
 }
 
 /// How `schedule` ([`Schedule::or_forced`]) draws `len` triangles into `clip` (on a target
@@ -145,8 +215,9 @@ pub struct Bands {
 /// quarters of the runs are local (a joint box of at most 1024 pixels: the triangles come in
 /// spatial order) or all the spread boxes lie within 2^20 of the target's samples. Draw calls
 /// too small to sample fully are binned (the choice matters little there). The bands split
-/// the spread triangles' work (a triangle's cost plus its box) evenly, so that a model
-/// covering part of the target still gives each thread a like share.
+/// the spread triangles' work (a triangle's cost plus its box) in the shares `shares` gives
+/// `threads` bands (even ones until the target's bands have been timed, [`BandBalance`]), so
+/// that a model covering part of the target still gives each thread its share.
 ///
 /// The thread count only sets the number of bands: every band repeats the front end's first
 /// tests on the chunks it cannot rule out (the corner tests, a few nanoseconds a triangle;
@@ -160,7 +231,7 @@ pub fn plan(
     len: usize,
     (height, samples): (u32, usize),
     clip: &PixelRect,
-    threads: usize,
+    (threads, shares): (usize, &BandBalance),
     bounds: impl Fn(usize) -> Option<PixelRect> + Sync,
 ) -> Plan {
     let schedule = schedule.or_forced();
@@ -229,24 +300,27 @@ pub fn plan(
     if !banded {
         return Plan::Binned;
     }
-    Plan::Banded(Bands { starts: band_starts(&rows, height, threads), triangles: len })
+    let shares = shares.shares(threads);
+    Plan::Banded(Bands { starts: band_starts(&rows, height, &shares), triangles: len, shares })
 }
 
-/// The first rows of at most `threads` bands that split the sampled triangles' work evenly
-/// (`rows`: each one's middle row, within the target, and cost, at least 1), on a target
-/// `height` rows high; bands of equal height when there is no sample.
+/// The first rows of at most `shares.len()` bands that split the sampled triangles' work
+/// in those shares (`rows`: each one's middle row, within the target, and cost, at least 1),
+/// on a target `height` rows high; bands of those shares of the height when there is no
+/// sample.
 ///
 /// Band `t` starts at the row of the first triangle, in order of rows and then of costs,
-/// with `t / threads` of the total cost before it. Found from each row's sum and largest
-/// cost rather than by sorting the triangles (0.04 ms of the bunny's frame): within a
-/// row, the last triangle in that order is the costliest, so a band starts at a row exactly
-/// when the cost before that triangle reaches its share (`band_starts_as_sorted`).
-fn band_starts(rows: &[(i32, i64)], height: u32, threads: usize) -> Vec<u32> {
-    let threads = threads.max(1);
+/// with the shares of the bands before it of the total cost before it (the shares summed in
+/// units of 1/4096, [`share_boundaries`]). Found from each row's sum and largest cost rather
+/// than by sorting the triangles (0.04 ms of the bunny's frame): within a row, the last
+/// triangle in that order is the costliest, so a band starts at a row exactly when the cost
+/// before that triangle reaches its share (`band_starts_as_sorted`).
+fn band_starts(rows: &[(i32, i64)], height: u32, shares: &[f64]) -> Vec<u32> {
+    let boundaries = share_boundaries(shares);
     let mut starts = vec![0];
     if rows.is_empty() {
-        let even = (1..threads).map(|t| (t as u64 * u64::from(height) / threads as u64) as u32);
-        starts.extend(even);
+        let part = |b: i64| (b as u64 * u64::from(height) / SHARE_UNIT as u64) as u32;
+        starts.extend(boundaries.iter().map(|&b| part(b)));
         starts.dedup();
         return starts;
     }
@@ -259,12 +333,12 @@ fn band_starts(rows: &[(i32, i64)], height: u32, threads: usize) -> Vec<u32> {
         *r = (r.0 + cost, r.1.max(cost));
     }
     let total: i64 = per_row.iter().map(|r| r.0).sum();
-    let (mut t, mut before) = (1, 0i64);
+    let (mut t, mut before) = (0, 0i64);
     for (row, &(sum, largest)) in per_row.iter().enumerate().filter(|r| r.1.1 > 0) {
         // The row's triangles, cheapest first, were each checked with the cost before them:
         // the last check was before the costliest.
         let checked = before + sum - largest;
-        while t < threads && checked * threads as i64 >= t as i64 * total {
+        while t < boundaries.len() && checked * SHARE_UNIT >= boundaries[t] * total {
             if row as u32 > *starts.last().unwrap_or(&0) {
                 starts.push(row as u32);
             }
@@ -273,6 +347,19 @@ fn band_starts(rows: &[(i32, i64)], height: u32, threads: usize) -> Vec<u32> {
         before += sum;
     }
     starts
+}
+
+/// Where bands `1..` of bands with `shares` (summing to 1) start, in units of 1/4096 of the
+/// whole ([`SHARE_UNIT`]): the rounded sums of the shares before each. Integers, so that
+/// [`band_starts`] compares exactly (even shares of two, four or eight bands are exact).
+fn share_boundaries(shares: &[f64]) -> Vec<i64> {
+    let mut before = 0.0;
+    let mut boundaries = Vec::with_capacity(shares.len().saturating_sub(1));
+    for share in shares.iter().take(shares.len().saturating_sub(1)) {
+        before += share;
+        boundaries.push(((before * SHARE_UNIT as f64).round() as i64).clamp(0, SHARE_UNIT));
+    }
+    boundaries
 }
 
 impl Bands {
@@ -284,7 +371,8 @@ impl Bands {
     /// can be (as [`bin::draw_binned`]). `rows(range)` bounds the pixel rows the pieces of
     /// the chunk of triangles `range` lie in, where the caller knows (`None` otherwise): a
     /// band those rows miss skips the chunk (see the module's doc). Returns the counts and the
-    /// covered samples.
+    /// covered samples; each band's time goes to the target's [`BandBalance`] for the next
+    /// draw call's bands.
     #[allow(clippy::too_many_arguments)]
     pub fn draw<S, K, F, P, R>(
         &self,
@@ -307,10 +395,11 @@ impl Bands {
         let kind = bin::Eight::of(eight, target.samples());
         let bands = target.bands_from(&self.starts);
         let band_rows: Vec<[i32; 2]> = bands.iter().map(|b| [b.rect().y0, b.rect().y1]).collect();
-        let per_band: Vec<(DrawStats, u64)> = bands
+        let per_band: Vec<(DrawStats, u64, f64)> = bands
             .into_par_iter()
             .enumerate()
             .map(|(b, mut band)| {
+                let started = std::time::Instant::now();
                 let clip = coverage.clip.intersect(&band.rect()).unwrap_or(PixelRect::EMPTY);
                 let coverage = Coverage { clip, ..coverage };
                 let mut records: Vec<S> = Vec::with_capacity(PIECE);
@@ -399,9 +488,14 @@ impl Bands {
                         queue.flush(&mut band, &fragments);
                     }
                 }
-                (stats, covered)
+                (stats, covered, started.elapsed().as_secs_f64())
             })
             .collect();
+        // Every thread's band drawn (none was left empty): the shares for the next draw call.
+        if per_band.len() == self.shares.len() {
+            let times: Vec<f64> = per_band.iter().map(|b| b.2).collect();
+            target.balance.update(&self.shares, &times);
+        }
         let stats = per_band.iter().fold(DrawStats::default(), |a, b| a.merged(&b.0));
         (stats, per_band.iter().map(|b| b.1).sum())
     }
@@ -413,13 +507,14 @@ mod tests {
 
     /// The starts of [`band_starts`], by sorting the triangles and walking them in order:
     /// the definition the per-row sums are held to.
-    fn band_starts_sorted(rows: &mut [(i32, i64)], height: u32, threads: usize) -> Vec<u32> {
+    fn band_starts_sorted(rows: &mut [(i32, i64)], height: u32, shares: &[f64]) -> Vec<u32> {
+        let boundaries = share_boundaries(shares);
         let mut starts = vec![0];
         rows.sort_unstable();
         let total: i64 = rows.iter().map(|r| r.1).sum();
-        let (mut t, mut before) = (1, 0i64);
+        let (mut t, mut before) = (0, 0i64);
         for &(row, cost) in rows.iter() {
-            while t < threads && before * threads as i64 >= t as i64 * total {
+            while t < boundaries.len() && before * SHARE_UNIT >= boundaries[t] * total {
                 let row = (row.max(0) as u32).min(height.saturating_sub(1));
                 if row > *starts.last().unwrap_or(&0) {
                     starts.push(row);
@@ -480,6 +575,62 @@ mod tests {
         }
     }
 
+    /// A band that took longer gives work to the others, until their times are equal: with
+    /// times proportional to the shares over each band's speed, the shares approach the
+    /// speeds' (kept within about half and twice an even share); equal times keep the
+    /// shares; times that are not all positive and finite leave them; shares kept for
+    /// another number of bands give even shares.
+    #[test]
+    fn balance_moves_work_from_slower_bands() {
+        let mut balance = BandBalance::default();
+        assert_eq!(balance.shares(2), [0.5, 0.5]);
+        balance.update(&[0.5, 0.5], &[0.01, 0.01]);
+        assert_eq!(balance.shares(2), [0.5, 0.5]);
+        let run = |balance: &mut BandBalance, speeds: &[f64], frames: usize| {
+            for _ in 0..frames {
+                let shares = balance.shares(speeds.len());
+                let times: Vec<f64> = shares.iter().zip(speeds).map(|(s, v)| s / v).collect();
+                balance.update(&shares, &times);
+            }
+            balance.shares(speeds.len())
+        };
+        let close = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-3);
+        let shares = run(&mut balance, &[1.0, 2.0], 60);
+        assert!(close(&shares, &[1.0 / 3.0, 2.0 / 3.0]), "{shares:?}");
+        let shares = run(&mut balance, &[1.0, 1.0, 2.0], 80);
+        assert!(close(&shares, &[0.25, 0.25, 0.5]), "{shares:?}");
+        // One band ten times slower: held near half an even share.
+        let shares = run(&mut balance, &[1.0, 10.0], 60);
+        assert!((0.2..0.26).contains(&shares[0]), "{shares:?}");
+        for s in [balance.shares(2), balance.shares(3)] {
+            assert!((s.iter().sum::<f64>() - 1.0).abs() < 1e-12, "{s:?}");
+        }
+        assert_eq!(balance.shares(3), [1.0 / 3.0; 3]);
+        let kept = balance.shares(2);
+        for times in [[0.0, 0.01], [f64::NAN, 0.01], [f64::INFINITY, 0.01], [-1.0, 0.01]] {
+            balance.update(&kept, &times);
+            assert_eq!(balance.shares(2), kept, "{times:?}");
+        }
+    }
+
+    /// Uneven shares move the bands' boundary: a quarter of the grid's work above it.
+    #[test]
+    fn shares_place_the_band_starts() {
+        for (first, row) in [(0.25, 270), (0.5, 540), (0.75, 810)] {
+            let balance = BandBalance::with_shares(vec![first, 1.0 - first]);
+            let p = plan(
+                Schedule::Banded,
+                1_000_000,
+                (1080, 1),
+                &SCREEN,
+                (2, &balance),
+                grid(1000, 500),
+            );
+            let starts = rows_of(&p).unwrap();
+            assert!(starts[0] == 0 && starts[1].abs_diff(row) <= 3, "{first}: {starts:?}");
+        }
+    }
+
     /// Band starts from each row's sum and largest cost are those of walking the sorted
     /// triangles: random rows (few rows with many triangles each, or many with few), costs
     /// (some one very costly triangle) and thread counts.
@@ -498,9 +649,16 @@ mod tests {
                     (rng.random_range(0..spread) as i32, cost)
                 })
                 .collect();
+            // Even shares, or uneven ones as `BandBalance` moves them.
             let threads = rng.random_range(1..9);
-            let got = band_starts(&rows, height, threads);
-            assert_eq!(got, band_starts_sorted(&mut rows, height, threads), "{round}");
+            let mut shares: Vec<f64> = (0..threads).map(|_| rng.random_range(0.5..2.0)).collect();
+            if round % 3 == 0 {
+                shares.fill(1.0);
+            }
+            let sum: f64 = shares.iter().sum();
+            shares.iter_mut().for_each(|s| *s /= sum);
+            let got = band_starts(&rows, height, &shares);
+            assert_eq!(got, band_starts_sorted(&mut rows, height, &shares), "{round}");
         }
     }
 
@@ -540,7 +698,7 @@ mod tests {
     #[test]
     fn plans_band_small_triangles_that_stay_together() {
         let auto = |len, bounds: &(dyn Fn(usize) -> Option<PixelRect> + Sync)| {
-            plan(Schedule::Auto, len, (1080, 1), &SCREEN, 2, bounds)
+            plan(Schedule::Auto, len, (1080, 1), &SCREEN, (2, &BandBalance::default()), bounds)
         };
         assert!(rows_of(&auto(1_000_000, &grid(1000, 500))).is_some(), "grid");
         // The same small boxes, scattered: binned; gathered in 900 x 900 pixels: banded at 1x,
@@ -555,7 +713,14 @@ mod tests {
             }
         };
         assert!(rows_of(&auto(1_000_000, &gathered(4))).is_some(), "gathered");
-        let at_4x = plan(Schedule::Auto, 1_000_000, (1080, 4), &SCREEN, 2, gathered(4));
+        let at_4x = plan(
+            Schedule::Auto,
+            1_000_000,
+            (1080, 4),
+            &SCREEN,
+            (2, &BandBalance::default()),
+            gathered(4),
+        );
         assert_eq!(at_4x, Plan::Binned, "gathered, 4x");
         assert_eq!(auto(1_000_000, &gathered(15)), Plan::Binned, "gathered, large");
         // Large triangles in order (a coarse grid), and a grid too short to sample.
@@ -564,7 +729,8 @@ mod tests {
         // Unknown boxes (corners outside the view volume) are not local.
         assert_eq!(auto(1_000_000, &|_| None), Plan::Binned, "unknown");
         for len in [0, 1, 100, 1_000_000] {
-            let forced = |s| plan(s, len, (1080, 1), &SCREEN, 2, grid(1000, 500));
+            let forced =
+                |s| plan(s, len, (1080, 1), &SCREEN, (2, &BandBalance::default()), grid(1000, 500));
             assert_eq!(forced(Schedule::Binned), Plan::Binned, "{len}");
             assert!(rows_of(&forced(Schedule::Banded)).is_some(), "{len}");
         }
@@ -576,7 +742,14 @@ mod tests {
     #[test]
     fn bands_share_the_triangles_evenly() {
         let bands = |threads, bounds: &(dyn Fn(usize) -> Option<PixelRect> + Sync)| {
-            let p = plan(Schedule::Banded, 1_000_000, (1080, 1), &SCREEN, threads, bounds);
+            let p = plan(
+                Schedule::Banded,
+                1_000_000,
+                (1080, 1),
+                &SCREEN,
+                (threads, &BandBalance::default()),
+                bounds,
+            );
             rows_of(&p).unwrap().to_vec()
         };
         for threads in [1, 2, 3, 7] {
@@ -599,7 +772,7 @@ mod tests {
             1_000_000,
             (3, 1),
             &PixelRect { y1: 2, ..SCREEN },
-            7,
+            (7, &BandBalance::default()),
             grid(1000, 500),
         );
         let starts = rows_of(&short).unwrap();
@@ -610,9 +783,14 @@ mod tests {
             "{starts:?}"
         );
         // Nothing visible: bands of equal height.
-        let nowhere = plan(Schedule::Banded, 1_000_000, (1080, 1), &SCREEN, 2, |_| {
-            Some(PixelRect { x0: -9, y0: -9, x1: -5, y1: -5 })
-        });
+        let nowhere = plan(
+            Schedule::Banded,
+            1_000_000,
+            (1080, 1),
+            &SCREEN,
+            (2, &BandBalance::default()),
+            |_| Some(PixelRect { x0: -9, y0: -9, x1: -5, y1: -5 }),
+        );
         assert_eq!(rows_of(&nowhere), Some(&[0, 540][..]));
     }
 }

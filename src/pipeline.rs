@@ -474,7 +474,7 @@ impl Pipeline {
                         triangles.len(),
                         (target.height(), target.samples().count()),
                         clip,
-                        threads,
+                        (threads, &target.balance),
                         |k| corner_bounds(corners(k), front.cull),
                     )
                 } else {
@@ -1661,7 +1661,8 @@ mod tests {
         };
         let screen = PixelRect::of_target(1920, 1080);
         let len = 2 * (cols * rows) as usize;
-        let plan = band::plan(Schedule::Auto, len, (1080, 1), &screen, 2, |k| {
+        let even = band::BandBalance::default();
+        let plan = band::plan(Schedule::Auto, len, (1080, 1), &screen, (2, &even), |k| {
             corner_bounds(tri(k), CullMode::None)
         });
         assert!(matches!(plan, band::Plan::Banded(_)), "{plan:?}");

@@ -339,7 +339,8 @@ fn draw_tiled<C: WindowColor>(
         schedule => schedule,
     };
     let canvas = (target.height(), target.samples().count());
-    let plan = band::plan(schedule, triangles.len(), canvas, &visible, threads, |k| {
+    let shares = (threads, &target.balance);
+    let plan = band::plan(schedule, triangles.len(), canvas, &visible, shares, |k| {
         window_bounds(&triangles[k])
     });
     target.set_schedule(Some(plan.schedule()));
@@ -718,6 +719,38 @@ mod tests {
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
 
+    /// The banded schedule draws the reference's pixels, ids and counts whatever shares of the
+    /// work its bands take ([`band::BandBalance`]: the balance moves the bands' rows after
+    /// each banded draw call), on two and three threads.
+    #[test]
+    fn banded_draws_match_the_reference_whatever_the_shares() {
+        let mut rng = SmallRng::seed_from_u64(31);
+        let (w, h) = (160u32, 120u32);
+        let tris: Vec<[Vertex; 3]> = (0..3000)
+            .map(|_| {
+                let (cx, cy) = (rng.random_range(0.0..w as f32), rng.random_range(0.0..h as f32));
+                std::array::from_fn(|_| {
+                    let (x, y) =
+                        (cx + rng.random_range(-4.0..4.0), cy + rng.random_range(-4.0..4.0));
+                    Vertex::new(x, y, rng.random_range(0.0..1.0), [rng.random(), 90, 200, 255])
+                })
+            })
+            .collect();
+        let options = RenderOptions::default().with_schedule(Schedule::Banded);
+        let mut reference = Target::new(w, h).unwrap().with_ids().with_overdraw();
+        let want = draw(&mut reference, &tris, &options.with_backend(Backend::Reference)).unwrap();
+        for shares in [vec![0.5, 0.5], vec![0.1, 0.9], vec![0.9, 0.1], vec![0.2, 0.7, 0.1]] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(shares.len()).build().unwrap();
+            let mut target = Target::new(w, h).unwrap().with_ids().with_overdraw();
+            target.balance = band::BandBalance::with_shares(shares.clone());
+            let got = pool.install(|| draw(&mut target, &tris, &options)).unwrap();
+            assert_eq!(target.last_schedule(), Some(Schedule::Banded));
+            assert_eq!(got, want, "{shares:?}");
+            assert!(target.color == reference.color && target.depth == reference.depth);
+            assert!(target.ids == reference.ids && target.overdraw == reference.overdraw);
+        }
+    }
+
     /// A window record, built per triangle or from a window group, draws as the whole record
     /// did: the same setup, depth plane and colour to the bit (`TriangleSetup::new`,
     /// `TriangleShader::span_parts`), flat and smooth, with one alpha and with three, for
@@ -1067,8 +1100,10 @@ mod tests {
         };
         let screen = PixelRect::of_target(1920, 1080);
         let len = 2 * (cols * rows) as usize;
-        let plan =
-            band::plan(Schedule::Auto, len, (1080, 1), &screen, 2, |k| window_bounds(&tri(k)));
+        let even = band::BandBalance::default();
+        let plan = band::plan(Schedule::Auto, len, (1080, 1), &screen, (2, &even), |k| {
+            window_bounds(&tri(k))
+        });
         assert!(matches!(plan, Plan::Banded(_)), "{plan:?}");
         let [a, b, d] = tri(0);
         assert_eq!(window_bounds(&[a, b, d]), Some(PixelRect { x0: 0, y0: 0, x1: 1, y1: 2 }));

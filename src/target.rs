@@ -40,6 +40,8 @@ pub struct Target {
     /// How the last draw call spread its triangles over threads (see
     /// [`Target::last_schedule`]).
     schedule: Option<Schedule>,
+    /// The banded schedule's shares of work per band, from the last banded draw calls' times.
+    pub(crate) balance: crate::band::BandBalance,
 }
 
 /// Memory a draw call leaves for the next one on the same target: the tiled backend's
@@ -112,6 +114,7 @@ impl Target {
             normals: None,
             scratch: Scratch::default(),
             schedule: None,
+            balance: crate::band::BandBalance::default(),
         })
     }
 
