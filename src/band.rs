@@ -149,7 +149,9 @@ const SHARE_UNIT: i64 = 1 << 12;
 /// the frames that found both CPUs fast slower (Xeon VM, two threads, alternated runs of the
 /// build without balance, with a half step and with a quarter, median of the runs' median
 /// frames: grid 25.4, 22.7 and 21.1 ms, bunny 6.03, 5.29 and 5.15 ms; fastest frames
-/// 19.4, 20.0 and 19.4 ms and 4.33, 4.24 and 4.22 ms).
+/// 19.4, 20.0 and 19.4 ms and 4.33, 4.24 and 4.22 ms). Later runs confirmed the bunny's
+/// gain (5.94 -> 5.11 ms) but not the grid's (22.0 -> 24.7 and 23.9 -> 24.6 ms): see
+/// ARCHITECTURE.md.
 /// Why: a band cannot hand rows to another band once it has started (every band walks the
 /// whole draw call in order), so the frame waits for the slowest band, and on a virtual
 /// machine one virtual CPU can run slower than the other for seconds at a time (the Stanford
