@@ -143,15 +143,15 @@ const SHARE_UNIT: i64 = 1 << 12;
 /// How the banded schedule shares a draw call's work among its bands, from the times its
 /// bands took before: each band's share of the sampled cost, moved after each banded draw
 /// call a quarter of the way toward shares that would have made its bands take equal times
-/// (each band's share divided by its time, normalized), kept from falling below half an
-/// even share or rising above twice one (then normalized). A quarter, not half: the virtual
-/// CPUs' speeds also change from one frame to the next, and shares chasing each frame made
-/// the frames that found both CPUs fast slower (Xeon VM, two threads, alternated runs of the
-/// build without balance, with a half step and with a quarter, median of the runs' median
-/// frames: grid 25.4, 22.7 and 21.1 ms, bunny 6.03, 5.29 and 5.15 ms; fastest frames
-/// 19.4, 20.0 and 19.4 ms and 4.33, 4.24 and 4.22 ms). Later runs confirmed the bunny's
-/// gain (5.94 -> 5.11 ms) but not the grid's (22.0 -> 24.7 and 23.9 -> 24.6 ms): see
-/// ARCHITECTURE.md.
+/// (each band's share divided by its time, normalized), each clamped to half and twice an
+/// even share before the shares are normalized again (so they stay near those bounds). A
+/// quarter rather than half because the virtual CPUs' speeds also change from one frame to
+/// the next, and shares that chase each frame slow the frames that find both CPUs fast; one
+/// comparison (Xeon VM, two threads, alternated runs) favoured it: median of the runs'
+/// median frames without balance, with a half step and with a quarter, grid 25.4, 22.7 and
+/// 21.1 ms, bunny 6.03, 5.29 and 5.15 ms. Later runs confirmed the bunny's gain (6.11 ->
+/// 5.25, 5.94 -> 5.11 and 7.11 -> 7.00 ms) but not the grid's (22.0 -> 24.7 and 23.9 ->
+/// 24.6 ms), and fastest frames did not change: see ARCHITECTURE.md.
 /// Why: a band cannot hand rows to another band once it has started (every band walks the
 /// whole draw call in order), so the frame waits for the slowest band, and on a virtual
 /// machine one virtual CPU can run slower than the other for seconds at a time (the Stanford
@@ -186,10 +186,11 @@ impl BandBalance {
 
     /// Moves the shares after a draw call whose bands, given `used`, took `times` (seconds):
     /// a quarter of the way toward each band's share over its time, normalized (see
-    /// [`BandBalance`]). Unchanged for times that are not all positive and finite.
+    /// [`BandBalance`]). Unchanged unless the times and shares are all positive and finite.
     pub fn update(&mut self, used: &[f64], times: &[f64]) {
         let n = used.len();
-        if n < 2 || times.len() != n || !times.iter().all(|t| t.is_finite() && *t > 0.0) {
+        let positive = |v: &[f64]| v.iter().all(|x| x.is_finite() && *x > 0.0);
+        if n < 2 || times.len() != n || !positive(times) || !positive(used) {
             return;
         }
         let speeds: Vec<f64> = used.iter().zip(times).map(|(s, t)| s / t).collect();
@@ -201,7 +202,10 @@ impl BandBalance {
             .map(|(s, v)| (0.75 * s + 0.25 * v / total).clamp(0.5 * even, 2.0 * even))
             .collect();
         let sum: f64 = moved.iter().sum();
-        self.shares = moved.iter().map(|s| s / sum).collect();
+        let shares: Vec<f64> = moved.iter().map(|s| s / sum).collect();
+        if positive(&shares) {
+            self.shares = shares;
+        }
     }
 }
 
@@ -320,13 +324,16 @@ pub fn plan(
 fn band_starts(rows: &[(i32, i64)], height: u32, shares: &[f64]) -> Vec<u32> {
     let boundaries = share_boundaries(shares);
     let mut starts = vec![0];
+    let last = height.saturating_sub(1);
     if rows.is_empty() {
         let part = |b: i64| (b as u64 * u64::from(height) / SHARE_UNIT as u64) as u32;
-        starts.extend(boundaries.iter().map(|&b| part(b)));
-        starts.dedup();
+        for row in boundaries.iter().map(|&b| part(b).min(last)) {
+            if row > *starts.last().unwrap_or(&0) {
+                starts.push(row);
+            }
+        }
         return starts;
     }
-    let last = height.saturating_sub(1);
     // Each row's cost and largest cost (none: 0).
     let mut per_row = vec![(0i64, 0i64); last as usize + 1];
     for &(row, cost) in rows {
@@ -493,7 +500,8 @@ impl Bands {
                 (stats, covered, started.elapsed().as_secs_f64())
             })
             .collect();
-        // Every thread's band drawn (none was left empty): the shares for the next draw call.
+        // A band for every share (no two boundaries fell in one row, so band `b` had share
+        // `b`): the shares for the next draw call.
         if per_band.len() == self.shares.len() {
             let times: Vec<f64> = per_band.iter().map(|b| b.2).collect();
             target.balance.update(&self.shares, &times);
@@ -609,9 +617,11 @@ mod tests {
         }
         assert_eq!(balance.shares(3), [1.0 / 3.0; 3]);
         let kept = balance.shares(2);
-        for times in [[0.0, 0.01], [f64::NAN, 0.01], [f64::INFINITY, 0.01], [-1.0, 0.01]] {
-            balance.update(&kept, &times);
-            assert_eq!(balance.shares(2), kept, "{times:?}");
+        for bad in [[0.0, 0.01], [f64::NAN, 0.01], [f64::INFINITY, 0.01], [-1.0, 0.01]] {
+            balance.update(&kept, &bad);
+            assert_eq!(balance.shares(2), kept, "times {bad:?}");
+            balance.update(&bad, &[0.01, 0.01]);
+            assert_eq!(balance.shares(2), kept, "used {bad:?}");
         }
     }
 
@@ -660,7 +670,13 @@ mod tests {
             let sum: f64 = shares.iter().sum();
             shares.iter_mut().for_each(|s| *s /= sum);
             let got = band_starts(&rows, height, &shares);
+            assert!(got[0] == 0 && got.windows(2).all(|w| w[0] < w[1]), "{round}: {got:?}");
+            assert!(got.len() <= threads && got.iter().all(|&s| s < height), "{round}: {got:?}");
             assert_eq!(got, band_starts_sorted(&mut rows, height, &shares), "{round}");
+            // With no sample: the shares of the height, the same checks.
+            let none = band_starts(&[], height, &shares);
+            assert!(none[0] == 0 && none.windows(2).all(|w| w[0] < w[1]), "{round}: {none:?}");
+            assert!(none.len() <= threads && none.iter().all(|&s| s < height), "{none:?}");
         }
     }
 

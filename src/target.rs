@@ -19,7 +19,8 @@ use crate::simd;
 /// Colour, depth and the optional id, overdraw and normal buffers of one image.
 ///
 /// A target also keeps the tiled backend's batch buffers between draw calls (see
-/// [`Target::release_scratch`]).
+/// [`Target::release_scratch`]), and how the banded schedule shares work among its threads
+/// ([`crate::band::BandBalance`], from the times of earlier draw calls; never what is drawn).
 #[derive(Clone, Debug)]
 pub struct Target {
     width: u32,
