@@ -149,9 +149,9 @@ const SHARE_UNIT: i64 = 1 << 12;
 /// the next, and shares that chase each frame slow the frames that find both CPUs fast; one
 /// comparison (Xeon VM, two threads, alternated runs) favoured it: median of the runs'
 /// median frames without balance, with a half step and with a quarter, grid 25.4, 22.7 and
-/// 21.1 ms, bunny 6.03, 5.29 and 5.15 ms. Later runs confirmed the bunny's gain (6.11 ->
-/// 5.25, 5.94 -> 5.11 and 7.11 -> 7.00 ms) but not the grid's (22.0 -> 24.7 and 23.9 ->
-/// 24.6 ms), and fastest frames did not change: see ARCHITECTURE.md.
+/// 21.1 ms, bunny 6.03, 5.29 and 5.15 ms. Later runs of the quarter step confirmed the
+/// bunny's gain (5.94 -> 5.11 and 7.11 -> 7.00 ms) but not the grid's (22.0 -> 24.7 and
+/// 23.9 -> 24.6 ms), and fastest frames did not change: see ARCHITECTURE.md.
 /// Why: a band cannot hand rows to another band once it has started (every band walks the
 /// whole draw call in order), so the frame waits for the slowest band, and on a virtual
 /// machine one virtual CPU can run slower than the other for seconds at a time (the Stanford
