@@ -141,23 +141,26 @@ pub struct Bands {
 const SHARE_UNIT: i64 = 1 << 12;
 
 /// How the banded schedule shares a draw call's work among its bands, from the times its
-/// bands took before: each band's share of the sampled cost, moved after each banded draw
-/// call a quarter of the way toward shares that would have made its bands take equal times
-/// (each band's share divided by its time, normalized), each clamped to half and twice an
-/// even share before the shares are normalized again (so they stay near those bounds). A
-/// quarter rather than half because the virtual CPUs' speeds also change from one frame to
-/// the next, and shares that chase each frame slow the frames that find both CPUs fast; one
-/// comparison (Xeon VM, two threads, alternated runs) favoured it: median of the runs'
-/// median frames without balance, with a half step and with a quarter, grid 25.4, 22.7 and
-/// 21.1 ms, bunny 6.03, 5.29 and 5.15 ms. Later runs of the quarter step confirmed the
-/// bunny's gain (5.94 -> 5.11 and 7.11 -> 7.00 ms) but not the grid's (22.0 -> 24.7 and
-/// 23.9 -> 24.6 ms), and fastest frames did not change: see ARCHITECTURE.md.
+/// bands took before.
+///
 /// Why: a band cannot hand rows to another band once it has started (every band walks the
 /// whole draw call in order), so the frame waits for the slowest band, and on a virtual
 /// machine one virtual CPU can run slower than the other for seconds at a time (the Stanford
 /// bunny's two bands took 3.9 and 5.8 ms, then 4.4 and 3.6 ms in another run, where the
 /// same split had taken 3.74 and 3.77 ms). The bands' rows only decide which thread draws a
 /// pixel, never what it holds: every pixel lies in one band, drawn in submission order.
+///
+/// How: each band's share of the sampled cost is moved, after each banded draw call, a
+/// quarter of the way toward shares that would have made its bands take equal times (each
+/// band's share divided by its time, normalized), each clamped to half and twice an even
+/// share before the shares are normalized again (so they stay near those bounds). A quarter
+/// rather than half because the virtual CPUs' speeds also change from one frame to the next,
+/// and shares that chase each frame slow the frames that find both CPUs fast; one comparison
+/// (Xeon VM, two threads, alternated runs) favoured it: median of the runs' median frames
+/// without balance, with a half step and with a quarter, grid 25.4, 22.7 and 21.1 ms, bunny
+/// 6.03, 5.29 and 5.15 ms. Later runs of the quarter step confirmed the bunny's gain (5.94
+/// -> 5.11 and 7.11 -> 7.00 ms) but not the grid's (22.0 -> 24.7 and 23.9 -> 24.6 ms), and
+/// fastest frames did not change: see ARCHITECTURE.md.
 #[derive(Clone, Debug, Default)]
 pub struct BandBalance {
     /// Each band's share, summing to 1; empty (even shares) until a banded draw call.
