@@ -596,9 +596,9 @@ fn a_clipped_triangle_keeps_its_id_colour_and_count() {
 
 /// Exact counts of clipped triangles, in both backends and both schedules: one corner past
 /// one bound makes a quadrilateral, two pieces (one rasterized triangle, one extra piece;
-/// every pixel centre of the target lit once); a triangle meeting the range
-/// only along its bound leaves pieces of zero area and counts as degenerate; one wholly
-/// past it counts as culled.
+/// every pixel centre of the target lit once); a triangle meeting the range only along its
+/// bound leaves pieces of zero area and counts as degenerate; one wholly past it counts as
+/// culled.
 #[test]
 fn clipped_triangles_count_their_pieces_exactly() {
     let v = |x: f32, y: f32| Vertex::new(x, y, 0.5, [200, 100, 50, 255]);
