@@ -429,8 +429,7 @@ fn triangulate_past_range(rings: &[Vec<[f64; 2]>]) -> Vec<[usize; 3]> {
     }
     let tris = match cdt_rings(&data, &holes, ccw) {
         Ok(tris) => tris,
-        Err(Refusal::Crossing) if data.len() > CDT_ABOVE_CORNERS => Vec::new(),
-        Err(_) if data.len() > EARCUT_AT_MOST_CORNERS => Vec::new(),
+        Err(why) if why.leaves_nothing(data.len()) => Vec::new(),
         Err(_) => earcut_f64(&data, &holes, ccw),
     };
     tris.into_iter().map(|t| t.map(|i| map[i])).collect()
@@ -633,9 +632,8 @@ fn triangulate_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Vec<[usiz
 fn large_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Option<Vec<[usize; 3]>> {
     match cdt_rings(data, holes, ccw) {
         Ok(tris) => Some(tris),
-        Err(Refusal::Crossing) => Some(Vec::new()),
-        Err(Refusal::Other) if data.len() > EARCUT_AT_MOST_CORNERS => Some(Vec::new()),
-        Err(Refusal::Other) => None,
+        Err(why) if why.leaves_nothing(data.len()) => Some(Vec::new()),
+        Err(_) => None,
     }
 }
 
@@ -650,6 +648,15 @@ enum Refusal {
     /// Any other reason (a corner twice, sides that touch or overlap, coordinates spade
     /// refuses), for earcut to decide.
     Other,
+}
+
+impl Refusal {
+    /// Whether rings of `corners` corners refused for this reason get no triangles rather
+    /// than earcut's: crossing ones above [`CDT_ABOVE_CORNERS`], any above
+    /// [`EARCUT_AT_MOST_CORNERS`] (where earcut's time grows with the square of the corners).
+    fn leaves_nothing(&self, corners: usize) -> bool {
+        (*self == Self::Crossing && corners > CDT_ABOVE_CORNERS) || corners > EARCUT_AT_MOST_CORNERS
+    }
 }
 
 /// The triangles inside the rings of `data` (laid out as for earcut), wound positively if
