@@ -5,7 +5,7 @@ use std::arch::x86_64::*;
 use glam::Vec4;
 
 use super::{
-    Corner, CornerGroup, CornerTests, KernelTarget, NarrowBox, NarrowEight, NarrowJob,
+    Corner, CornerGroup, CornerTests, EdgeValues, KernelTarget, NarrowBox, NarrowEight, NarrowJob,
     NarrowSamplesJob, PerspectiveColor, SampleSpanJob, SimdLevel, SmallEight, SmallLane,
     SmallShading, SpanColor, SpanJob, WindowGroup,
 };
@@ -1534,7 +1534,7 @@ pub(super) unsafe fn shade_narrow_eight(
 /// # Safety
 /// The CPU must support AVX2, FMA, POPCNT and BMI1 (the AVX2 level's features).
 #[target_feature(enable = "avx2,fma,popcnt,bmi1")]
-unsafe fn shade_narrow_box(b: &NarrowBox, t: &mut KernelTarget<'_>) -> u64 {
+unsafe fn shade_narrow_box(b: &NarrowBox<impl EdgeValues>, t: &mut KernelTarget<'_>) -> u64 {
     // SAFETY: the CPU has the AVX2 level's features (this function's contract).
     with_rgba!(*t.color, __m256d, _mm_set1_epi32, smooth, rgba => unsafe {
         narrow_groups(b, t, rgba)
@@ -1548,7 +1548,7 @@ unsafe fn shade_narrow_box(b: &NarrowBox, t: &mut KernelTarget<'_>) -> u64 {
 #[inline]
 #[target_feature(enable = "avx2,fma,popcnt,bmi1")]
 unsafe fn narrow_groups(
-    job: &NarrowBox,
+    job: &NarrowBox<impl EdgeValues>,
     target: &mut KernelTarget<'_>,
     rgba: impl Fn(__m256d, __m256d) -> __m128i,
 ) -> u64 {
@@ -1558,18 +1558,18 @@ unsafe fn narrow_groups(
     let lanes = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
     // Edge k's offsets from the row's first pixel, for the lanes of groups 0 and 1.
     let offsets = |k: usize, g: usize| {
-        let step = _mm256_set1_pd(job.step_x[k]);
+        let step = _mm256_set1_pd(job.values.step_x(k));
         _mm256_mul_pd(_mm256_add_pd(lanes, _mm256_set1_pd(4.0 * g as f64)), step)
     };
     let offsets: [[__m256d; 2]; 3] = std::array::from_fn(|k| [offsets(k, 0), offsets(k, 1)]);
-    let bias = job.bias.map(|b| _mm256_set1_pd(b));
+    let bias = [0, 1].map(|k| _mm256_set1_pd(job.values.bias(k)));
     // Each group's edge values, stepped a row down in their registers (as the AVX-512
     // kernel's `NarrowBox::groups`; integers below 2^53, exact in any order).
     let mut row: [[__m256d; 2]; 3] = std::array::from_fn(|k| {
-        let edge = _mm256_set1_pd(job.edges[k]);
+        let edge = _mm256_set1_pd(job.values.edge(k));
         offsets[k].map(|o| _mm256_add_pd(edge, o))
     });
-    let step_y = job.step_y.map(|s| _mm256_set1_pd(s));
+    let step_y = [0, 1, 2].map(|k| _mm256_set1_pd(job.values.step_y(k)));
     if job.columns > 4 {
         // SAFETY: the CPU has the features (this function's contract); the box's groups
         // lie in the buffers (asserted above).
@@ -1612,12 +1612,12 @@ unsafe fn narrow_groups(
 #[inline]
 #[target_feature(enable = "avx2,fma,popcnt,bmi1")]
 unsafe fn wide_rows(
-    job: &NarrowBox,
+    job: &NarrowBox<impl EdgeValues>,
     target: &mut KernelTarget<'_>,
     (mut row, bias, step_y): ([[__m256d; 2]; 3], [__m256d; 2], [__m256d; 3]),
     rgba: &impl Fn(__m256d, __m256d) -> __m128i,
 ) -> u64 {
-    let step_x = job.step_x.map(|s| _mm256_set1_pd(s));
+    let step_x = [0, 1, 2].map(|k| _mm256_set1_pd(job.values.step_x(k)));
     let columns = (1u32 << job.columns) - 1;
     let mut covered = 0u64;
     for r in 0..job.rows {

@@ -13,8 +13,8 @@
 use std::arch::x86_64::*;
 
 use super::{
-    KernelTarget, NarrowBox, NarrowEight, NarrowJob, NarrowSamplesJob, PerspectiveColor,
-    SampleSpanJob, SmallEight, SmallShading, SpanColor, SpanJob, WindowGroup,
+    EdgeValues, KernelTarget, NarrowBox, NarrowEight, NarrowJob, NarrowSamplesJob,
+    PerspectiveColor, SampleSpanJob, SmallEight, SmallShading, SpanColor, SpanJob, WindowGroup,
 };
 use crate::color::ENCODE_BUCKETS;
 use crate::fixed;
@@ -392,7 +392,7 @@ unsafe fn narrow_packed<const PAIR: bool>(job: &mut NarrowJob<'_>, p: &Perspecti
     } else {
         _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)
     };
-    let bias = b.bias.map(|v| _mm512_set1_pd(v));
+    let bias = [0, 1].map(|k| _mm512_set1_pd(b.values.bias(k)));
     // The passing pixels' numerators and buffer indices, packed in the lanes below
     // `waiting` (in registers: loaded back from arrays, a pack's lanes were read with loads
     // spanning several stores, which store forwarding fails).
@@ -496,7 +496,7 @@ unsafe fn packed_colors(
     unsafe { _mm256_mask_i32scatter_epi32::<4>(out.cast(), m, at, rgba) };
 }
 
-impl NarrowBox {
+impl<V: EdgeValues> NarrowBox<V> {
     /// How groups of eight lanes cover the box: edge `k` at each lane of the first group and
     /// its step from one group to the next, the lanes within the box's columns, and the rows
     /// a group takes (boxes up to four pixels wide, most small triangles, two: lanes 0-3 the
@@ -517,13 +517,14 @@ impl NarrowBox {
         let row_of_lane = _mm512_setr_pd(0.0, 0.0, 0.0, 0.0, r, r, r, r);
         let offsets: [__m512d; 3] = std::array::from_fn(|k| {
             _mm512_add_pd(
-                _mm512_mul_pd(column, _mm512_set1_pd(self.step_x[k])),
-                _mm512_mul_pd(row_of_lane, _mm512_set1_pd(self.step_y[k])),
+                _mm512_mul_pd(column, _mm512_set1_pd(self.values.step_x(k))),
+                _mm512_mul_pd(row_of_lane, _mm512_set1_pd(self.values.step_y(k))),
             )
         });
-        let first =
-            std::array::from_fn(|k| _mm512_add_pd(_mm512_set1_pd(self.edges[k]), offsets[k]));
-        let step = self.step_y.map(|s| _mm512_set1_pd(rows_per_group as f64 * s));
+        let edge = |k: usize| _mm512_set1_pd(self.values.edge(k));
+        let first = std::array::from_fn(|k| _mm512_add_pd(edge(k), offsets[k]));
+        let rows = rows_per_group as f64;
+        let step = std::array::from_fn(|k| _mm512_set1_pd(rows * self.values.step_y(k)));
         let row_bits = (1u32 << self.columns) - 1;
         let columns = if pair { row_bits | row_bits << 4 } else { row_bits } as __mmask8;
         (first, step, columns, rows_per_group)
@@ -568,7 +569,7 @@ fn group_edges(e: &[__m512d; 3], bias: &[__m512d; 2]) -> (__mmask8, __m512d, __m
 #[inline]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,popcnt,bmi1,bmi2")]
 unsafe fn narrow_box(
-    b: &NarrowBox,
+    b: &NarrowBox<impl EdgeValues>,
     t: &mut KernelTarget<'_>,
     rgba: impl Fn(__m512d, __m512d) -> __m256i,
 ) -> u64 {
@@ -606,13 +607,13 @@ unsafe fn narrow_box(
 #[inline]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,popcnt,bmi1,bmi2")]
 unsafe fn narrow_groups<const PAIR: bool, const DEPTH: u8>(
-    b: &NarrowBox,
+    b: &NarrowBox<impl EdgeValues>,
     t: &mut KernelTarget<'_>,
     rgba: impl Fn(__m512d, __m512d) -> __m256i,
 ) -> u64 {
     debug_assert_eq!(PAIR, b.columns <= 4, "two rows per group for boxes up to four wide");
     let (mut e, step, columns, rows_per_group) = b.groups();
-    let bias = b.bias.map(|b| _mm512_set1_pd(b));
+    let bias = [0, 1].map(|k| _mm512_set1_pd(b.values.bias(k)));
     let mut covered = 0u64;
     for r in (0..b.rows).step_by(rows_per_group) {
         let (outside, f1, f2) = group_edges(&e, &bias);

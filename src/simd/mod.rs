@@ -979,57 +979,130 @@ fn assert_narrow(columns: usize, rows: usize) {
     assert!((1..=NARROW_COLUMNS).contains(&columns) && rows > 0, "not a narrow box");
 }
 
-/// A narrow kernel's box and edges, as [`NarrowJob`] holds them, in `f64` (integers below
-/// 2^53: exact).
+/// A narrow kernel's box and where its edges' values are read (`V`: a [`NarrowJob`]'s own,
+/// [`JobEdges`], or a lane of a [`NarrowEight`] in place, [`LaneEdges`]).
 #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-struct NarrowBox {
-    edges: [f64; 3],
-    step_x: [f64; 3],
-    step_y: [f64; 3],
-    bias: [f64; 2],
+struct NarrowBox<V> {
+    values: V,
     columns: usize,
     rows: usize,
     first: usize,
     stride: usize,
 }
 
+/// A narrow box's edge values at its first pixel, their steps a pixel right and a row down,
+/// and the biases of edges 1 and 2, in `f64` (integers below 2^53: exact). Read one at a
+/// time where they are: a [`NarrowEight`] lane's values copied into the box one by one were
+/// read back by the kernel loops with wide loads spanning several of those stores, which
+/// store forwarding cannot serve (a twentieth of the soup's kernel samples on one such load;
+/// soup on one thread, median of six alternated runs' fastest frames, 93.1 -> 85.1 ms).
 #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-impl NarrowBox {
+trait EdgeValues {
+    /// Edge `k`'s value at the box's first pixel centre.
+    fn edge(&self, k: usize) -> f64;
+    /// Edge `k`'s step a pixel to the right.
+    fn step_x(&self, k: usize) -> f64;
+    /// Edge `k`'s step a row down.
+    fn step_y(&self, k: usize) -> f64;
+    /// Edge `k + 1`'s bias (`k` 0 or 1).
+    fn bias(&self, k: usize) -> f64;
+}
+
+/// A [`NarrowJob`]'s edge values, in `f64`.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+struct JobEdges {
+    edges: [f64; 3],
+    step_x: [f64; 3],
+    step_y: [f64; 3],
+    bias: [f64; 2],
+}
+
+impl EdgeValues for JobEdges {
+    #[inline(always)]
+    fn edge(&self, k: usize) -> f64 {
+        self.edges[k]
+    }
+    #[inline(always)]
+    fn step_x(&self, k: usize) -> f64 {
+        self.step_x[k]
+    }
+    #[inline(always)]
+    fn step_y(&self, k: usize) -> f64 {
+        self.step_y[k]
+    }
+    #[inline(always)]
+    fn bias(&self, k: usize) -> f64 {
+        self.bias[k]
+    }
+}
+
+/// Lane `lane` of a [`NarrowEight`]'s edge values, read in place.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+struct LaneEdges<'a> {
+    eight: &'a NarrowEight,
+    lane: usize,
+}
+
+impl EdgeValues for LaneEdges<'_> {
+    #[inline(always)]
+    fn edge(&self, k: usize) -> f64 {
+        self.eight.edges[k][self.lane]
+    }
+    #[inline(always)]
+    fn step_x(&self, k: usize) -> f64 {
+        self.eight.step_x[k][self.lane]
+    }
+    #[inline(always)]
+    fn step_y(&self, k: usize) -> f64 {
+        self.eight.step_y[k][self.lane]
+    }
+    #[inline(always)]
+    fn bias(&self, k: usize) -> f64 {
+        self.eight.bias[k][self.lane]
+    }
+}
+
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+impl NarrowBox<JobEdges> {
     /// `job`'s box.
     #[inline(always)]
     fn of(job: &NarrowJob<'_>) -> Self {
         Self {
-            edges: job.edges.map(|e| e as f64),
-            step_x: job.step_x.map(|s| s as f64),
-            step_y: job.step_y.map(|s| s as f64),
-            bias: job.bias.map(|b| b as f64),
+            values: JobEdges {
+                edges: job.edges.map(|e| e as f64),
+                step_x: job.step_x.map(|s| s as f64),
+                step_y: job.step_y.map(|s| s as f64),
+                bias: job.bias.map(|b| b as f64),
+            },
             columns: job.columns,
             rows: job.rows,
             first: job.first,
             stride: job.stride,
         }
     }
+}
 
-    /// Lane `l`'s box of `eight`, in `target`, read in place (without a [`NarrowJob`], whose
-    /// `i64` values would be converted from these and back). Panics unless it is narrow.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+impl<'a> NarrowBox<LaneEdges<'a>> {
+    /// Lane `l`'s box of `eight`, in `target`, its values read in place (without a
+    /// [`NarrowJob`], whose `i64` values would be converted from these and back). Panics
+    /// unless it is narrow.
     #[inline(always)]
-    fn of_lane(eight: &NarrowEight, l: usize, target: &crate::target::TargetBand<'_>) -> Self {
+    fn of_lane(eight: &'a NarrowEight, l: usize, target: &crate::target::TargetBand<'_>) -> Self {
         let (columns, rows) = (eight.columns[l], eight.rows[l]);
         assert!((1..=NARROW_COLUMNS as i32).contains(&columns) && rows > 0, "not a narrow box");
-        // Lane `l` of each row, read in place (`map` would copy the rows first).
-        let lane3 = |rows: &[[f64; 8]; 3]| [rows[0][l], rows[1][l], rows[2][l]];
         Self {
-            edges: lane3(&eight.edges),
-            step_x: lane3(&eight.step_x),
-            step_y: lane3(&eight.step_y),
-            bias: [eight.bias[0][l], eight.bias[1][l]],
+            values: LaneEdges { eight, lane: l },
             columns: columns as usize,
             rows: rows as usize,
             first: target.index(eight.x0[l], eight.y0[l]),
             stride: target.stride(),
         }
     }
+}
 
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+impl<V: EdgeValues> NarrowBox<V> {
     /// Panics unless the box is one the narrow kernels take ([`assert_narrow`]).
     fn assert_narrow(&self) {
         assert_narrow(self.columns, self.rows);
@@ -1198,12 +1271,13 @@ fn narrow_lane_job(
 ) -> u64 {
     let b = NarrowBox::of_lane(eight, l, target);
     let color = eight.color(l);
+    let v = &b.values;
     // Integers below 2^53 in `f64`: the conversions back are exact.
     let job = NarrowJob {
-        edges: b.edges.map(|e| e as i64),
-        step_x: b.step_x.map(|e| e as i64),
-        step_y: b.step_y.map(|e| e as i64),
-        bias: b.bias.map(|e| e as i64),
+        edges: [0, 1, 2].map(|k| v.edge(k) as i64),
+        step_x: [0, 1, 2].map(|k| v.step_x(k) as i64),
+        step_y: [0, 1, 2].map(|k| v.step_y(k) as i64),
+        bias: [0, 1].map(|k| v.bias(k) as i64),
         columns: b.columns,
         rows: b.rows,
         first: b.first,
