@@ -628,27 +628,11 @@ unsafe fn narrow_groups<const PAIR: bool, const DEPTH: u8>(
     covered
 }
 
-/// [`super::narrow_eight`]: the eight records loaded as one 512-bit register each (sixteen
-/// 32-bit words, see [`WindowRecord`]), transposed into one 256-bit register per word, and
-/// set up side by side: the box from the snapped vertices and clipped to `tile`
-/// ([`crate::setup::sample_bounds`]' centres, by shifts), the edges at its first pixel's
-/// centre ([`crate::setup::TriangleSetup::edges_at`], in `f64` lanes: products of integers
-/// below 2^25, exact), the depth and colour planes (`(a_i - a0) * inv_area2`, the
-/// operations of [`crate::shade::PlaneEquation::with_inv_area2`]).
-///
-/// # Safety
-/// The CPU must support AVX-512 F, VL and DQ.
-#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2,popcnt,bmi1,bmi2")]
-pub(super) unsafe fn narrow_eight(
-    records: &[&WindowRecord; 8],
-    tile: &PixelRect,
-    out: &mut NarrowEight,
-) -> u8 {
-    // SAFETY: a record is 64 bytes, aligned to 64 (`repr(C, align(64))`, no padding: its
-    // layout is asserted beside it), so each load reads one whole initialized record.
-    let r: [__m512i; 8] = std::array::from_fn(|l| unsafe {
-        _mm512_load_si512(std::ptr::from_ref(records[l]).cast::<__m512i>())
-    });
+/// Eight rows of sixteen 32-bit words as sixteen registers of eight: word `i` of row `l` in
+/// lane `l` of the `i`-th.
+#[inline]
+#[target_feature(enable = "avx512f,avx512vl,popcnt,bmi1,bmi2")]
+fn transposed(r: [__m512i; 8]) -> [__m256i; 16] {
     // Per 128-bit lane j of records 0-3: words 4j + i side by side in `b[i]`; of records
     // 4-7 in `c[i]`.
     let quad = |r: &[__m512i]| {
@@ -675,6 +659,31 @@ pub(super) unsafe fn narrow_eight(
         word[8 + i] = _mm512_castsi512_si256(hi);
         word[12 + i] = _mm512_extracti64x4_epi64::<1>(hi);
     }
+    word
+}
+
+/// [`super::narrow_eight`]: the eight records loaded as one 512-bit register each (sixteen
+/// 32-bit words, see [`WindowRecord`]), transposed into one 256-bit register per word, and
+/// set up side by side: the box from the snapped vertices and clipped to `tile`
+/// ([`crate::setup::sample_bounds`]' centres, by shifts), the edges at its first pixel's
+/// centre ([`crate::setup::TriangleSetup::edges_at`], in `f64` lanes: products of integers
+/// below 2^25, exact), the depth and colour planes (`(a_i - a0) * inv_area2`, the
+/// operations of [`crate::shade::PlaneEquation::with_inv_area2`]).
+///
+/// # Safety
+/// The CPU must support AVX-512 F, VL and DQ.
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2,popcnt,bmi1,bmi2")]
+pub(super) unsafe fn narrow_eight(
+    records: &[&WindowRecord; 8],
+    tile: &PixelRect,
+    out: &mut NarrowEight,
+) -> u8 {
+    // SAFETY: a record is 64 bytes, aligned to 64 (`repr(C, align(64))`, no padding: its
+    // layout is asserted beside it), so each load reads one whole initialized record.
+    let r: [__m512i; 8] = std::array::from_fn(|l| unsafe {
+        _mm512_load_si512(std::ptr::from_ref(records[l]).cast::<__m512i>())
+    });
+    let word = transposed(r);
     let [x0, y0, x1, y1, x2, y2] = [word[0], word[1], word[2], word[3], word[4], word[5]];
     let inv_area2 = _mm512_castsi512_pd(_mm512_or_si512(
         _mm512_cvtepu32_epi64(word[12]),
@@ -967,14 +976,6 @@ unsafe fn narrow_sample_groups(
     covered
 }
 
-/// Eight lanes of one `f32` field of each triangle.
-#[inline]
-#[target_feature(enable = "avx512f,avx512vl,popcnt,bmi1,bmi2")]
-fn each_f32(tris: &[[Vertex; 3]; 8], f: impl Fn(&[Vertex; 3]) -> f32) -> __m256 {
-    let [t0, t1, t2, t3, t4, t5, t6, t7] = tris;
-    _mm256_setr_ps(f(t0), f(t1), f(t2), f(t3), f(t4), f(t5), f(t6), f(t7))
-}
-
 /// [`super::window_group`] in AVX-512: the per-triangle front end's arithmetic lane by lane.
 /// Snapping rounds `x * 256` (exact in `f64`) half to even, as `fixed::snap` does; areas are
 /// `i64` lanes (exact, below 2^49), converted to `f64` (rounding to nearest, as `as f64`) for
@@ -990,11 +991,19 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
     let mut in_range: __mmask8 = 0xFF;
     let mut xs = [zero; 3];
     let mut ys = [zero; 3];
+    // Each triangle's three vertices, fifteen words (`Vertex` is `repr(C)`, its layout
+    // asserted beside it), one row each: word `5 v + f` is field `f` (`x`, `y`, `z`, `inv_w`,
+    // then the colour) of vertex `v`. Built lane by lane from 96 scalar loads, they were a
+    // third of this function's samples.
+    let rows: [__m512i; 8] = std::array::from_fn(|t| {
+        // SAFETY: the fifteen words of the mask are the triangle's sixty bytes; the sixteenth
+        // is masked off, so nothing past the triangle is read (nor can fault).
+        unsafe { _mm512_maskz_loadu_epi32(0x7FFF, tris[t].as_ptr().cast()) }
+    });
+    let word = transposed(rows);
     for v in 0..3 {
-        let x = each_f32(tris, |t| t[v].x);
-        let y = each_f32(tris, |t| t[v].y);
-        let zv = each_f32(tris, |t| t[v].z);
-        let w = each_f32(tris, |t| t[v].inv_w);
+        let field = |f: usize| _mm256_castsi256_ps(word[5 * v + f]);
+        let (x, y, zv, w) = (field(0), field(1), field(2), field(3));
         // Finite iff `v - v` is 0 (NaN for NaN and infinities).
         for f in [x, y, zv, w] {
             finite &= _mm256_cmp_ps_mask::<_CMP_EQ_OQ>(_mm256_sub_ps(f, f), _mm256_setzero_ps());
@@ -1010,7 +1019,10 @@ pub(super) unsafe fn window_group(tris: &[[Vertex; 3]; 8], cull: CullMode, out: 
         };
         (xs[v], ys[v]) = (snap(x), snap(y));
     }
-    let mul = |a: __m512i, b: __m512i| _mm512_mullo_epi64(a, b);
+    // Snapped coordinates in range are within `+-2^23`, so their differences fit in 32 bits
+    // and `vpmuldq`'s product of each lane's low halves is exact (one micro-op, where
+    // `vpmullq` takes three and three times as long). Lanes out of range are rejected.
+    let mul = |a: __m512i, b: __m512i| _mm512_mul_epi32(a, b);
     let sub = |a: __m512i, b: __m512i| _mm512_sub_epi64(a, b);
     let signed =
         sub(mul(sub(xs[1], xs[0]), sub(ys[2], ys[0])), mul(sub(xs[2], xs[0]), sub(ys[1], ys[0])));
