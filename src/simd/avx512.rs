@@ -633,8 +633,8 @@ unsafe fn narrow_groups<const PAIR: bool, const DEPTH: u8>(
 #[inline]
 #[target_feature(enable = "avx512f,avx512vl,popcnt,bmi1,bmi2")]
 fn transposed(r: [__m512i; 8]) -> [__m256i; 16] {
-    // Per 128-bit lane j of records 0-3: words 4j + i side by side in `b[i]`; of records
-    // 4-7 in `c[i]`.
+    // Per 128-bit lane j of rows 0-3: words 4j + i side by side in `b[i]`; of rows 4-7 in
+    // `c[i]`.
     let quad = |r: &[__m512i]| {
         let (a0, a1) = (_mm512_unpacklo_epi32(r[0], r[1]), _mm512_unpackhi_epi32(r[0], r[1]));
         let (a2, a3) = (_mm512_unpacklo_epi32(r[2], r[3]), _mm512_unpackhi_epi32(r[2], r[3]));
@@ -648,7 +648,7 @@ fn transposed(r: [__m512i; 8]) -> [__m256i; 16] {
     let (b, c) = (quad(&r[..4]), quad(&r[4..]));
     let mut word = [_mm256_setzero_si256(); 16];
     for i in 0..4 {
-        // [b lane 0, c lane 0, b lane 1, c lane 1]: words i and 4 + i of all eight records;
+        // [b lane 0, c lane 0, b lane 1, c lane 1]: words i and 4 + i of all eight rows;
         // lanes 2 and 3 the same for words 8 + i and 12 + i.
         let lo = _mm512_shuffle_i32x4::<0b01_00_01_00>(b[i], c[i]);
         let lo = _mm512_shuffle_i32x4::<0b11_01_10_00>(lo, lo);

@@ -995,7 +995,7 @@ struct NarrowBox<V> {
 /// time where they are: a [`NarrowEight`] lane's values copied into the box one by one were
 /// read back by the kernel loops with wide loads spanning several of those stores, which
 /// store forwarding cannot serve (a twentieth of the soup's kernel samples on one such load;
-/// soup on one thread, median of six alternated runs' fastest frames, 93.1 -> 85.1 ms).
+/// soup on one thread, median of six alternated runs' fastest frames, 91.7 -> 82.4 ms).
 #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 trait EdgeValues {
     /// Edge `k`'s value at the box's first pixel centre.
