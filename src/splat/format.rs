@@ -302,7 +302,8 @@ pub fn encode(tree: &SplatTree) -> Result<Vec<u8>, Error> {
     let n = order.len();
     let mut nodes: Vec<Clean> = Vec::new();
     encoding.reserve(&mut nodes, n, "nodes made safe to quantize")?;
-    nodes.extend(order.iter().map(|&i| Clean::new(&tree.nodes[i])));
+    // In parallel, into the room reserved (an indexed iterator writes in place).
+    nodes.par_extend(order.par_iter().map(|&i| Clean::new(&tree.nodes[i])));
     drop(order);
 
     // First child of each output node (output order is breadth-first by construction).
@@ -352,7 +353,8 @@ pub fn encode(tree: &SplatTree) -> Result<Vec<u8>, Error> {
     let mut sphere_code = encoding.filled(n, IDENTITY, "sphere codes")?;
     if n > 0 {
         let centre = nodes[0].centre;
-        let reach = content.iter().map(|&(c, r)| reach(c, r, centre)).fold(0.0, f64::max);
+        // The largest reach, in parallel (`max` skips NaNs in any order).
+        let reach = content.par_iter().map(|&(c, r)| reach(c, r, centre)).reduce(|| 0.0, f64::max);
         decoded[0] = Sphere { centre, radius: round_up_f32(reach) };
     }
     // Level by level (breadth-first, a level's children are the next level), the children
