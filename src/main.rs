@@ -1577,8 +1577,8 @@ fn reading<T>(
 }
 
 /// Work on at least this many points or nodes shows a spinner while it runs: building the
-/// hierarchy of a million points takes about half a second, of fifteen million eight seconds,
-/// and packing it as long again.
+/// hierarchy of two million points takes about 1.6 s, of fifteen million about 8 s, and
+/// packing it as long again.
 const WORK_PROGRESS_ITEMS: usize = 1 << 20;
 
 /// `work()`, with a spinner saying `message` and the time so far while it runs, when `items`
