@@ -15,7 +15,7 @@ use crate::camera::{self, Camera, Projection};
 use crate::error::Error;
 use crate::mesh::Mesh;
 use crate::model::{self, Lighting, MaterialTextures, ModelOptions};
-use crate::pipeline::{FaceCull, Fragment, Pipeline};
+use crate::pipeline::{FaceCull, Fragment, IndexBuffer, Pipeline};
 use crate::render::{self, DrawStats, RenderOptions, Schedule};
 use crate::sample::SampleCount;
 use crate::scene;
@@ -118,11 +118,14 @@ enum Prepared {
         colors: Vec<Vec3>,
         /// The vertex shader's inputs: the vertex indices (built once, not in every frame).
         vertices: Vec<u32>,
-        triangles: Vec<[u32; 3]>,
+        /// The triangles with their index ranges, found once (as a GPU driver keeps a static
+        /// index buffer's, which llvmpipe's figures had too), not in every frame.
+        triangles: IndexBuffer,
     },
     Dense {
         positions: Vec<[f32; 3]>,
-        triangles: Vec<[u32; 3]>,
+        /// As the grid's.
+        triangles: IndexBuffer,
         view_proj: glam::Mat4,
     },
 }
@@ -217,6 +220,7 @@ fn prepare(
         BenchScene::Grid => {
             let (positions, colors, triangles) = grid(1000, 500, &mut rng);
             let vertices = (0..positions.len() as u32).collect();
+            let triangles = IndexBuffer::new(triangles);
             let grid = Prepared::Grid { positions, colors, vertices, triangles };
             (grid, 1920, 1080, "generated".into())
         }
@@ -230,6 +234,7 @@ fn prepare(
             let source = format!("generated sphere of {} triangles", mesh.triangles.len());
             let view_proj = camera.view_projection(16.0 / 9.0);
             let Mesh { positions, triangles, .. } = mesh;
+            let triangles = IndexBuffer::new(triangles);
             (Prepared::Dense { positions, triangles, view_proj }, 1920, 1080, source)
         }
     })
@@ -276,12 +281,14 @@ fn draw(
                 let c = |shift: u32| ((h >> shift) & 0xFF) as f32 / 255.0;
                 Some(Vec4::new(c(0), c(8), c(16), 1.0))
             };
-            Pipeline::default().with_cull(DENSE_CULL).draw(target, &vs, &fs, positions, triangles)
+            let pipeline = Pipeline::default().with_cull(DENSE_CULL);
+            pipeline.draw_indexed(target, &vs, &fs, positions, triangles)
         }
         Prepared::Grid { positions, colors, vertices, triangles } => {
             let vs = |&i: &u32| (positions[i as usize], colors[i as usize]);
             let fs = crate::pipeline::VertexColor;
-            Pipeline::default().with_cull(GRID_CULL).draw(target, &vs, &fs, vertices, triangles)
+            let pipeline = Pipeline::default().with_cull(GRID_CULL);
+            pipeline.draw_indexed(target, &vs, &fs, vertices, triangles)
         }
     }
 }
@@ -433,7 +440,7 @@ pub fn export(
             )
         }
         Prepared::Grid { positions, colors, triangles, .. } => {
-            let v = rows(positions.len());
+            let (v, triangles) = (rows(positions.len()), triangles.triangles());
             let flat: Vec<f32> = positions.iter().flat_map(|p| p.to_array()).collect();
             write_npy_shaped(&array("positions"), &flat, &[v, 4])?;
             let flat: Vec<f32> = colors.iter().flat_map(|c| c.to_array()).collect();
@@ -446,6 +453,7 @@ pub fn export(
             format!("\"kind\":\"grid\",\"cull\":\"{}\"", cull_name(GRID_CULL))
         }
         Prepared::Dense { positions, triangles, view_proj } => {
+            let triangles = triangles.triangles();
             write_npy_shaped(
                 &array("positions"),
                 positions.as_flattened(),

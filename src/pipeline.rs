@@ -282,7 +282,9 @@ impl Pipeline {
     ///
     /// An index past the end of `vertices` is an error, reported before anything is drawn,
     /// as is a buffer of `target` replaced by one of another length
-    /// ([`Target::check_buffers`]).
+    /// ([`Target::check_buffers`]). Each call makes a pass over the indices for that check
+    /// (and for the ranges drawing needs): [`Pipeline::draw_indexed`] draws a mesh whose
+    /// [`IndexBuffer`] has them already.
     pub fn draw<I, VS, FS>(
         &self,
         target: &mut Target,
@@ -296,31 +298,66 @@ impl Pipeline {
         VS: VertexShader<I>,
         FS: FragmentShader<VS::Varyings>,
     {
+        let level = self.simd.unwrap_or_else(SimdLevel::detect);
+        let ranges = chunk_ranges(level, triangles);
+        let indices = Indices { triangles, ranges: &ranges };
+        self.draw_indices(target, vertex_shader, fragment_shader, vertices, indices)
+    }
+
+    /// [`Pipeline::draw`] with the index ranges `triangles` keeps: the same pixels and
+    /// errors, without a pass over the indices.
+    pub fn draw_indexed<I, VS, FS>(
+        &self,
+        target: &mut Target,
+        vertex_shader: &VS,
+        fragment_shader: &FS,
+        vertices: &[I],
+        triangles: &IndexBuffer,
+    ) -> Result<DrawStats, Error>
+    where
+        I: Sync,
+        VS: VertexShader<I>,
+        FS: FragmentShader<VS::Varyings>,
+    {
+        let indices = triangles.indices();
+        self.draw_indices(target, vertex_shader, fragment_shader, vertices, indices)
+    }
+
+    /// [`Pipeline::draw`], given the index range of each chunk of the triangles.
+    fn draw_indices<I, VS, FS>(
+        &self,
+        target: &mut Target,
+        vertex_shader: &VS,
+        fragment_shader: &FS,
+        vertices: &[I],
+        indices: Indices<'_>,
+    ) -> Result<DrawStats, Error>
+    where
+        I: Sync,
+        VS: VertexShader<I>,
+        FS: FragmentShader<VS::Varyings>,
+    {
         target.set_schedule(None);
         target.check_buffers()?;
-        // Index ranges, in parallel: the largest index validates them all (a serial search was
-        // a twentieth of a dense mesh's frame); the first bad triangle is searched for only
-        // when there is one. A large mesh's are per batch (they size the batches' vertex
-        // windows below), a small one's per chunk of `bin::CHUNK` triangles (bands read them
-        // to skip chunks, `chunk_rows`): one pass over the indices either way.
+        let triangles = indices.triangles;
         // Small meshes: every vertex shaded once, up front. Large ones: per batch of
         // triangles (below), so memory stays bounded whatever the mesh size.
         let whole = vertices.len() <= VERTEX_CACHE;
         let level = self.simd.unwrap_or_else(SimdLevel::detect);
-        // The batches `bin::pipelined` will cut (given this length, it cuts the same).
+        // The batches `bin::pipelined` will cut (given this length, it cuts the same), and
+        // each one's index range, which sizes its vertex window below.
         let batch_len = bin::even_batch_len(triangles.len(), batch::<VS::Varyings>());
-        let mut index_ranges: Vec<(u32, u32)> = Vec::new();
-        let mut chunk_ranges: Vec<(u32, u32)> = Vec::new();
-        if whole {
-            let chunks = triangles.par_chunks(bin::CHUNK);
-            chunks
-                .map(|c| simd::index_range(level, c.as_flattened()))
-                .collect_into_vec(&mut chunk_ranges);
+        let index_ranges: Vec<(u32, u32)> = if whole {
+            Vec::new()
         } else {
-            index_ranges = triangles.chunks(batch_len).map(|b| index_range(level, b)).collect();
-        }
-        let largest = index_ranges.iter().chain(&chunk_ranges).map(|r| r.1).max().unwrap_or(0);
-        if largest as usize >= vertices.len()
+            let end = |start: usize| (start + batch_len).min(triangles.len());
+            let starts = (0..triangles.len()).step_by(batch_len);
+            starts.map(|start| indices.range(level, start..end(start))).collect()
+        };
+        // The largest index validates them all; the first bad triangle is searched for only
+        // when there is one.
+        if let Some(largest) = indices.largest()
+            && largest as usize >= vertices.len()
             && let Some((t, &bad)) = triangles
                 .iter()
                 .enumerate()
@@ -493,7 +530,7 @@ impl Pipeline {
                     // `Bands::draw` cuts the chunks the index ranges were found for.
                     let chunk_rows = |range: std::ops::Range<usize>| {
                         debug_assert!(range.start.is_multiple_of(bin::CHUNK), "a chunk's start");
-                        chunk_rows(*chunk_ranges.get(range.start / bin::CHUNK)?, rows)
+                        chunk_rows(*indices.ranges.get(range.start / bin::CHUNK)?, rows)
                     };
                     // Small triangles' kernel colours, where the stage shades in kernels.
                     let colors =
@@ -1412,14 +1449,94 @@ fn chunk_rows((lo, hi): (u32, u32), rows: &[Option<[i32; 2]>]) -> Option<[i32; 2
     Some([(y0 >> 8) - 1, (y1 >> 8) + 1])
 }
 
-/// The smallest and largest index of a batch of triangles, in parallel (a serial pass over
-/// the indices was a tenth of a dense mesh's frame on two threads).
-fn index_range(level: SimdLevel, batch: &[[u32; 3]]) -> (u32, u32) {
-    batch
-        .as_flattened()
-        .par_chunks(1 << 15)
-        .map(|c| simd::index_range(level, c))
-        .reduce(|| (u32::MAX, 0), |a, b| (a.0.min(b.0), a.1.max(b.1)))
+/// A mesh's triangles, as indices into its vertices, with the smallest and largest index of
+/// each chunk of 256 triangles (the front end's chunks). The largest index validates the triangles, a
+/// batch's range sizes a large mesh's window of shaded vertices, and a chunk's lets a band
+/// skip it. [`Pipeline::draw`] finds them in a pass over the indices on every call; a mesh
+/// drawn frame after frame keeps them here ([`Pipeline::draw_indexed`]), as GPU drivers keep
+/// an index buffer's range (Mesa's min/max cache), and reads its indices once a frame rather
+/// than twice: the pass was 50 of the dense scene's 600 ms on two threads.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct IndexBuffer {
+    triangles: Vec<[u32; 3]>,
+    /// Each chunk's (smallest, largest) index.
+    ranges: Vec<(u32, u32)>,
+}
+
+impl IndexBuffer {
+    /// Finds the index range of each chunk of `triangles` (in parallel).
+    #[must_use]
+    pub fn new(triangles: Vec<[u32; 3]>) -> Self {
+        let ranges = chunk_ranges(SimdLevel::detect(), &triangles);
+        Self { triangles, ranges }
+    }
+
+    /// The triangles.
+    #[must_use]
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// The triangles, without the ranges.
+    #[must_use]
+    pub fn into_triangles(self) -> Vec<[u32; 3]> {
+        self.triangles
+    }
+
+    /// The largest index (`None` without triangles): vertex arrays longer than it can be drawn
+    /// with these triangles.
+    #[must_use]
+    pub fn largest(&self) -> Option<u32> {
+        self.indices().largest()
+    }
+
+    fn indices(&self) -> Indices<'_> {
+        Indices { triangles: &self.triangles, ranges: &self.ranges }
+    }
+}
+
+impl From<Vec<[u32; 3]>> for IndexBuffer {
+    fn from(triangles: Vec<[u32; 3]>) -> Self {
+        Self::new(triangles)
+    }
+}
+
+/// Triangles and each chunk's index range, as one draw reads them.
+#[derive(Clone, Copy)]
+struct Indices<'a> {
+    triangles: &'a [[u32; 3]],
+    ranges: &'a [(u32, u32)],
+}
+
+impl Indices<'_> {
+    fn largest(&self) -> Option<u32> {
+        self.ranges.iter().map(|r| r.1).max()
+    }
+
+    /// The smallest and largest index of triangles `range` (`(u32::MAX, 0)` when empty): the
+    /// chunks it holds whole from their ranges, the rest (under a chunk at each end) read.
+    fn range(&self, level: SimdLevel, range: std::ops::Range<usize>) -> (u32, u32) {
+        let (first, last) = (range.start.div_ceil(bin::CHUNK), range.end / bin::CHUNK);
+        let read =
+            |r: std::ops::Range<usize>| simd::index_range(level, self.triangles[r].as_flattened());
+        if first >= last {
+            return read(range);
+        }
+        let ends = [read(range.start..first * bin::CHUNK), read(last * bin::CHUNK..range.end)];
+        self.ranges[first..last]
+            .iter()
+            .chain(&ends)
+            .fold((u32::MAX, 0), |a, b| (a.0.min(b.0), a.1.max(b.1)))
+    }
+}
+
+/// The index range of each chunk of [`bin::CHUNK`] triangles, in parallel (a serial pass
+/// over the indices was a tenth of a dense mesh's frame on two threads).
+fn chunk_ranges(level: SimdLevel, triangles: &[[u32; 3]]) -> Vec<(u32, u32)> {
+    let mut ranges = Vec::new();
+    let chunks = triangles.par_chunks(bin::CHUNK);
+    chunks.map(|c| simd::index_range(level, c.as_flattened())).collect_into_vec(&mut ranges);
+    ranges
 }
 
 /// The pixels a triangle's snapped corners reach (`None` when one is outside the clip
@@ -1590,6 +1707,37 @@ mod tests {
                 };
                 assert_eq!(*row, want);
             }
+        }
+    }
+
+    /// A range of triangles' smallest and largest index from kept chunk ranges and its ends
+    /// read is what reading them all gives: ranges within one chunk, across chunk edges, on
+    /// them, empty, and the whole.
+    #[test]
+    fn kept_index_ranges_give_every_range() {
+        let mut rng = SmallRng::seed_from_u64(5);
+        for len in [0, 1, 255, 256, 257, 1000, 3000] {
+            let triangles: Vec<[u32; 3]> =
+                (0..len).map(|_| std::array::from_fn(|_| rng.random_range(0..100_000))).collect();
+            let buffer = IndexBuffer::new(triangles.clone());
+            let indices = buffer.indices();
+            let mut ranges = vec![0..len, 0..0, len..len];
+            for _ in 0..200 {
+                let a = rng.random_range(0..=len);
+                ranges.push(a..rng.random_range(a..=len));
+            }
+            for edge in (0..=len).step_by(bin::CHUNK) {
+                ranges.push(edge..len);
+                ranges.push(0..edge);
+            }
+            for range in ranges {
+                let want = simd::index_range_scalar(triangles[range.clone()].as_flattened());
+                for level in SimdLevel::available() {
+                    assert_eq!(indices.range(level, range.clone()), want, "{len}: {range:?}");
+                }
+            }
+            let largest = triangles.as_flattened().iter().max().copied();
+            assert_eq!(buffer.largest(), largest);
         }
     }
 

@@ -6,7 +6,7 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use trirast::Target;
 use trirast::camera::{self, Camera, Projection};
-use trirast::pipeline::{FaceCull, Fragment, Pipeline};
+use trirast::pipeline::{FaceCull, Fragment, IndexBuffer, Pipeline};
 use trirast::render::Backend;
 use trirast::texture::{Filter, Texture, Wrap};
 
@@ -375,6 +375,20 @@ fn index_out_of_range_is_an_error() {
     let err =
         Pipeline::default().draw(&mut target, &vs, &fs, &[Vec4::ONE; 3], &[[0, 1, 3]]).unwrap_err();
     assert!(err.to_string().contains("only 3 vertices"), "{err}");
+    // The same error from kept index ranges, for the first bad triangle of a larger mesh.
+    let mut triangles = vec![[0, 1, 2]; 700];
+    triangles[600] = [2, 3, 1];
+    triangles[650] = [4, 0, 1];
+    let indexed = IndexBuffer::new(triangles.clone());
+    assert_eq!(indexed.largest(), Some(4));
+    let pipeline = Pipeline::default();
+    let plain = pipeline.draw(&mut target, &vs, &fs, &[Vec4::ONE; 3], &triangles).unwrap_err();
+    let kept = pipeline.draw_indexed(&mut target, &vs, &fs, &[Vec4::ONE; 3], &indexed).unwrap_err();
+    assert_eq!(plain.to_string(), kept.to_string());
+    assert!(kept.to_string().contains("triangle 600"), "{kept}");
+    let four = [Vec4::ONE; 5];
+    pipeline.draw_indexed(&mut target, &vs, &fs, &four, &indexed).unwrap();
+    assert_eq!(IndexBuffer::new(Vec::new()).largest(), None);
 }
 
 /// Auto-framing puts every vertex inside the image, for any cloud, view and aspect ratio.

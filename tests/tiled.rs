@@ -7,7 +7,7 @@ mod common;
 use glam::{Vec3, Vec4};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
-use trirast::pipeline::{FaceCull, Fragment, Pipeline};
+use trirast::pipeline::{FaceCull, Fragment, IndexBuffer, Pipeline};
 use trirast::render::{Backend, Schedule};
 use trirast::sample::SampleCount;
 use trirast::simd::SimdLevel;
@@ -678,6 +678,13 @@ fn large_meshes_shade_vertices_in_batches() {
         let stats = pool(2).install(|| pipeline.draw(&mut tiled, &vs, &fs, &positions, tris));
         assert_eq!(stats.unwrap(), ref_stats);
         assert_same(&reference, &tiled, "large mesh");
+        // Kept index ranges (each batch's from its chunks' and its ends read) draw the same.
+        let indexed = IndexBuffer::new(tris.clone());
+        let mut kept = fresh();
+        let stats =
+            pool(2).install(|| pipeline.draw_indexed(&mut kept, &vs, &fs, &positions, &indexed));
+        assert_eq!(stats.unwrap(), ref_stats);
+        assert_same(&reference, &kept, "large mesh, kept index ranges");
         // Still a tiling: no pixel twice; only the rows behind the near plane are bare.
         let overdraw = reference.overdraw.as_ref().unwrap();
         assert!(overdraw.iter().all(|&o| o <= 1));
