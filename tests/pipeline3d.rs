@@ -386,8 +386,8 @@ fn index_out_of_range_is_an_error() {
     let kept = pipeline.draw_indexed(&mut target, &vs, &fs, &[Vec4::ONE; 3], &indexed).unwrap_err();
     assert_eq!(plain.to_string(), kept.to_string());
     assert!(kept.to_string().contains("triangle 600"), "{kept}");
-    let four = [Vec4::ONE; 5];
-    pipeline.draw_indexed(&mut target, &vs, &fs, &four, &indexed).unwrap();
+    let five = [Vec4::ONE; 5];
+    pipeline.draw_indexed(&mut target, &vs, &fs, &five, &indexed).unwrap();
     assert_eq!(IndexBuffer::new(Vec::new()).largest(), None);
 }
 
