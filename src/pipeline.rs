@@ -300,7 +300,7 @@ impl Pipeline {
     {
         let level = self.simd.unwrap_or_else(SimdLevel::detect);
         let ranges = chunk_ranges(level, triangles);
-        let indices = Indices { triangles, ranges: &ranges };
+        let indices = Indices::new(triangles, &ranges);
         self.draw_indices(target, vertex_shader, fragment_shader, vertices, indices)
     }
 
@@ -356,7 +356,7 @@ impl Pipeline {
         };
         // The largest index validates them all; the first bad triangle is searched for only
         // when there is one.
-        if let Some(largest) = indices.largest()
+        if let Some(largest) = indices.largest
             && largest as usize >= vertices.len()
             && let Some((t, &bad)) = triangles
                 .iter()
@@ -1490,6 +1490,8 @@ pub struct IndexBuffer {
     triangles: Vec<[u32; 3]>,
     /// Each chunk's (smallest, largest) index.
     ranges: Vec<(u32, u32)>,
+    /// The largest of them all (`None` without triangles), kept: every draw validates with it.
+    largest: Option<u32>,
 }
 
 impl IndexBuffer {
@@ -1497,7 +1499,8 @@ impl IndexBuffer {
     #[must_use]
     pub fn new(triangles: Vec<[u32; 3]>) -> Self {
         let ranges = chunk_ranges(SimdLevel::detect(), &triangles);
-        Self { triangles, ranges }
+        let largest = Indices::new(&triangles, &ranges).largest;
+        Self { triangles, ranges, largest }
     }
 
     /// The triangles.
@@ -1516,11 +1519,11 @@ impl IndexBuffer {
     /// with these triangles.
     #[must_use]
     pub fn largest(&self) -> Option<u32> {
-        self.indices().largest()
+        self.largest
     }
 
     fn indices(&self) -> Indices<'_> {
-        Indices { triangles: &self.triangles, ranges: &self.ranges }
+        Indices { triangles: &self.triangles, ranges: &self.ranges, largest: self.largest }
     }
 }
 
@@ -1535,11 +1538,15 @@ impl From<Vec<[u32; 3]>> for IndexBuffer {
 struct Indices<'a> {
     triangles: &'a [[u32; 3]],
     ranges: &'a [(u32, u32)],
+    /// The largest index (`None` without triangles).
+    largest: Option<u32>,
 }
 
-impl Indices<'_> {
-    fn largest(&self) -> Option<u32> {
-        self.ranges.iter().map(|r| r.1).max()
+impl<'a> Indices<'a> {
+    /// `triangles` with their chunks' `ranges`, whose largest index it finds.
+    fn new(triangles: &'a [[u32; 3]], ranges: &'a [(u32, u32)]) -> Self {
+        let largest = ranges.iter().map(|r| r.1).max();
+        Self { triangles, ranges, largest }
     }
 
     /// The smallest and largest index of triangles `range` (`(u32::MAX, 0)` when empty): the
