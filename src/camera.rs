@@ -88,12 +88,13 @@ impl Camera {
         }
     }
 
-    /// Whether the camera forms an image: its eye, target and up finite, a field of view
-    /// strictly between 0 and pi (at pi or more the image turns upside down) or an
-    /// orthographic height above 0, and near and far planes finite with `near < far`, `near`
-    /// above 0 in perspective. A camera that is not (a field of view of 0 or NaN, a framing
-    /// of a sphere of radius 3e38, whose eye is infinite) gives non-finite transforms, under
-    /// which every triangle is dropped without a word.
+    /// Whether the camera forms an image: its eye, target and up finite, a direction from the
+    /// eye to the target and an up not along it (else the view's orientation is arbitrary), a
+    /// field of view strictly between 0 and pi (at pi or more the image turns upside down) or
+    /// an orthographic height above 0, and near and far planes finite with `near < far`,
+    /// `near` above 0 in perspective. A camera that is not (a field of view of 0 or NaN, a
+    /// framing of a sphere of radius 3e38, whose eye is infinite) gives non-finite transforms,
+    /// under which every triangle is dropped without a word.
     ///
     /// # Errors
     /// [`Error::Camera`] naming the first value that is out of its range.
@@ -103,6 +104,20 @@ impl Camera {
             if !v.is_finite() {
                 return bad(format!("the {name} {v} is not finite"));
             }
+        }
+        let Some(view) = direction(self.target - self.eye) else {
+            return bad(format!(
+                "the eye {} and the target {} are one point (or too far apart to subtract in \
+                 single precision): there is no direction to look in",
+                self.eye, self.target
+            ));
+        };
+        if direction(view.cross(in_range(self.up))).is_none() {
+            return bad(format!(
+                "the up {} is zero or along the view direction {view}: the image's roll is \
+                 undefined",
+                self.up
+            ));
         }
         match self.projection {
             Projection::Perspective { fov_y } => {
@@ -130,11 +145,12 @@ impl Camera {
         Ok(())
     }
 
-    /// World to view transform.
+    /// World to view transform. An eye on the target, or an up along the view, gives an
+    /// arbitrary orientation ([`Camera::check`] refuses both).
     #[must_use]
     pub fn view(&self) -> Mat4 {
-        let f = (self.target - self.eye).normalize_or(Vec3::NEG_Z);
-        let s = f.cross(self.up).normalize_or(Vec3::X);
+        let f = direction(self.target - self.eye).unwrap_or(Vec3::NEG_Z);
+        let s = direction(f.cross(in_range(self.up))).unwrap_or(Vec3::X);
         let u = s.cross(f);
         Mat4::from_cols(
             Vec4::new(s.x, u.x, -f.x, 0.0),
@@ -182,6 +198,23 @@ impl Camera {
     }
 }
 
+/// The unit vector along `v`, or `None` when `v` is zero or not finite. Any other `v` has
+/// one: where its squared length underflows or overflows `f32` (components below about
+/// 1e-19 or above 1.8e19), `v` is first divided by its largest component. An eye 1e-30
+/// above its target had looked along -Z, its direction's length taken as 0.
+#[must_use]
+pub fn direction(v: Vec3) -> Option<Vec3> {
+    in_range(v).try_normalize()
+}
+
+/// `v` scaled so that its squared length is a normal `f32`: `v` itself where it is (every
+/// camera but the extreme ones keeps its transform's bits) or where it is zero or not finite,
+/// else divided by its largest component.
+fn in_range(v: Vec3) -> Vec3 {
+    let keep = v.length_squared().is_normal() || !v.is_finite() || v == Vec3::ZERO;
+    if keep { v } else { v / v.abs().max_element() }
+}
+
 /// The smallest sphere-ish bound of a point set: the bounding box's centre and the largest
 /// distance from it (within a factor of the optimum, and cheap). Non-finite points are ignored.
 /// Each again in `f64` where it overflows in `f32` (the box's `lo + hi` past 1.7e38, the
@@ -221,7 +254,10 @@ mod tests {
         let orthographic = Projection::Orthographic { height: 2.0 };
         for (projection, radius) in [(perspective, 1.0), (orthographic, 1e-30), (perspective, 1e30)]
         {
-            let cam = Camera::framing_sphere(Vec3::ONE, radius, 0.5, 0.3, 1.5, projection);
+            // Centred at a point of the sphere's scale: a sphere of 1e-30 about (1, 1, 1) has
+            // an eye that `f32` cannot tell from its centre (no view direction, refused).
+            let centre = Vec3::ONE * radius;
+            let cam = Camera::framing_sphere(centre, radius, 0.5, 0.3, 1.5, projection);
             assert!(cam.check().is_ok(), "{cam:?}");
         }
         let good = Camera::framing_sphere(Vec3::ZERO, 1.0, 0.0, 0.0, 1.0, perspective);
@@ -246,6 +282,10 @@ mod tests {
             (with(&|c| c.far = f32::INFINITY), "near and far"),
             (with(&height(0.0)), "height 0"),
             (with(&height(f32::INFINITY)), "height inf"),
+            (with(&|c| c.eye = c.target), "one point"),
+            (with(&|c| c.up = Vec3::ZERO), "up [0, 0, 0] is zero or along"),
+            (with(&|c| c.up = c.target - c.eye), "along the view"),
+            (with(&|c| (c.eye, c.target) = (Vec3::X * -3e38, Vec3::X * 3e38)), "subtract"),
             // A sphere too large to frame in `f32`: its eye is infinite.
             (
                 Camera::framing_sphere(Vec3::ZERO, 3e38, 0.0, 0.0, 1.0, perspective)
@@ -261,6 +301,40 @@ mod tests {
         let mut ortho = good;
         (ortho.projection, ortho.near) = (orthographic, -1.0);
         assert!(ortho.check().is_ok());
+    }
+
+    /// The view looks from the eye to the target, with the up direction's roll, whatever the
+    /// scale of the two vectors: the same orientation at every scale from 1e-30 to 1e30 (an
+    /// eye 1e-30 from its target had looked along -Z).
+    #[test]
+    fn views_at_every_scale_look_the_same_way() {
+        let oriented = |offset: Vec3, up: Vec3| {
+            let cam = Camera {
+                eye: offset,
+                target: Vec3::ZERO,
+                up,
+                projection: Projection::Perspective { fov_y: 1.0 },
+                near: 0.5,
+                far: 20.0,
+            };
+            // The view's rows: right, up and backwards (the eye looks down -Z).
+            let v = cam.view();
+            (cam.check(), [v.row(0), v.row(1), v.row(2)].map(|r| r.truncate()))
+        };
+        let (offset, up) = (Vec3::new(0.0, 3.0, 4.0), Vec3::new(1.0, 1.0, 0.0));
+        let (ok, want) = oriented(offset, up);
+        assert!(ok.is_ok());
+        // Backwards is along the offset from the target to the eye.
+        assert!(want[2].abs_diff_eq(offset / 5.0, 1e-6), "{want:?}");
+        for scale in [1e-30, 1e-20, 1e-10, 1e10, 1e20, 1e30] {
+            for (offset, up) in [(offset * scale, up), (offset, up * scale)] {
+                let (ok, got) = oriented(offset, up);
+                assert!(ok.is_ok(), "{scale}: {ok:?}");
+                for (g, w) in got.iter().zip(&want) {
+                    assert!(g.abs_diff_eq(*w, 1e-6), "{scale}: {got:?} against {want:?}");
+                }
+            }
+        }
     }
 
     /// Points near `f32::MAX`, or spread past the square root of it, have a finite sphere

@@ -930,8 +930,13 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         }
         // An up direction along the view (or zero) leaves the image's roll undefined; the
         // camera fell back to another up without a word.
-        let view = view.normalize();
-        if up.normalize_or_zero().cross(view).length() < 1e-3 {
+        // Directions found at any scale: an --eye 1e-30 from the --target had made the view
+        // NaN, which passed this test, and the camera then looked along -Z.
+        let along = match (camera::direction(view), camera::direction(up)) {
+            (Some(view), Some(up)) => up.cross(view).length() < 1e-3,
+            _ => true,
+        };
+        if along {
             let which = if args.up.is_some() { "--up" } else { "the default --up 0,1,0" };
             return Err(usage(format!(
                 "{which} is zero or along the view from --eye to --target: give another --up"
@@ -985,6 +990,27 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         }
         cam
     };
+    // Refused in the model's terms: the camera's own values (an eye at infinity, near and far
+    // planes the user never gave) had said nothing of what to change.
+    if let Err(e) = camera_at(az).check() {
+        let model =
+            args.file.as_ref().map_or("the default model".into(), |f| f.display().to_string());
+        let point = |p: Vec3| format!("[{:e}, {:e}, {:e}]", p.x, p.y, p.z);
+        return Err(usage(match args.eye {
+            Some(eye) => format!(
+                "--eye {} is {:e} from the centre of {model}, whose bounding sphere's radius is \
+                 {radius:e}: too far for single precision to separate the depths of its near \
+                 and far sides; bring the eye closer ({e})",
+                point(Vec3::from(eye)),
+                Vec3::from(eye).distance(centre),
+            ),
+            None => format!(
+                "{model} is too large to frame in single precision: its bounding sphere has \
+                 radius {radius:e} about {} ({e})",
+                point(centre)
+            ),
+        }));
+    }
     match args.turntable {
         None => {
             let camera = camera_at(az);

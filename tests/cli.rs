@@ -1157,6 +1157,18 @@ fn options_are_honoured_or_refused() {
     run_ok(&dir.0, [&above[..], &["--up", "1e38,0,1e38"]].concat());
     let far = ["render", "--size", "16x12", "--eye", "1e38,1e38,1e38", "--target", "0,0,0"];
     assert!(run_err(&dir.0, far).contains("too far apart"));
+    // An --eye a hair from its --target still has a direction (its length squared underflows:
+    // the check passed a NaN view and the camera looked along -Z); one too far from the model
+    // for its near and far planes to differ, and a model too large to frame, are refused in
+    // their own terms, not the camera's values.
+    let near = |eye: &'static str| ["render", "--size", "16x12", "--eye", eye, "--target", "0,0,0"];
+    assert!(run_err(&dir.0, near("0,1e-30,0")).contains("--up"));
+    run_ok(&dir.0, [&near("0,0,1e-30")[..], &["-o", "hair.png"]].concat());
+    let err = run_err(&dir.0, near("1e10,0,0"));
+    assert!(err.contains("--eye") && err.contains("too far for single precision"), "{err}");
+    dir.write("huge.obj", "v 1e38 0 0\nv -1e38 0 0\nv 0 1e38 0\nf 1 2 3\n");
+    let err = run_err(&dir.0, ["render", "huge.obj", "--size", "16x12", "-o", "huge.png"]);
+    assert!(err.contains("huge.obj is too large to frame"), "{err}");
     let err = run_ok(&dir.0, ["render", "--size", "16x12", "--turntable", "3", "-o", "t.png"]);
     assert!(err.contains("wrote 3 frames") && err.contains("t_002.png"), "{err}");
     for k in 0..3 {
