@@ -628,6 +628,28 @@ fn check_target_memory(
     within(what, needed, available)
 }
 
+/// The textures `mesh`'s materials name.
+fn material_textures(mesh: &trirast::mesh::Mesh) -> impl Iterator<Item = &Path> {
+    mesh.materials.iter().filter_map(|m| m.diffuse_texture.as_deref())
+}
+
+/// Refuses, before any is decoded, textures whose loading needs more memory than the system
+/// can give ([`trirast::texture::LOAD_BYTES_PER_TEXEL`] a texel, each file once, as if all
+/// loaded at once): four PNGs of 16384 x 4096 texels, 260 KB each, had grown past 4 GB and
+/// aborted. Textures whose headers cannot be read are left to the loader to report.
+fn check_texture_memory<'p>(paths: impl IntoIterator<Item = &'p Path>) -> Result<(), Error> {
+    let mut files: Vec<&Path> = paths.into_iter().collect();
+    files.sort_unstable();
+    files.dedup();
+    let needed: u128 =
+        files.iter().filter_map(|&p| trirast::texture::Texture::load_bytes(p).ok()).sum();
+    let what = || match files[..] {
+        [one] => format!("loading the texture {}", one.display()),
+        _ => format!("loading {} textures", files.len()),
+    };
+    check_memory(what, needed)
+}
+
 /// Refuses, before it starts, work that needs `needed` bytes more than the system can give
 /// ([`memory_available`]): `sample --points 1073741824` had grown past 15 GB on a 24 GB
 /// machine before it was stopped.
@@ -890,6 +912,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         if mesh.texcoords.is_none() {
             note!("trirast: warning: the mesh has no texture coordinates; --texture ignored");
         } else {
+            check_texture_memory([path.as_path()])?;
             texture = Some(trirast::texture::Texture::load(path)?);
             mesh.materials = vec![trirast::mesh::Material {
                 name: "texture".into(),
@@ -946,7 +969,10 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     model::with_vertex_normals(&mut mesh);
     let textures = match texture {
         Some(t) => MaterialTextures::from_loaded(vec![Some(t)]),
-        None => MaterialTextures::load(&mesh),
+        None => {
+            check_texture_memory(material_textures(&mesh))?;
+            MaterialTextures::load(&mesh)
+        }
     };
     print_warnings(&textures.warnings);
     let textured = mesh.texcoords.is_some()
@@ -1630,6 +1656,7 @@ fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Er
     check_outputs(&[("--output", Some(output), Written::Ply)], &[file], None)?;
     let mesh = reading(file, |report| trirast::mesh::load_reporting(file, report))?;
     warn_about(&mesh);
+    check_texture_memory(material_textures(&mesh))?;
     let textures = MaterialTextures::load(&mesh);
     print_warnings(&textures.warnings);
     // The cloud: position, normal, colour and radius a point.

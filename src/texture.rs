@@ -46,10 +46,17 @@ pub struct Texture {
 /// loads.
 pub const MAX_TEXTURE_SIDE: u32 = 16384;
 
-/// The most texels a texture may have: 2^26 (8192 x 8192), 1 GiB as linear `Vec4` texels plus
-/// 256 MiB decoded as RGBA8 while they are made (textures are kept as `Vec4` so that sampling
-/// does no decoding). An 11000 x 11000 PNG of 494 KB had taken 2.9 GB.
+/// The most texels a texture may have: 2^26 (8192 x 8192), 1 GiB kept as linear `Vec4`
+/// texels (so that sampling does no decoding), and up to [`LOAD_BYTES_PER_TEXEL`] times the
+/// texels while it loads: 1.8 GiB. An 11000 x 11000 PNG of 494 KB had taken 2.9 GB.
 pub const MAX_TEXELS: u64 = 1 << 26;
+
+/// Bytes a texel of [`Texture::load`] takes at its peak, rounded up from what was measured
+/// (the largest resident set of `trirast render --texture` of a 4096 x 4096 PNG, less the
+/// same render without it): 20.5 for RGBA8, 21.5 for grey, 26.4 for 16-bit RGB and 28.3 for
+/// 16-bit RGBA, whose decoded image (8 bytes a texel) and RGBA8 copy (4) come before the 16
+/// of the texels kept.
+pub const LOAD_BYTES_PER_TEXEL: u64 = 29;
 
 impl Texture {
     /// Reads a PNG or JPEG file (sRGB-encoded). The format is taken from the file's first bytes,
@@ -59,13 +66,30 @@ impl Texture {
     /// [`Error::NotRegularFile`] or [`Error::Io`] when the file cannot be opened;
     /// [`Error::TextureSize`] when its header declares more than [`MAX_TEXTURE_SIDE`] a side or
     /// [`MAX_TEXELS`] in all (before any texel is decoded); [`Error::Decode`] when it cannot be
-    /// decoded.
+    /// decoded; [`Error::OutOfMemory`] when the allocator refuses its texels.
     pub fn load(path: &Path) -> Result<Self, Error> {
         let decoder = decoder(path)?;
         let img = image::DynamicImage::from_decoder(decoder).map_err(|e| decode_error(path, e))?;
         // `into_rgba8` reuses an RGBA8 image's buffer (`to_rgba8` copied it).
         let rgba = img.into_rgba8();
-        Ok(Self::from_srgba8(rgba.width(), rgba.height(), rgba.as_raw()))
+        let (width, height) = rgba.dimensions();
+        // The largest array, by far: asked for fallibly (a 16384 x 4096 texture under a 2 GB
+        // address space limit had aborted the process here).
+        let mut texels = Vec::new();
+        let what = || format!("the texels of {}", path.display());
+        crate::error::try_reserve_named(&mut texels, rgba.as_raw().len() / 4, what)?;
+        texels.extend(rgba.as_raw().chunks_exact(4).map(linear_texel));
+        Ok(Self { width, height, texels })
+    }
+
+    /// The most memory [`Texture::load`] takes for the texture in `path`, from its header:
+    /// [`LOAD_BYTES_PER_TEXEL`] a texel.
+    ///
+    /// # Errors
+    /// As [`Texture::dimensions`].
+    pub fn load_bytes(path: &Path) -> Result<u128, Error> {
+        let (width, height) = Self::dimensions(path)?;
+        Ok(u128::from(width) * u128::from(height) * u128::from(LOAD_BYTES_PER_TEXEL))
     }
 
     /// The size of the texture in `path` (width, height), as [`Texture::load`] would find it,
@@ -87,17 +111,7 @@ impl Texture {
         // Checked: a product that wrapped (2^31 x 2^31) had matched empty data.
         let size = (width as usize).checked_mul(height as usize).and_then(|n| n.checked_mul(4));
         assert_eq!(Some(data.len()), size, "texel data size");
-        let texels = data
-            .chunks_exact(4)
-            .map(|c| {
-                Vec4::new(
-                    srgb_to_linear(c[0]),
-                    srgb_to_linear(c[1]),
-                    srgb_to_linear(c[2]),
-                    f32::from(c[3]) / 255.0,
-                )
-            })
-            .collect();
+        let texels = data.chunks_exact(4).map(linear_texel).collect();
         Self { width, height, texels }
     }
 
@@ -147,6 +161,16 @@ impl Texture {
     }
 }
 
+/// An sRGB-encoded RGBA8 texel in linear light.
+fn linear_texel(c: &[u8]) -> Vec4 {
+    Vec4::new(
+        srgb_to_linear(c[0]),
+        srgb_to_linear(c[1]),
+        srgb_to_linear(c[2]),
+        f32::from(c[3]) / 255.0,
+    )
+}
+
 /// A decoder for the image in `path`, its header read and its size within the limits.
 fn decoder(path: &Path) -> Result<impl image::ImageDecoder, Error> {
     let mut reader = image::ImageReader::new(BufReader::new(crate::input::open(path)?));
@@ -168,4 +192,32 @@ fn decode_error(path: &Path, e: image::ImageError) -> Error {
     let text = e.to_string();
     let message = text.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>();
     Error::Decode { path: path.to_path_buf(), message: message.join("; ") }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error::refusals::refuse_after;
+
+    /// Texels the allocator refuses are an error naming the file, not an abort; let through,
+    /// the same file loads with the texels `from_srgba8` gives.
+    #[test]
+    fn refused_texels_are_an_error() {
+        let path = std::env::temp_dir().join(format!("trirast-texels-{}.png", std::process::id()));
+        let data: Vec<u8> = (0..4 * 3 * 2).map(|k| (k * 37 % 256) as u8).collect();
+        image::RgbaImage::from_raw(3, 2, data.clone()).unwrap().save(&path).unwrap();
+        refuse_after(Some(0));
+        let refused = Texture::load(&path);
+        refuse_after(None);
+        let loaded = Texture::load(&path);
+        std::fs::remove_file(&path).unwrap();
+        match refused {
+            Err(Error::OutOfMemory { what, bytes }) => {
+                assert_eq!(what, format!("the texels of {}", path.display()));
+                assert_eq!(bytes, 6 * 16);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(loaded.unwrap(), Texture::from_srgba8(3, 2, &data));
+    }
 }

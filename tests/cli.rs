@@ -977,6 +977,46 @@ fn benchmarks_too_large_for_memory_are_refused_up_front() {
     }
 }
 
+/// Textures are refused, before any is decoded, when loading them needs more memory than is
+/// left (`LOAD_BYTES_PER_TEXEL` a texel, from their headers): a 260 KB PNG of 16384 x 4096
+/// texels, within the size limits, had aborted the process under a 2 GB address space limit.
+/// The files here hold only a header, so the refusal is all that can pass: one they let
+/// through would fail to decode.
+#[test]
+fn textures_too_large_for_memory_are_refused_up_front() {
+    let dir = TempDir::new("texture-memory");
+    let mut encoder =
+        png::Encoder::new(fs::File::create(dir.path("big.png")).unwrap(), 16384, 4096);
+    encoder.set_color(png::ColorType::Rgba);
+    let mut writer = encoder.write_header().unwrap();
+    writer.write_chunk(png::chunk::IDAT, &[0x78, 0x01]).unwrap();
+    drop(writer);
+    let triangle = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n";
+    dir.write("uv.obj", triangle);
+    dir.write("m.mtl", "newmtl a\nmap_Kd big.png\n");
+    dir.write("material.obj", &format!("mtllib m.mtl\nusemtl a\n{triangle}"));
+    let cases: [&[&str]; 3] = [
+        &["render", "uv.obj", "--texture", "big.png", "--size", "8x8", "-o", "a.png"],
+        &["render", "material.obj", "--size", "8x8", "-o", "a.png"],
+        &["sample", "material.obj", "--points", "10", "-o", "c.ply"],
+    ];
+    for args in cases {
+        let out = Command::new("sh")
+            .arg("-c")
+            .arg("ulimit -v 1500000 && exec \"$0\" \"$@\"")
+            .arg(env!("CARGO_BIN_EXE_trirast"))
+            .args(args)
+            .current_dir(&dir.0)
+            .output()
+            .expect("failed to start sh");
+        let err = stderr_of(&out);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        let refused = "loading the texture big.png needs 1.82 GiB of memory";
+        assert!(err.contains(refused) && err.contains("GiB is available"), "{args:?}: {err}");
+        assert!(!dir.path("a.png").exists() && !dir.path("c.ply").exists());
+    }
+}
+
 /// Output files are checked before anything is rendered: two options naming one file (the
 /// second overwrote the first, which then held an `.npy` under a `.png` name), a missing
 /// directory (found only after some files were written), an output that is a directory (a
