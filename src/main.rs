@@ -1402,7 +1402,8 @@ fn bench_scenes(scenes: &[SceneArg]) -> Vec<trirast::bench::BenchScene> {
 /// `trirast bench --export DIR`: the scenes' triangles written out, not timed.
 fn export(scenes: &[SceneArg], dense_triangles: usize, dir: &Path) -> Result<(), Error> {
     if !dir.is_dir() {
-        return Err(usage(format!("--export {}: no such directory", dir.display())));
+        let why = if dir.exists() { "not a directory" } else { "no such directory" };
+        return Err(usage(format!("--export {}: {why}", dir.display())));
     }
     for scene in bench_scenes(scenes) {
         let json = trirast::bench::export(scene, dense_triangles, dir)?;
@@ -1684,8 +1685,17 @@ fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Er
 /// The splat hierarchy of a `.tsplat` file, or built from a PLY cloud; an empty cloud is an
 /// error (nothing could draw it, so nothing should pack it).
 fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
-    let is_tsplat = file.extension().is_some_and(|e| e.eq_ignore_ascii_case("tsplat"));
-    let tree = if is_tsplat {
+    let is = |ext: &str| file.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext));
+    // A mesh had been read as a PLY file and refused for its first line.
+    if is("obj") || is("stl") {
+        return Err(usage(format!(
+            "{}: a mesh, not a point cloud (.ply or .tsplat): sample one from it first (`trirast \
+             sample {} -o cloud.ply`)",
+            file.display(),
+            file.display()
+        )));
+    }
+    let tree = if is("tsplat") {
         trirast::splat::format::read(file)?
     } else {
         let cloud =

@@ -862,7 +862,11 @@ fn bench_export_writes_the_scenes_it_times() {
     assert!(npy("dense_indices").shape[0] > 0);
 
     let err = run_err(&dir.0, ["bench", "fill", "--export", "no/such/dir"]);
-    assert!(err.contains("--export no/such/dir"), "{err}");
+    assert!(err.contains("--export no/such/dir: no such directory"), "{err}");
+    // A file there is not said to be missing.
+    dir.write("file", "");
+    let err = run_err(&dir.0, ["bench", "fill", "--export", "file"]);
+    assert!(err.contains("--export file: not a directory"), "{err}");
     let err = run_err(&dir.0, ["bench", "fill", "--json", "--export", "."]);
     assert!(err.contains("--export"), "{err}");
 }
@@ -1298,6 +1302,14 @@ fn splat_warns_about_points_too_far_and_checks_the_size_first() {
     assert!(!err.contains("warning"), "{err}");
     let err = run_err(&dir.0, ["splat", "near.ply", "--size", "0x32", "-o", "zero.png"]);
     assert!(err.contains("0x32") && !err.contains("hierarchy"), "{err}");
+    // A mesh is named as one, with what to do (it had been refused for its first line, as
+    // a PLY file).
+    dir.write("mesh.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    for (command, output) in [("splat", "mesh.png"), ("pack", "mesh.tsplat")] {
+        let err = run_err(&dir.0, [command, "mesh.obj", "-o", output]);
+        assert!(err.contains("mesh.obj: a mesh, not a point cloud"), "{err}");
+        assert!(err.contains("trirast sample mesh.obj"), "{err}");
+    }
 }
 
 /// `info` prints a mesh's counts and bounds and the warnings `render` prints (a missing
