@@ -14,7 +14,7 @@
 //! fall back to the material's `Kd` (or the default grey); so is a line of a `.mtl` that cannot
 //! be read, which is named and ignored.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::io::ErrorKind;
 use std::path::{Path, PathBuf};
 
@@ -218,15 +218,24 @@ fn texture_file(mut rest: &str) -> Option<&str> {
 /// missing, not a regular file, too large or whose header cannot be decoded (its
 /// `diffuse_texture` is then `None`, leaving the `Kd` colour). Materials keep the default grey
 /// when undefined. A library's lines that cannot be read are warnings naming the `.mtl` file
-/// and line (see [`parse`]).
+/// and line (see [`parse`]). A library named again (the same file, once resolved) is read
+/// only where first named, and its warnings given once.
 pub fn apply(mesh: &mut Mesh, obj: &MaterialStatements, obj_path: &Path) -> Result<(), Error> {
     let dir = obj_path.parent().unwrap_or_else(|| Path::new(""));
     let obj_name = obj_path.display();
     // Each material name's first definition: the material, its library and its `map_Kd` line.
     let mut defined: HashMap<String, (Material, PathBuf, usize)> = HashMap::new();
+    // The libraries tried so far. Reading one again would define nothing, its names all having
+    // their first definition already, and had repeated its warnings: 5000 `mtllib` lines of
+    // one 20,000-material library took minutes.
+    let mut tried: HashSet<PathBuf> = HashSet::new();
     let mut missing_library = false;
     for (argument, line) in &obj.libraries {
         for file in library_files(dir, argument) {
+            // `m.mtl`, `./m.mtl` and a symlink to it are one file; a missing one keeps its name.
+            if !tried.insert(std::fs::canonicalize(&file).unwrap_or_else(|_| file.clone())) {
+                continue;
+            }
             let lib = match read(&file) {
                 Ok(lib) => lib,
                 Err(Error::Io { source, .. }) => {
