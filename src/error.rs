@@ -86,6 +86,23 @@ pub enum Error {
         /// The number of positions.
         expected: usize,
     },
+    /// Points to sample over a surface so large that their splat radius (see
+    /// [`crate::splat::cloud::sample_mesh`]) is beyond `f32`: a cloud written with it would be
+    /// refused when read. Fewer points make larger splats, so `fewest` points would do.
+    #[error(
+        "{points} points over an area of {area:.3e} would need splats of radius {radius:.3e}, \
+         more than an f32 holds; at least {fewest} points would fit"
+    )]
+    SampleRadius {
+        /// Points asked for.
+        points: usize,
+        /// The surface's area.
+        area: f64,
+        /// The radius they would need.
+        radius: f64,
+        /// The fewest points whose radius fits.
+        fewest: u64,
+    },
     /// A target buffer whose length is not what the target's size and samples need (its
     /// buffers are public fields, and one was replaced).
     #[error("the target's {buffer} buffer has {len} entries where {expected} are needed")]

@@ -1664,7 +1664,14 @@ fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Er
     let needed = points as u128 * (12 + 12 + 3 + 4);
     check_memory(|| format!("a cloud of {points} points"), needed)?;
     let start = std::time::Instant::now();
-    let cloud = trirast::splat::cloud::sample_mesh(&mesh, &textures, points, seed)?;
+    let cloud =
+        trirast::splat::cloud::sample_mesh(&mesh, &textures, points, seed).map_err(|e| {
+            match e {
+                // The library's error has no file; what is too large is this one's surface.
+                Error::SampleRadius { .. } => usage(format!("{}: {e}", file.display())),
+                e => e,
+            }
+        })?;
     if cloud.positions.is_empty() {
         // An empty cloud written here was refused by every command that reads one.
         return Err(usage(format!(

@@ -1220,6 +1220,22 @@ fn options_are_honoured_or_refused() {
     }
 }
 
+/// `sample` never writes a cloud that reading refuses: a surface whose splats' radius is
+/// beyond f32 (3 points on a triangle of corners 3e38) had written a radius of inf, which
+/// `splat` then refused; now an error names the file and the points that would fit, and
+/// writes nothing. That many points give a cloud that `pack` reads.
+#[test]
+fn sample_refuses_a_radius_beyond_f32() {
+    let dir = TempDir::new("huge_sample");
+    dir.write("huge.obj", "v 3e38 3e38 3e38\nv -3e38 -3e38 -3e38\nv 3e38 -3e38 0\nf 1 2 3\n");
+    let err = run_err(&dir.0, ["sample", "huge.obj", "--points", "3", "-o", "huge.ply"]);
+    let want = "huge.obj: 3 points over an area of 2.205e77 would need splats of radius 4.588e38";
+    assert!(err.contains(want) && err.contains("at least 6 points would fit"), "{err}");
+    assert!(!dir.path("huge.ply").exists());
+    run_ok(&dir.0, ["sample", "huge.obj", "--points", "6", "-o", "huge.ply"]);
+    run_ok(&dir.0, ["pack", "huge.ply", "-o", "huge.tsplat"]);
+}
+
 /// Nothing to draw or sample is said, not passed over: an empty mesh renders with a warning
 /// (3D and window), sampling it is an error (its empty cloud was refused by everything that
 /// reads one), and so is packing an empty cloud; an `--output` image not named `.png` is

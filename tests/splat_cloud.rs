@@ -154,6 +154,14 @@ fn write_refuses_inconsistent_clouds() {
     cloud.positions[3][1] = f32::NAN;
     let e = write_ply(&path, &cloud).unwrap_err().to_string();
     assert!(e.contains("bad.ply") && e.contains("point 3"), "{e}");
+    // A radius that reading refuses is not written either.
+    for r in [f32::INFINITY, f32::NAN, -1.0] {
+        let mut cloud = random_cloud(1, 10, false, false, true);
+        cloud.radii.as_mut().unwrap()[3] = r;
+        let e = write_ply(&path, &cloud).unwrap_err().to_string();
+        let want = format!("point 3: radius {r} is not a finite number >= 0");
+        assert!(e.contains("bad.ply") && e.contains(&want), "{e}");
+    }
     let e = write_ply(&dir.join("no/such/dir/x.ply"), &PointCloud::default()).unwrap_err();
     assert!(e.to_string().contains("x.ply"), "{e}");
 }
@@ -617,6 +625,32 @@ fn sampling_points_that_cannot_be_allocated_is_an_error() {
         }
         other => panic!("expected OutOfMemory, got {:?}", other.map(|c| c.len())),
     }
+}
+
+/// A surface so large that its splats' radius is beyond `f32` is an error saying how many
+/// points would fit, before any is sampled: 3 points on a triangle of corners 3e38 (area
+/// 2.2e77) had been given a radius of inf, which reading the written cloud refused. With that
+/// many points the radius is finite and the cloud reads back as it was.
+#[test]
+fn sampling_with_a_radius_beyond_f32_is_an_error() {
+    let m = mesh(vec![[3e38; 3], [-3e38; 3], [3e38, -3e38, 0.0]], vec![[0, 1, 2]]);
+    let none = MaterialTextures::default();
+    let fewest = match sample_mesh(&m, &none, 3, 1) {
+        Err(Error::SampleRadius { points: 3, area, radius, fewest }) => {
+            assert!(area.is_finite() && radius > f64::from(f32::MAX), "{area} {radius}");
+            usize::try_from(fewest).unwrap()
+        }
+        other => panic!("expected SampleRadius, got {:?}", other.map(|c| c.radii)),
+    };
+    assert_eq!(fewest, 6);
+    let refused = sample_mesh(&m, &none, fewest - 1, 1);
+    assert!(matches!(refused, Err(Error::SampleRadius { fewest: 6, .. })));
+    let cloud = sample_mesh(&m, &none, fewest, 1).unwrap();
+    assert_consistent(&cloud, fewest);
+    assert!(cloud.radii.as_ref().unwrap().iter().all(|r| r.is_finite()));
+    let path = scratch("radius_beyond_f32").join("cloud.ply");
+    write_ply(&path, &cloud).unwrap();
+    assert_identical(&read_ply(&path).unwrap(), &cloud);
 }
 
 #[test]

@@ -123,12 +123,16 @@ impl PointCloud {
         Ok(())
     }
 
-    /// Checks what [`write_ply`] needs: attribute arrays as long as `positions`, and finite
-    /// positions (which [`read_ply`] would refuse).
+    /// Checks what [`write_ply`] needs: attribute arrays as long as `positions`, finite
+    /// positions, and radii finite and >= 0 (which [`read_ply`] would refuse).
     fn check(&self) -> Result<(), String> {
         self.check_lengths().map_err(|e| e.to_string())?;
         if let Some(i) = self.positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
             return Err(format!("point {i}: position {:?} is not finite", self.positions[i]));
+        }
+        let radii = self.radii.as_deref().unwrap_or_default();
+        if let Some(i) = radii.iter().position(|r| !(r.is_finite() && *r >= 0.0)) {
+            return Err(format!("point {i}: radius {} is not a finite number >= 0", radii[i]));
         }
         Ok(())
     }
@@ -419,8 +423,8 @@ fn unit_or_zero(n: [f32; 3]) -> [f32; 3] {
 ///
 /// # Errors
 /// [`Error::Io`] when the file cannot be written, or (kind `InvalidInput`) when an attribute
-/// array's length differs from the number of positions or a position is not finite, which
-/// would give a file [`read_ply`] refuses.
+/// array's length differs from the number of positions, a position is not finite or a radius
+/// is not a finite number >= 0, which would give a file [`read_ply`] refuses.
 pub fn write_ply(path: &Path, cloud: &PointCloud) -> Result<(), Error> {
     cloud.check().map_err(|message| {
         Error::io(path, std::io::Error::new(std::io::ErrorKind::InvalidInput, message))
@@ -511,7 +515,9 @@ const DEFAULT_COLOR: [u8; 3] = [200, 200, 200];
 /// the same seed gives the same cloud whatever the number of threads (for a given version of
 /// `rand`, whose `SmallRng` algorithm is not promised to stay the same).
 ///
-/// Errors: [`Error::OutOfMemory`] when the `n` points' arrays cannot be allocated.
+/// Errors: [`Error::OutOfMemory`] when the `n` points' arrays cannot be allocated;
+/// [`Error::SampleRadius`] when the radius is beyond `f32` (a surface of coordinates near
+/// `f32::MAX` and few points), before any point is sampled.
 pub fn sample_mesh(
     mesh: &Mesh,
     textures: &MaterialTextures,
@@ -535,7 +541,7 @@ pub fn sample_mesh_with_textures(
 
 type TextureOf<'a> = dyn Fn(usize) -> Option<&'a Texture> + Sync + 'a;
 
-#[allow(clippy::cast_possible_truncation, clippy::cast_precision_loss)]
+#[allow(clippy::cast_possible_truncation, clippy::cast_precision_loss, clippy::cast_sign_loss)]
 fn sample(
     mesh: &Mesh,
     texture_of: &TextureOf<'_>,
@@ -563,6 +569,26 @@ fn sample(
             warnings: Vec::new(),
         });
     }
+    // The area and radius are in f64, which holds the area of any triangle of finite f32
+    // corners; the radius may not fit f32 (3 points on a triangle of corners 3e38 had written
+    // a radius of inf, which reading the cloud refuses).
+    let radius_of = |n: f64| (total / (std::f64::consts::PI * n)).sqrt() * 3.0;
+    let radius = radius_of(n as f64) as f32;
+    if radius.is_infinite() {
+        // 3 sqrt(A / (pi n)) <= f32::MAX from n = 9 A / (pi f32::MAX^2) on; then up past any
+        // rounding of the cast.
+        let max = f64::from(f32::MAX);
+        let mut fewest = (9.0 * total / (std::f64::consts::PI * max * max)).ceil() as u64;
+        while (radius_of(fewest as f64) as f32).is_infinite() {
+            fewest += 1;
+        }
+        return Err(Error::SampleRadius {
+            points: n,
+            area: total,
+            radius: radius_of(n as f64),
+            fewest,
+        });
+    }
     // The error names the bytes of all four arrays, whichever could not be had.
     let what = format!("{n} sampled points");
     let all = |e: Error| match e {
@@ -583,7 +609,6 @@ fn sample(
                 (*p, *nn, *c) = sampler.point(&mut rng, total);
             }
         });
-    let radius = ((total / (std::f64::consts::PI * n as f64)).sqrt() * 3.0) as f32;
     Ok(PointCloud {
         positions,
         normals: Some(normals),
