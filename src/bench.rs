@@ -486,7 +486,9 @@ pub fn json_string(s: &str) -> String {
         match c {
             '"' => out.push_str("\\\""),
             '\\' => out.push_str("\\\\"),
-            c if u32::from(c) < 0x20 => out.push_str(&format!("\\u{:04x}", u32::from(c))),
+            // Every control character, not only those JSON requires: the CLI escapes any left
+            // in what it prints, which would not be JSON.
+            c if c.is_control() => out.push_str(&format!("\\u{:04x}", u32::from(c))),
             c => out.push(c),
         }
     }
@@ -557,4 +559,18 @@ pub fn run_splats(points: usize, frames: usize) -> Result<SplatBenchResult, Erro
         splats,
         source,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Quotes, backslashes and every control character (C0, DEL and C1) come out as JSON
+    /// escapes, so the string holds no control character for the CLI to escape again.
+    #[test]
+    fn json_strings_escape_every_control_character() {
+        let s = json_string("a\"b\\c\u{1b}[31m\u{7f}\u{85}é\n");
+        assert_eq!(s, r#""a\"b\\c\u001b[31m\u007f\u0085é\u000a""#);
+        assert!(!s.chars().any(char::is_control), "{s}");
+    }
 }

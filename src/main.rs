@@ -37,7 +37,10 @@ macro_rules! say {
 macro_rules! note {
     ($($arg:tt)*) => {{
         use std::io::Write as _;
-        let _ = writeln!(std::io::stderr(), $($arg)*);
+        // Escaped like every message: a file name's control characters had reached the
+        // terminal through `wrote ...`.
+        let line = format!($($arg)*);
+        let _ = writeln!(std::io::stderr(), "{}", printable(&line));
     }};
 }
 
@@ -55,7 +58,9 @@ fn printable(text: &str) -> std::borrow::Cow<'_, str> {
 /// [`say!`]'s line to standard output.
 fn say(line: std::fmt::Arguments) {
     use std::io::Write as _;
-    if let Err(e) = writeln!(std::io::stdout(), "{line}")
+    // Escaped as `note!` escapes (`info`'s `file:` line printed a name's control characters).
+    let line = line.to_string();
+    if let Err(e) = writeln!(std::io::stdout(), "{}", printable(&line))
         && e.kind() != std::io::ErrorKind::BrokenPipe
         && !STDOUT_FAILED.swap(true, std::sync::atomic::Ordering::Relaxed)
     {
@@ -481,7 +486,7 @@ fn check_rayon_threads() -> Result<(), Error> {
             Ok(_) => {}
             Err(_) => note!(
                 "trirast: warning: {name}={}: not a number of threads; using all cores",
-                printable(&value.to_string_lossy())
+                value.to_string_lossy()
             ),
         }
     }
@@ -856,7 +861,7 @@ fn main() -> ExitCode {
         Ok(()) if STDOUT_FAILED.load(std::sync::atomic::Ordering::Relaxed) => ExitCode::FAILURE,
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            note!("trirast: error: {}", printable(&e.to_string()));
+            note!("trirast: error: {e}");
             ExitCode::FAILURE
         }
     }
@@ -1579,7 +1584,7 @@ fn shown(warnings: &[String]) -> (&[String], usize) {
 fn print_warnings(warnings: &[String]) {
     let (first, more) = shown(warnings);
     for w in first {
-        note!("trirast: warning: {}", printable(w));
+        note!("trirast: warning: {w}");
     }
     if more > 0 {
         note!("trirast: warning: ... and {more} more warning(s), not shown");
@@ -1904,7 +1909,7 @@ fn info(path: &Path) -> Result<(), Error> {
     }
     let (first, more) = shown(&mesh.warnings);
     for w in first {
-        say!("warning:    {}", printable(w));
+        say!("warning:    {w}");
     }
     if more > 0 {
         say!("warning:    ... and {more} more, not shown");

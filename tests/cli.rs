@@ -607,6 +607,18 @@ fn quoted_control_characters_are_escaped() {
     let err = run_err(&dir.0, ["info", "ansi.obj"]);
     assert!(err.contains("ansi.obj:4:") && err.contains(r"`\u{1b}[31mRED\u{7}`"), "{err}");
     assert!(!err.contains('\u{1b}') && !err.contains('\u{7}'), "{err:?}");
+    // File names too, wherever they are printed: `info`'s `file:` line (standard output) and
+    // `render`'s `wrote` line had printed them raw.
+    let name = "tri\u{1b}[31m.obj";
+    dir.write(name, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    let out = trirast_in(&dir.0, ["info", name]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && text.contains(r"tri\u{1b}[31m.obj"), "{text}");
+    let err = run_ok(&dir.0, ["render", name, "--size", "8x8", "-o", "a\u{7}.png"]);
+    assert!(err.contains(r"wrote a\u{7}.png"), "{err}");
+    for printed in [&text[..], &err] {
+        assert!(!printed.contains('\u{1b}') && !printed.contains('\u{7}'), "{printed:?}");
+    }
 }
 
 /// Negative values reach the checks of their options, which say what is accepted; clap had
