@@ -963,6 +963,19 @@ fn absurd_counts_and_angles_are_usage_errors() {
     assert!(trirast::bench::run_splats(0, 1).is_err());
 }
 
+/// Runs trirast in `dir` under an address-space limit of `kib` KiB (`ulimit -v`), which its
+/// memory checks read, so that what they refuse does not depend on the machine's memory.
+fn trirast_limited(dir: &Path, kib: u32, args: &[&str]) -> Output {
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!("ulimit -v {kib} && exec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_trirast"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("failed to start sh")
+}
+
 /// The benchmarks that build what a count asks for refuse, before they start, a count the
 /// memory left cannot hold: `splat-bench --points 1073741824` (2^30, allowed) had grown to
 /// 24 GB and been stopped by the system's out-of-memory killer without a word. Run under an
@@ -979,14 +992,7 @@ fn benchmarks_too_large_for_memory_are_refused_up_front() {
         ),
     ];
     for (args, what) in cases {
-        let out = Command::new("sh")
-            .arg("-c")
-            .arg("ulimit -v 4000000 && exec \"$0\" \"$@\"")
-            .arg(env!("CARGO_BIN_EXE_trirast"))
-            .args(args)
-            .current_dir(&dir.0)
-            .output()
-            .expect("failed to start sh");
+        let out = trirast_limited(&dir.0, 4_000_000, args);
         let err = stderr_of(&out);
         assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
         assert!(err.contains(what) && err.contains("GiB is available"), "{args:?}: {err}");
@@ -1017,14 +1023,7 @@ fn textures_too_large_for_memory_are_refused_up_front() {
         &["sample", "material.obj", "--points", "10", "-o", "c.ply"],
     ];
     for args in cases {
-        let out = Command::new("sh")
-            .arg("-c")
-            .arg("ulimit -v 1500000 && exec \"$0\" \"$@\"")
-            .arg(env!("CARGO_BIN_EXE_trirast"))
-            .args(args)
-            .current_dir(&dir.0)
-            .output()
-            .expect("failed to start sh");
+        let out = trirast_limited(&dir.0, 1_500_000, args);
         let err = stderr_of(&out);
         assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
         let refused = "loading the texture big.png needs 1.82 GiB of memory";
