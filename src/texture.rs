@@ -178,12 +178,30 @@ fn decoder(path: &Path) -> Result<impl image::ImageDecoder, Error> {
         reader.set_format(format);
     }
     let reader = reader.with_guessed_format().map_err(|e| Error::io(path, e))?;
-    let decoder = reader.into_decoder().map_err(|e| decode_error(path, e))?;
+    let decoder = reader.into_decoder().map_err(|e| match (&e, png_size(path)) {
+        // The PNG decoder refuses a header whose rows alone pass its memory limit before it
+        // gives the size (2^31 - 1 a side had said only "Memory limit exceeded").
+        (image::ImageError::Limits(_), Some((width, height))) => {
+            Error::TextureSize { path: path.to_path_buf(), width, height }
+        }
+        _ => decode_error(path, e),
+    })?;
     let (width, height) = decoder.dimensions();
     if width.max(height) > MAX_TEXTURE_SIDE || u64::from(width) * u64::from(height) > MAX_TEXELS {
         return Err(Error::TextureSize { path: path.to_path_buf(), width, height });
     }
     Ok(decoder)
+}
+
+/// The width and height a PNG file's header declares (its first chunk, `IHDR`, after the
+/// signature), if `path` starts as a PNG file does.
+fn png_size(path: &Path) -> Option<(u32, u32)> {
+    use std::io::Read as _;
+    let mut head = [0; 24];
+    crate::input::open(path).ok()?.read_exact(&mut head).ok()?;
+    let png = head.starts_with(b"\x89PNG\r\n\x1a\n") && &head[12..16] == b"IHDR";
+    let word = |at: usize| u32::from_be_bytes([head[at], head[at + 1], head[at + 2], head[at + 3]]);
+    png.then(|| (word(16), word(20)))
 }
 
 /// An image error as [`Error::Decode`], naming the file, on one line (the JPEG decoder's
