@@ -1025,6 +1025,17 @@ fn malformed_files_name_the_file_and_position() {
             ": byte 100: triangle 0, vertex 0: coordinate y is NaN".into(),
         ),
         (
+            "huge.stl",
+            format!("{stl_head}vertex 1e39 0 0\n").into_bytes(),
+            ":5: vertex `1e39 0 0` is not finite in single precision".into(),
+        ),
+        (
+            "huge.ply",
+            format!("{}1e300 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", PLY_HEAD.replace("float x", "double x"))
+                .into_bytes(),
+            ":10: vertex 0: position [inf, 0.0, 0.0] is not finite in single precision".into(),
+        ),
+        (
             "short_vertex.stl",
             format!("{stl_head}vertex 1 0\n").into_bytes(),
             ":5: `vertex` takes 3 numbers, found 2".into(),

@@ -298,7 +298,12 @@ impl Sink for Body {
                 let v = &e.values;
                 let p = [v[X], v[X + 1], v[X + 2]];
                 if !p.iter().all(|c| c.is_finite()) {
-                    return Err((at, format!("vertex {index}: position {p:?} is not finite")));
+                    // A `double` past `f32`'s range reads as infinite too.
+                    let message = format!(
+                        "vertex {index}: position {p:?} is not finite in single precision \
+                         (infinite or NaN as written, or a magnitude past about 3.4e38)"
+                    );
+                    return Err((at, message));
                 }
                 self.positions.push(p);
                 if self.layout.normals {

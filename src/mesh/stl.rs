@@ -654,7 +654,15 @@ fn parse_ascii(lines: &mut impl Lines) -> Result<Mesh, Fail> {
             }
             let p = numbers(&tokens[1..], line, "vertex")?;
             if !p.iter().all(|c| c.is_finite()) {
-                return Err(on_line(line, format!("vertex {p:?} is not finite")));
+                // As written: a value past `f32`'s range (`1e39`) had been shown as `inf`.
+                return Err(on_line(
+                    line,
+                    format!(
+                        "vertex `{}` is not finite in single precision (largest magnitude about \
+                         3.4e38)",
+                        tokens[1..].join(" ")
+                    ),
+                ));
             }
             points.push(p);
             corners.push(welder.vertex(p)?);
