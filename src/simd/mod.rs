@@ -1894,6 +1894,11 @@ pub fn shade_narrow(level: SimdLevel, mut job: NarrowJob<'_>) -> u64 {
 /// As [`shade_narrow`].
 pub fn shade_narrow_scalar(mut job: NarrowJob<'_>) -> u64 {
     job.assert_narrow();
+    // Up front, as the AVX-512 kernel checks: pixel by pixel, a box of `usize::MAX` rows with
+    // nothing covered had run without end, and one whose offsets wrap had written a pixel
+    // outside it.
+    let n = job.target.checked_len();
+    assert!(job.end(job.columns) <= n, "the box must lie in the buffers");
     let mut covered = 0;
     let mut row = job.edges;
     for r in 0..job.rows {
@@ -2947,6 +2952,54 @@ mod tests {
             let reference = run(SimdLevel::Scalar);
             for level in SimdLevel::available() {
                 assert_eq!(run(level), reference, "{level:?}, round {round}");
+            }
+        }
+    }
+
+    /// A box the buffers do not hold panics at every level before anything is written, as
+    /// documented: the scalar kernel (which AVX2 hands such boxes) had walked `usize::MAX`
+    /// uncovered rows without end, and written a pixel outside a box whose offsets wrap.
+    #[test]
+    fn narrow_boxes_past_the_buffers_panic_at_every_level() {
+        let color = SpanColor::Flat([1, 2, 3, 4]);
+        let boxes = [
+            // Nothing covered, rows without end.
+            ([-1, 0, 0], [0; 3], usize::MAX, 0, 4),
+            // Every pixel covered, its second row's offset wrapping to the buffers' start.
+            ([0; 3], [256, 0, 0], 2, usize::MAX - 3, 4),
+            // One row past the end.
+            ([0; 3], [0; 3], 5, 0, 4),
+        ];
+        for (edges, step_y, rows, first, stride) in boxes {
+            for level in [SimdLevel::Scalar].into_iter().chain(SimdLevel::available()) {
+                let (mut d, mut c) = (vec![1.0f32; 16], vec![[0u8; 4]; 16]);
+                let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    shade_narrow(
+                        level,
+                        NarrowJob {
+                            edges,
+                            step_x: [0; 3],
+                            step_y,
+                            bias: [0; 2],
+                            columns: 1,
+                            rows,
+                            first,
+                            stride,
+                            target: KernelTarget {
+                                depth_plane: [0.5, 0.0, 0.0],
+                                color: &color,
+                                depth_test: DepthTest::Less,
+                                id: 0,
+                                depth: &mut d,
+                                color_out: &mut c,
+                                ids: None,
+                                overdraw: None,
+                            },
+                        },
+                    )
+                }));
+                assert!(result.is_err(), "{level:?}, {rows} rows from {first}: not refused");
+                assert_eq!(c, vec![[0u8; 4]; 16], "{level:?}: written before refusing");
             }
         }
     }
