@@ -26,16 +26,27 @@ pub enum PngCompression {
 
 /// Writes the target's colour image (resolved, when multisampled) as an 8-bit RGBA PNG,
 /// compressed with [`PngCompression::Fast`].
+///
+/// # Errors
+/// [`Error::TargetBuffer`] when one of the target's buffers was replaced by one of another
+/// length (checked before the file is made), [`Error::Io`] or [`Error::Encode`] when the
+/// file cannot be written.
 pub fn write_png(path: &Path, target: &Target) -> Result<(), Error> {
     write_png_with(path, target, PngCompression::default())
 }
 
 /// [`write_png`] with a choice of compression.
+///
+/// # Errors
+/// As [`write_png`].
 pub fn write_png_with(
     path: &Path,
     target: &Target,
     compression: PngCompression,
 ) -> Result<(), Error> {
+    // The buffers are public fields: a colour buffer of another length had panicked in the
+    // resolve (after the file was made).
+    target.check_buffers()?;
     let file = File::create(path).map_err(|e| Error::io(path, e))?;
     let mut encoder = png::Encoder::new(BufWriter::new(file), target.width(), target.height());
     encoder.set_color(png::ColorType::Rgba);
@@ -126,6 +137,18 @@ mod tests {
         assert_eq!(std::fs::read(&default).unwrap(), std::fs::read(dir.join("Fast.png")).unwrap());
         std::fs::remove_dir_all(&dir).unwrap();
         assert!(sizes[2] <= sizes[1], "best is no larger than balanced: {sizes:?}");
+    }
+
+    /// A colour buffer replaced by one of another length is an error naming it, and no file
+    /// is made (the resolve had panicked).
+    #[test]
+    fn a_replaced_colour_buffer_is_an_error() {
+        let path = std::env::temp_dir().join(format!("trirast-short-{}.png", std::process::id()));
+        let mut target = Target::multisampled(5, 4, SampleCount::X4).unwrap();
+        target.color.pop();
+        let e = write_png(&path, &target).unwrap_err();
+        assert!(matches!(e, Error::TargetBuffer { .. }), "{e:?}");
+        assert!(!path.exists());
     }
 
     /// A shape that does not hold the data is an error, with no file written, also where its
