@@ -235,6 +235,10 @@ impl BandBalance {
 ///
 /// The samples are taken in parallel on the current rayon pool, so `bounds` is called from
 /// its threads (hence `Sync`).
+///
+/// # Panics
+/// If `height` is past [`crate::fixed::MAX_TARGET_SIZE`], which no target has: the bands'
+/// rows are found from a sum per row (a height of `u32::MAX` had aborted, refused 68 GB).
 pub fn plan(
     schedule: Schedule,
     len: usize,
@@ -243,6 +247,7 @@ pub fn plan(
     (threads, shares): (usize, &BandBalance),
     bounds: impl Fn(usize) -> Option<PixelRect> + Sync,
 ) -> Plan {
+    assert!(height <= crate::fixed::MAX_TARGET_SIZE, "a target's height, not {height}");
     let schedule = schedule.or_forced();
     if schedule == Schedule::Binned {
         return Plan::Binned;
@@ -711,6 +716,21 @@ mod tests {
             Plan::Banded(bands) => Some(&bands.starts),
             Plan::Binned => None,
         }
+    }
+
+    /// A height no target has is refused as documented, not taken as a per-row array's length
+    /// (`u32::MAX` rows had aborted the process); the largest target's is planned.
+    #[test]
+    fn heights_past_any_target_panic() {
+        let at = |height| {
+            std::panic::catch_unwind(|| {
+                let balance = BandBalance::default();
+                plan(Schedule::Banded, 5000, (height, 1), &SCREEN, (2, &balance), grid(100, 50))
+            })
+        };
+        assert!(at(u32::MAX).is_err());
+        assert!(at(crate::fixed::MAX_TARGET_SIZE + 1).is_err());
+        assert!(rows_of(&at(crate::fixed::MAX_TARGET_SIZE).unwrap()).is_some());
     }
 
     /// Small triangles in spatial order, or anywhere in a small part of the target, are
