@@ -86,6 +86,18 @@ pub enum Error {
         /// The number of positions.
         expected: usize,
     },
+    /// A splat hierarchy whose root sphere (the one enclosing every point) is beyond `f32`,
+    /// in which `.tsplat` stores it: its points reach past about 1.7e38 on either side.
+    #[error(
+        "the splat hierarchy's root sphere (centre {centre:?}, radius {radius}) is beyond single \
+         precision, which .tsplat stores it in: its points reach too far from one another"
+    )]
+    SplatExtent {
+        /// The root sphere's centre, as encoded.
+        centre: [f32; 3],
+        /// Its radius, as encoded.
+        radius: f32,
+    },
     /// Points to sample over a surface so large that their splat radius (see
     /// [`crate::splat::cloud::sample_mesh`]) is beyond `f32`: a cloud written with it would be
     /// refused when read. Fewer points make larger splats, so `fewest` points would do.

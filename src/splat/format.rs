@@ -290,6 +290,9 @@ impl Encoding {
 /// tree's own 40), all allocated before the spheres are encoded.
 ///
 /// # Errors
+/// [`Error::SplatExtent`] when the root sphere, which encloses every node's, is not finite
+/// in `f32` (points reaching past about 1.7e38 on either side of it), which [`decode`]
+/// would refuse;
 /// [`Error::OutOfMemory`] when one of its arrays (each proportional to the node count: the
 /// breadth-first order, the nodes made safe to quantize, the subtrees' ranges and spheres,
 /// the decoded spheres, the output) cannot be allocated, naming the encoding, the array and
@@ -393,6 +396,11 @@ pub fn encode(tree: &SplatTree) -> Result<Vec<u8>, Error> {
     }
 
     let root = decoded.first().copied().unwrap_or(zero);
+    // The decoder refuses such a root: points at +-f32::MAX had been encoded with a radius of
+    // inf into a file that could not be read back.
+    if !(root.centre.iter().all(|v| v.is_finite()) && root.radius.is_finite()) {
+        return Err(Error::SplatExtent { centre: root.centre, radius: root.radius });
+    }
     for v in root.centre.into_iter().chain([root.radius]) {
         out.extend_from_slice(&v.to_le_bytes());
     }
@@ -1025,6 +1033,21 @@ mod tests {
             ..PointCloud::default()
         };
         SplatTree::build(&cloud).unwrap()
+    }
+
+    /// A cloud reaching +-f32::MAX has no root sphere `f32` holds: encoding it is an error,
+    /// where it had written a radius of inf that decoding refuses. Just inside, at half of
+    /// `f32::MAX` either way, the root is finite and the file reads back.
+    #[test]
+    fn roots_beyond_f32_are_refused() {
+        let tree = |extent: f32| {
+            let positions = vec![[0.0, 0.0, extent], [0.0, 0.0, -extent]];
+            SplatTree::build(&PointCloud { positions, ..PointCloud::default() }).unwrap()
+        };
+        let e = encode(&tree(f32::MAX)).unwrap_err();
+        assert!(matches!(e, Error::SplatExtent { radius, .. } if radius.is_infinite()), "{e:?}");
+        let bytes = encode(&tree(f32::MAX / 4.0)).unwrap();
+        assert!(decode(&bytes).is_ok());
     }
 
     /// The bytes do not depend on the thread count, though each level's nodes are encoded
