@@ -1481,10 +1481,10 @@ fn chunk_rows((lo, hi): (u32, u32), rows: &[Option<[i32; 2]>]) -> Option<[i32; 2
 /// A mesh's triangles, as indices into its vertices, with the smallest and largest index of
 /// each chunk of 256 triangles (the front end's chunks). The largest index validates the
 /// triangles, a batch's range sizes a large mesh's window of shaded vertices, and a chunk's
-/// lets a band skip it. [`Pipeline::draw`] finds them in a pass over the indices on every call; a mesh
-/// drawn frame after frame keeps them here ([`Pipeline::draw_indexed`]), as GPU drivers keep
-/// an index buffer's range (Mesa's min/max cache), and reads its indices once a frame rather
-/// than twice: the pass was 50 of the dense scene's 600 ms on two threads.
+/// lets a band skip it. [`Pipeline::draw`] finds them in a pass over the indices on every
+/// call; a mesh drawn frame after frame keeps them here ([`Pipeline::draw_indexed`]), as GPU
+/// drivers keep an index buffer's range (Mesa's min/max cache), and reads its indices once a
+/// frame rather than twice: the pass was 50 of the dense scene's 600 ms on two threads.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct IndexBuffer {
     triangles: Vec<[u32; 3]>,

@@ -575,10 +575,10 @@ unsafe fn narrow_box(
 ) -> u64 {
     debug_assert!((1..=8).contains(&b.columns) && b.rows > 0, "a narrow box");
     let n = t.checked_len();
-    // Checked arithmetic: the offsets below stay in the buffers only if this holds.
-    let end = (b.rows.saturating_sub(1).checked_mul(b.stride))
-        .and_then(|o| o.checked_add(b.first)?.checked_add(b.columns));
-    assert!(end.is_some_and(|end| end <= n), "the box must lie in the buffers");
+    // Checked arithmetic (an overflow is `usize::MAX`, past any buffer): the offsets below
+    // stay in the buffers only if this holds.
+    let end = super::box_end(b.rows, b.stride, b.first, b.columns);
+    assert!(end <= n, "the box must lie in the buffers");
     // A loop for each kind of group and depth test, with no choice between them inside:
     // with the choices in the loop, how the compiler placed the loop's values moved with
     // unrelated edits elsewhere (the soup 3-5% slower or faster), the depth test reloaded
