@@ -72,9 +72,12 @@ fn library(
     // Each warning's line and text, in line order.
     let mut notes = Vec::new();
     let mut ignored = 0usize;
+    // The line of each name's first `newmtl`.
+    let mut first = HashMap::new();
     let io = |e: std::io::Error| (0, e.to_string());
     super::read_lines(bytes, io, |raw, line| {
-        if let Err((line, message)) = statement(&mut lib, &mut notes, raw, line, dir) {
+        let read = statement(&mut lib, (&mut notes, &mut first), raw, line, dir);
+        if let Err((line, message)) = read {
             ignored += 1;
             if ignored <= MAX_IGNORED_WARNINGS {
                 notes.push((line, format!("{message}; the line is ignored")));
@@ -97,10 +100,11 @@ fn library(
     Ok(lib)
 }
 
-/// One line of a `.mtl` file into `lib`, a warning of it into `notes` as its line and text.
+/// One line of a `.mtl` file into `lib`, a warning of it into `notes` as its line and text;
+/// `first` has the line of each material name's first `newmtl`.
 fn statement(
     lib: &mut MaterialLibrary,
-    notes: &mut Vec<(usize, String)>,
+    (notes, first): (&mut Vec<(usize, String)>, &mut HashMap<String, usize>),
     raw: &[u8],
     line: usize,
     dir: &Path,
@@ -117,7 +121,23 @@ fn statement(
         if args.is_empty() {
             return Err((line, "`newmtl` needs a material name".into()));
         }
-        lib.materials.push(Material { name: args.join(" "), ..Material::default() });
+        let name = args.join(" ");
+        // Kept, so that later lines still belong to a material, but named in a warning: the
+        // OBJ's faces take the first (see `apply`), and an exporter that wrote the name twice
+        // has likely lost one of the two materials.
+        match first.get(&name) {
+            Some(&at) => notes.push((
+                line,
+                format!(
+                    "material `{name}` is defined again (first on line {at}); faces use the \
+                     first definition"
+                ),
+            )),
+            None => {
+                first.insert(name.clone(), line);
+            }
+        }
+        lib.materials.push(Material { name, ..Material::default() });
         lib.texture_lines.push(0);
         return Ok(());
     }
@@ -447,5 +467,24 @@ mod tests {
         assert!(lib.warnings[0].starts_with(&format!("{file}:1: `Kd` before any")));
         assert!(lib.warnings[20].starts_with(&format!("{file}:23: `Kd 2 0 0` is outside")));
         assert_eq!(lib.warnings[21], format!("{file}: 1 more line that cannot be read is ignored"));
+    }
+
+    /// A name defined twice in a library is named in a warning with both lines; both
+    /// definitions are kept in file order (faces take the first, see `apply`), and names that
+    /// differ only in case are different materials.
+    #[test]
+    fn materials_defined_twice_are_warned_of() {
+        let src = b"newmtl a b\nKd 1 0 0\nnewmtl A b\nnewmtl a  b\nKd 0 1 0\nnewmtl a b\n";
+        let lib = parse(src, Path::new("")).unwrap();
+        let names: Vec<&str> = lib.materials.iter().map(|m| m.name.as_str()).collect();
+        assert_eq!(names, ["a b", "A b", "a b", "a b"]);
+        assert_eq!(lib.materials[2].diffuse, [0.0, 1.0, 0.0]);
+        let again = |line: usize| {
+            format!(
+                "line {line}: material `a b` is defined again (first on line 1); faces use the \
+                 first definition"
+            )
+        };
+        assert_eq!(lib.warnings, [again(4), again(6)]);
     }
 }
