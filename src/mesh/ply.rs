@@ -42,13 +42,22 @@ pub fn read(path: &Path) -> Result<Mesh, Error> {
 
 /// [`read`], telling `report` how many bytes of the file it has read so far.
 pub(crate) fn read_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<Mesh, Error> {
-    read_file(path, report, parse_at).map(|mesh| clamped_colours(mesh, path))
+    read_file(path, report, parse_at).map(|mesh| clamped_colours(named(mesh, path), path))
+}
+
+/// `mesh` with the warnings of reading it ([`Ply::read_body`]'s) naming `path`.
+fn named(mut mesh: Mesh, path: &Path) -> Mesh {
+    for warning in &mut mesh.warnings {
+        *warning = format!("{}: {warning}", path.display());
+    }
+    mesh
 }
 
 /// Parses the contents of a PLY file; `path` is only used to name the file in errors and
 /// warnings.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, Error> {
-    parse_with(bytes, bytes.len() as u64, path, parse_at).map(|mesh| clamped_colours(mesh, path))
+    let mesh = parse_with(bytes, bytes.len() as u64, path, parse_at)?;
+    Ok(clamped_colours(named(mesh, path), path))
 }
 
 /// `mesh` with its colours, read as the file has them, clamped to [0, 1] (NaN as 0), and a
@@ -172,8 +181,10 @@ fn parse_at<R: Read>(source: &mut Source<R>, len: u64) -> Result<Mesh, Fail> {
     })?;
     let layout = check_header(&ply)?;
     let mut body = Body { layout, ..Body::default() };
-    ply.read_body(source, &mut body)?;
-    body.into_mesh()
+    let tail = ply.read_body(source, &mut body)?;
+    let mut mesh = body.into_mesh()?;
+    mesh.warnings.extend(tail);
+    Ok(mesh)
 }
 
 /// Checks the properties we use and decides which attributes the vertices have.
@@ -428,6 +439,38 @@ mod tests {
         assert_eq!(m.triangles.len(), 2);
         assert_eq!(m.colors.as_ref().unwrap()[1], [0.0, 1.0, 0.0, 1.0]);
         assert!(m.normals.is_none() && m.texcoords.is_none());
+    }
+
+    /// Data after the elements the header declares is named in a warning (the counts are
+    /// likely wrong, and the rest of the model would be dropped without a word), ASCII or
+    /// binary; blank lines after an ASCII body are not data.
+    #[test]
+    fn data_after_the_declared_elements_is_warned_of() {
+        let head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n\
+                    property float y\nproperty float z\nelement face 1\n\
+                    property list uchar int vertex_indices\nend_header\n";
+        let body = "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+        for blank in ["", "\n", "\r\n \t\n\n"] {
+            let m = parse(format!("{head}{body}{blank}").as_bytes(), Path::new("t.ply")).unwrap();
+            assert_eq!((m.triangles.len(), m.warnings.len()), (1, 0), "{blank:?}");
+        }
+        let m = parse(format!("{head}{body}\n3 0 2 1\n").as_bytes(), Path::new("t.ply")).unwrap();
+        assert_eq!(m.triangles.len(), 1);
+        let want = "t.ply: 9 bytes after the elements the header declares (3 `vertex`, 1 \
+                    `face`) are ignored; the header's counts may be too small";
+        assert_eq!(m.warnings, [want]);
+        let binary = |extra: &[u8]| {
+            let mut src = b"ply\nformat binary_little_endian 1.0\nelement vertex 1\n\
+                            property float x\nproperty float y\nproperty float z\nend_header\n"
+                .to_vec();
+            src.extend_from_slice(&[0; 12]);
+            src.extend_from_slice(extra);
+            parse(&src, Path::new("b.ply")).unwrap().warnings
+        };
+        assert_eq!(binary(b""), Vec::<String>::new());
+        let want = "b.ply: 2 bytes after the elements the header declares (1 `vertex`) are \
+                    ignored; the header's counts may be too small";
+        assert_eq!(binary(b"\n\n"), [want]);
     }
 
     #[test]

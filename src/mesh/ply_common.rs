@@ -427,17 +427,56 @@ impl<F: Fields> Ply<F> {
         &self,
         source: &mut Source<R>,
         sink: &mut S,
-    ) -> Result<(), Fail> {
+    ) -> Result<Option<String>, Fail> {
         let elements = self.header.elements.values();
         let last = S::LAST.and_then(|name| elements.clone().position(|d| d.name == name));
         let count = last.map_or(usize::MAX, |k| k + 1);
-        let defs = elements.take(count).filter(|d| !d.properties.is_empty());
-        match self.header.encoding {
-            Encoding::Ascii => self.feed(defs, sink, self.ascii_rows(source, S::STRIP_CR)),
-            Encoding::BinaryLittleEndian | Encoding::BinaryBigEndian => {
-                self.feed(defs, sink, self.binary_rows(source))
-            }
+        let defs = elements.clone().take(count).filter(|d| !d.properties.is_empty());
+        let ascii = self.header.encoding == Encoding::Ascii;
+        if ascii {
+            self.feed(defs, sink, self.ascii_rows(source, S::STRIP_CR))?;
+        } else {
+            self.feed(defs, sink, self.binary_rows(source))?;
         }
+        if count < elements.len() {
+            return Ok(None);
+        }
+        self.tail(source, ascii)
+    }
+
+    /// A warning when the file goes on after the last element the header declares (an ASCII
+    /// file with more than blank lines): the header's counts are likely too small, and what
+    /// they leave out would otherwise be dropped without a word.
+    fn tail<R: Read>(&self, source: &mut Source<R>, ascii: bool) -> Result<Option<String>, Fail> {
+        let end = source.consumed();
+        let io = |e: io::Error| (At::Byte(end), e.to_string());
+        let data = if ascii {
+            // Only up to the first byte that is not blank is read.
+            loop {
+                let buf = source.fill_buf().map_err(io)?;
+                if buf.is_empty() {
+                    break false;
+                }
+                if !buf.iter().all(u8::is_ascii_whitespace) {
+                    break true;
+                }
+                let n = buf.len();
+                source.consume(n);
+            }
+        } else {
+            !source.fill_buf().map_err(io)?.is_empty()
+        };
+        Ok(data.then(|| {
+            let counts: Vec<String> = (self.header.elements.values())
+                .map(|d| format!("{} `{}`", d.count, d.name))
+                .collect();
+            let left = self.len.saturating_sub(end);
+            format!(
+                "{left} bytes after the elements the header declares ({}) are ignored; the \
+                 header's counts may be too small",
+                counts.join(", ")
+            )
+        }))
     }
 
     /// How many rows of `def` the rest of the file can hold.

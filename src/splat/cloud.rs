@@ -251,8 +251,10 @@ fn parse_at<R: Read>(source: &mut Source<R>, len: u64) -> Result<PointCloud, Fai
     let layout = check_header(&ply)?;
     let colours_outside = (0, f32::INFINITY, f32::NEG_INFINITY);
     let mut body = Body { layout, colours_outside, ..Body::default() };
-    ply.read_body(source, &mut body)?;
-    Ok(body.into_cloud())
+    let tail = ply.read_body(source, &mut body)?;
+    let mut cloud = body.into_cloud();
+    cloud.warnings.extend(tail);
+    Ok(cloud)
 }
 
 /// Checks the `vertex` element: present, `x y z` there, the properties we read scalars.
@@ -794,6 +796,24 @@ mod tests {
             let e = parse_ply(text.as_bytes(), path).unwrap_err().to_string();
             assert!(e.starts_with("c.ply:14:"), "{bad}: {e}");
         }
+    }
+
+    /// Points after the declared ones are named in a warning, as a mesh's are; elements after
+    /// the vertices (faces, which a cloud does not read) are not data left over.
+    #[test]
+    fn points_after_the_declared_ones_are_warned_of() {
+        let head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n\
+                    property float y\nproperty float z\n";
+        let points = "0 0 0\n1 0 0\n";
+        let read = |src: String| parse_ply(src.as_bytes(), Path::new("c.ply")).unwrap();
+        let cloud = read(format!("{head}end_header\n{points}2 0 0\n"));
+        assert_eq!(cloud.len(), 2);
+        let want = "c.ply: 6 bytes after the elements the header declares (2 `vertex`) are \
+                    ignored; the header's counts may be too small";
+        assert_eq!(cloud.warnings, [want]);
+        let faces = "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+        let cloud = read(format!("{head}{faces}{points}3 0 1 0\n"));
+        assert_eq!((cloud.len(), cloud.warnings.len()), (2, 0));
     }
 
     #[test]
