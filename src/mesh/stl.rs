@@ -17,7 +17,7 @@
 //! ASCII: keywords are matched case-insensitively; a file may hold several `solid ... endsolid`
 //! blocks; `facet normal nx ny nz` may omit the normal; an `outer loop` of more than three
 //! vertices is accepted as a polygon and triangulated by [`crate::polygon::triangulate_face`].
-//! Lines end at LF only (a CR before it is whitespace).
+//! Lines end at LF, CR LF or a CR alone (classic Mac OS files; the OBJ reader takes them too).
 //!
 //! **Welding.** STL stores every facet's corners separately, with a per-facet normal. The
 //! [`Mesh`] produced here welds them: corners at bit-identical positions (after folding `-0.0`
@@ -477,21 +477,34 @@ trait Lines {
 
 /// The reference's lines: split from the file in memory.
 struct SliceLines<'a> {
-    pieces: std::slice::Split<'a, u8, fn(&u8) -> bool>,
+    /// The rest of the file after the last line returned; `None` after the last.
+    rest: Option<&'a [u8]>,
     /// The last line number seen (for end-of-file errors).
     last: usize,
 }
 
 impl<'a> SliceLines<'a> {
     fn new(bytes: &'a [u8]) -> Self {
-        let newline: fn(&u8) -> bool = |&b| b == b'\n';
-        Self { pieces: bytes.split(newline), last: 0 }
+        Self { rest: Some(bytes), last: 0 }
+    }
+
+    /// The next line, without its end: LF, CR LF or a CR alone (classic Mac OS files end
+    /// their lines so, as the OBJ reader accepts).
+    fn next_piece(&mut self) -> Option<&'a [u8]> {
+        let rest = self.rest?;
+        let Some(k) = memchr::memchr2(b'\n', b'\r', rest) else {
+            self.rest = None;
+            return Some(rest);
+        };
+        let end = if rest[k] == b'\r' && rest.get(k + 1) == Some(&b'\n') { k + 2 } else { k + 1 };
+        self.rest = Some(&rest[end..]);
+        Some(&rest[..k])
     }
 }
 
 impl Lines for SliceLines<'_> {
     fn line(&mut self) -> Result<(usize, Option<&str>), Fail> {
-        for raw in self.pieces.by_ref() {
+        while let Some(raw) = self.next_piece() {
             self.last += 1;
             let line = self.last;
             let text = std::str::from_utf8(raw)
@@ -504,14 +517,15 @@ impl Lines for SliceLines<'_> {
     }
 }
 
-/// The streamed reader's lines: read one at a time from a buffered file.
+/// The streamed reader's lines: read one at a time from a buffered file, ended as
+/// [`SliceLines`] ends them.
 struct StreamLines<R> {
     reader: R,
-    /// The current line, without its LF.
+    /// The current line, without its end.
     text: Vec<u8>,
     /// The last line number read.
     last: usize,
-    /// Whether the last line (the one after the last LF, perhaps empty) is read.
+    /// Whether the last line (the one after the last line end, perhaps empty) is read.
     ended: bool,
 }
 
@@ -519,6 +533,45 @@ impl<R: BufRead> StreamLines<R> {
     fn new(reader: R) -> Self {
         Self { reader, text: Vec::new(), last: 0, ended: false }
     }
+
+    /// Reads the next line into `text`; true if it was the last (no line end after it).
+    fn next_piece(&mut self) -> std::io::Result<bool> {
+        self.text.clear();
+        loop {
+            let buf = fill(&mut self.reader)?;
+            if buf.is_empty() {
+                return Ok(true);
+            }
+            let Some(k) = memchr::memchr2(b'\n', b'\r', buf) else {
+                let n = buf.len();
+                self.text.extend_from_slice(buf);
+                self.reader.consume(n);
+                continue;
+            };
+            let cr = buf[k] == b'\r';
+            self.text.extend_from_slice(&buf[..k]);
+            self.reader.consume(k + 1);
+            // The LF of a CR LF may begin the next fill.
+            if cr && fill(&mut self.reader)?.first() == Some(&b'\n') {
+                self.reader.consume(1);
+            }
+            return Ok(false);
+        }
+    }
+}
+
+/// `reader`'s buffer, filled if it is empty (retried when interrupted, as `read_until` does).
+fn fill<R: BufRead>(reader: &mut R) -> std::io::Result<&[u8]> {
+    loop {
+        match reader.fill_buf() {
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+            // Asked again (it returns the same bytes, read no more): the borrow cannot be
+            // returned from inside the loop.
+            Ok(_) => break,
+        }
+    }
+    reader.fill_buf()
 }
 
 impl<R: BufRead> Lines for StreamLines<R> {
@@ -527,14 +580,8 @@ impl<R: BufRead> Lines for StreamLines<R> {
             if self.ended {
                 return Ok((self.last, None));
             }
-            self.text.clear();
-            self.reader.read_until(b'\n', &mut self.text).map_err(Fail::Io)?;
+            self.ended = self.next_piece().map_err(Fail::Io)?;
             self.last += 1;
-            if self.text.last() == Some(&b'\n') {
-                self.text.pop();
-            } else {
-                self.ended = true;
-            }
             // A blank line is ASCII, hence UTF-8: only the others need checking.
             if !self.text.iter().all(u8::is_ascii_whitespace) {
                 break;
@@ -825,6 +872,23 @@ mod tests {
         assert_eq!(e.to_string(), "t.stl:601: not valid UTF-8");
     }
 
+    /// Lines end at LF, CR LF or a CR alone (classic Mac OS files), in both readers whatever
+    /// their buffer (a CR LF split across two fills is one line end): the same mesh, and
+    /// errors name the same lines.
+    #[test]
+    fn lines_end_at_lf_cr_lf_or_cr() {
+        let lf = both(CUBE_CORNER.as_bytes()).unwrap();
+        for end in ["\r\n", "\r"] {
+            let text = CUBE_CORNER.replace('\n', end);
+            assert_eq!(both(text.as_bytes()).unwrap(), lf, "{end:?}");
+            let e = both(format!("solid x{end}{end}facet{end}vertex{end}").as_bytes()).unwrap_err();
+            assert!(e.to_string().starts_with("t.stl:4: expected `outer loop`"), "{end:?}: {e}");
+        }
+        // LF CR is two line ends, CR LF one.
+        let e = both(b"solid x\n\rfacet\r\n\r\nvertex\r\n").unwrap_err();
+        assert!(e.to_string().starts_with("t.stl:5: expected `outer loop`"), "{e}");
+    }
+
     /// Whitespace before the first word, past the buffer and the head: the first word is
     /// still found, and the lines are numbered from the start.
     #[test]
@@ -833,8 +897,9 @@ mod tests {
         let ascii = format!("{pad}{CUBE_CORNER}");
         let m = both(ascii.as_bytes()).unwrap();
         assert_eq!(m.triangles.len(), 2);
+        // Two line ends a repeat: its LF and its CR alone.
         let e = both(format!("{pad}solid\nfacet\nvertex\n").as_bytes()).unwrap_err();
-        assert!(e.to_string().starts_with("t.stl:303: expected `outer loop`"), "{e}");
+        assert!(e.to_string().starts_with("t.stl:603: expected `outer loop`"), "{e}");
         // Not `solid`: binary, counted from the whitespace at byte 80.
         let e = both(format!("{pad}solidx").as_bytes()).unwrap_err();
         assert!(e.to_string().starts_with("t.stl: byte 80: the header declares"), "{e}");
