@@ -266,6 +266,14 @@ impl Target {
         Ok(())
     }
 
+    /// [`Target::check_buffers`] as a panic, for the items that hand out the buffers as
+    /// bands (the drawing entry points check first and return the error).
+    fn assert_buffers(&self) {
+        if let Err(e) = self.check_buffers() {
+            panic!("{e}");
+        }
+    }
+
     /// `width * height`.
     #[must_use]
     pub fn pixel_count(&self) -> usize {
@@ -426,7 +434,12 @@ impl TargetBand<'_> {
 
 impl Target {
     /// The whole target as one band.
+    ///
+    /// # Panics
+    /// If a buffer does not have its length ([`Target::check_buffers`]): a band's kernels
+    /// index its buffers by the target's size.
     pub fn band(&mut self) -> TargetBand<'_> {
+        self.assert_buffers();
         let rect = self.rect();
         TargetBand {
             rect,
@@ -443,7 +456,7 @@ impl Target {
     /// The target split into bands of `rows` rows (the last may be shorter), top to bottom.
     ///
     /// # Panics
-    /// If `rows` is 0.
+    /// If `rows` is 0, or as [`Target::bands_from`].
     pub fn bands(&mut self, rows: u32) -> Vec<TargetBand<'_>> {
         assert!(rows > 0, "bands need at least one row");
         let starts: Vec<u32> = (0..self.height).step_by(rows as usize).collect();
@@ -455,8 +468,9 @@ impl Target {
     ///
     /// # Panics
     /// If `starts` does not begin with 0, is not strictly ascending, or reaches past the last
-    /// row.
+    /// row, or if a buffer does not have its length ([`Target::check_buffers`]).
     pub fn bands_from(&mut self, starts: &[u32]) -> Vec<TargetBand<'_>> {
+        self.assert_buffers();
         let h = self.height;
         let ascending = starts.windows(2).all(|w| w[0] < w[1]);
         assert!(
@@ -571,6 +585,33 @@ mod tests {
                 std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| target.resolve()));
             let message = caught.unwrap_err().downcast::<String>().unwrap();
             assert!(message.contains("colour buffer"), "{message}");
+        }
+    }
+
+    /// Bands of a target whose buffer was replaced by one of another length are refused with
+    /// the buffer's name, longer or shorter (a shorter one had panicked in `split_at_mut`, a
+    /// longer one been cut without a word).
+    #[test]
+    fn bands_of_replaced_buffers_panic_naming_them() {
+        type Replace = fn(&mut Target);
+        let cases: [(Replace, &str); 3] = [
+            (|t| t.depth.truncate(5), "depth buffer has 5 entries where 32 are needed"),
+            (|t| t.color.push([0; 4]), "colour buffer has 33 entries"),
+            (|t| t.overdraw = Some(vec![0; 31]), "overdraw buffer has 31 entries"),
+        ];
+        for (replace, want) in cases {
+            let take: [fn(&mut Target); 3] =
+                [|t| _ = t.band(), |t| _ = t.bands(3), |t| _ = t.bands_from(&[0, 1])];
+            for take in take {
+                let mut target = Target::new(8, 4).unwrap();
+                take(&mut target);
+                replace(&mut target);
+                let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    take(&mut target);
+                }));
+                let message = caught.unwrap_err().downcast::<String>().unwrap();
+                assert!(message.contains(want), "{message}");
+            }
         }
     }
 
