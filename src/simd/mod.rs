@@ -820,6 +820,9 @@ pub struct SpanJob<'a> {
 }
 
 /// Shades a span at `level` (which must be available; otherwise the scalar kernel runs).
+///
+/// # Panics
+/// If the job's buffers differ in length (at every level).
 pub fn shade_span(level: SimdLevel, mut job: SpanJob<'_>) {
     match level {
         #[cfg(target_arch = "x86_64")]
@@ -2008,6 +2011,9 @@ fn narrow_samples_scalar(job: &mut NarrowSamplesJob<'_>) -> u64 {
 }
 
 /// The scalar kernel: the reference loop's arithmetic, specialised to plane colours.
+///
+/// # Panics
+/// As [`shade_span`].
 pub fn shade_span_scalar(mut job: SpanJob<'_>) {
     span_scalar(&mut job);
 }
@@ -2017,7 +2023,9 @@ pub fn shade_span_scalar(mut job: SpanJob<'_>) {
 /// of fields just written by narrow stores) was a twelfth of a frame of small triangles.
 fn span_scalar(job: &mut SpanJob<'_>) {
     let (mut e1, mut e2) = (job.e1, job.e2);
-    for k in 0..job.target.depth.len() {
+    // As the vector kernels: buffers of one length (a longer colour buffer had been drawn
+    // without a word here, and refused by them).
+    for k in 0..job.target.checked_len() {
         job.target.pixel(k, e1 as f64, e2 as f64);
         e1 += job.step1;
         e2 += job.step2;
@@ -3411,6 +3419,35 @@ mod tests {
                 };
                 let outcome = std::panic::catch_unwind(shade);
                 assert!(outcome.is_err(), "{level:?}: rows {rows}, stride {stride}");
+            }
+        }
+    }
+
+    /// A span job whose buffers differ in length panics at every level, longer or shorter,
+    /// before writing anything (the scalar kernel had drawn a longer colour buffer's span,
+    /// which the vector kernels refuse).
+    #[test]
+    fn span_jobs_of_buffers_of_other_lengths_panic() {
+        for level in SimdLevel::available() {
+            for (depth_len, color_len, ids_len) in [(9, 10, 9), (9, 8, 9), (9, 9, 10), (9, 9, 3)] {
+                let (mut depth, mut color) = (vec![1.0f32; depth_len], vec![[0u8; 4]; color_len]);
+                let mut ids = vec![-1; ids_len];
+                let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    let target = KernelTarget {
+                        depth_plane: [0.5, 0.0, 0.0],
+                        color: &SpanColor::Flat([1; 4]),
+                        depth_test: DepthTest::Less,
+                        id: 7,
+                        depth: &mut depth,
+                        color_out: &mut color,
+                        ids: Some(&mut ids),
+                        overdraw: None,
+                    };
+                    shade_span(level, SpanJob { e1: 0, e2: 0, step1: 0, step2: 0, target });
+                }));
+                let lengths = (depth_len, color_len, ids_len);
+                assert!(outcome.is_err(), "{level:?}: {lengths:?}");
+                assert!(depth.iter().all(|&d| d == 1.0), "{level:?}: {lengths:?} wrote depth");
             }
         }
     }
