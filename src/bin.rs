@@ -817,6 +817,10 @@ impl Bins {
     /// `clip`, rows of tiles in parallel (each a disjoint [`TargetBand`]); returns the sum of
     /// what `draw` returns. `draw` prefetches what it will touch ([`TargetBand::prefetch`]).
     /// The back end of both triangles and splats.
+    ///
+    /// # Panics
+    /// If `target`'s tiles are not those the bins were made for (bins made with no tiles, as
+    /// `Bins::default()`, draw nothing into any target), or as [`Target::bands`].
     pub fn draw(
         &self,
         target: &mut Target,
@@ -824,6 +828,17 @@ impl Bins {
         draw: impl Fn(&mut TargetBand<'_>, &PixelRect, &[u32]) -> u64 + Sync,
     ) -> u64 {
         let width = target.width();
+        let grid = TileGrid::of_size(width, target.height());
+        // A taller target's rows of tiles had indexed past the lists, a wider one's columns
+        // been left undrawn without a word.
+        assert!(
+            self.lists.is_empty()
+                || (grid.tiles_x as usize, grid.tiles as usize) == (self.tiles_x, self.lists.len()),
+            "bins of {} x {} tiles drawn into a {width} x {} target",
+            self.tiles_x,
+            self.lists.len() / self.tiles_x.max(1),
+            target.height()
+        );
         target
             .bands(TILE)
             .into_par_iter()
@@ -1586,6 +1601,31 @@ mod tests {
     #[should_panic(expected = "sides are at most 16384")]
     fn bins_of_an_impossible_target_are_refused() {
         let _ = Bins::build(&[], 1 << 21, 1 << 21);
+    }
+
+    /// Bins draw into a target with their own tiles, which may be another size within the
+    /// same tiles; a target of other tiles is refused by a panic naming both (a taller one
+    /// had indexed past the lists, a wider one been left undrawn); default bins draw nothing.
+    #[test]
+    fn bins_draw_only_into_targets_of_their_tiles() {
+        let one = [Some(PixelRect { x0: 0, y0: 0, x1: 3, y1: 3 })];
+        let bins = Bins::build(&one, 200, 100);
+        let drawn = |bins: &Bins, width: u32, height: u32| {
+            let mut target = Target::new(width, height).unwrap();
+            let clip = target.rect();
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                bins.draw(&mut target, &clip, |_, _, list| list.len() as u64)
+            }))
+            .map_err(|e| *e.downcast::<String>().unwrap())
+        };
+        assert_eq!(drawn(&bins, 200, 100), Ok(1));
+        assert_eq!(drawn(&bins, 129, 128), Ok(1));
+        for (width, height) in [(200, 129), (257, 100), (128, 100)] {
+            let message = drawn(&bins, width, height).unwrap_err();
+            let want = format!("bins of 2 x 1 tiles drawn into a {width} x {height} target");
+            assert_eq!(message, want);
+        }
+        assert_eq!(drawn(&Bins::default(), 300, 300), Ok(0));
     }
 
     /// Batches of records up to 64 bytes (window records, zero-sized ones) take [`BATCH`]
