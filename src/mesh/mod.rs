@@ -259,6 +259,9 @@ pub fn unorm8(c: f32) -> u8 {
 /// corner on one point three times) is fanned, for the rasterizer to count or draw as before;
 /// one with a NaN or infinite corner becomes the fan from that corner, all of which the
 /// rasterizer drops and counts.
+///
+/// # Panics
+/// If `mesh` does not hold together (see [`ObjMesh`]).
 #[must_use]
 pub fn window_triangles(mesh: &ObjMesh) -> Vec<[Vertex; 3]> {
     let vertex = |c: &Corner| {

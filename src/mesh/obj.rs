@@ -53,6 +53,11 @@ pub struct MaterialStatements {
 }
 
 /// The contents of an OBJ file, faces in file order.
+///
+/// What [`read`] and [`parse`] return holds together: `face_starts` rises from 0 to
+/// `corners.len()` by three or more corners a face, `w` has an entry per position, and every
+/// index is within its array. The functions of a mesh made or changed by hand
+/// ([`ObjMesh::faces`], [`to_mesh`], [`super::window_triangles`]) panic where it does not.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ObjMesh {
     /// `v` positions.
@@ -82,6 +87,9 @@ pub struct ObjMesh {
 
 impl ObjMesh {
     /// Iterates over the faces' corner lists.
+    ///
+    /// # Panics
+    /// Where `face_starts` does not rise within `corners` (see [`ObjMesh`]).
     pub fn faces(&self) -> impl Iterator<Item = &[Corner]> {
         self.face_starts.windows(2).map(|w| &self.corners[w[0] as usize..w[1] as usize])
     }
@@ -93,9 +101,14 @@ impl ObjMesh {
     }
 
     /// Number of triangles once every face is fanned.
+    ///
+    /// # Panics
+    /// As [`ObjMesh::faces`].
     #[must_use]
     pub fn triangle_count(&self) -> usize {
-        self.faces().map(|f| f.len() - 2).sum()
+        // Saturating: a face of fewer than three corners (made by hand) fans to none, where
+        // a wrapped count had asked `window_triangles` for an impossible allocation.
+        self.faces().map(|f| f.len().saturating_sub(2)).sum()
     }
 }
 
@@ -173,6 +186,9 @@ pub fn parse_mesh(bytes: &[u8], path: &Path) -> Result<(Mesh, MaterialStatements
 /// Converts parsed OBJ data to an indexed [`Mesh`]. When the file has `usemtl`, `materials`
 /// holds one default-coloured [`Material`] per name (preceded by an unnamed default for faces
 /// before the first `usemtl`) and `triangle_materials` points into it.
+///
+/// # Panics
+/// If `obj` does not hold together (see [`ObjMesh`]).
 #[must_use]
 pub fn to_mesh(obj: &ObjMesh) -> Mesh {
     let has_uv = obj.corners.iter().any(|c| c.texcoord.is_some());
