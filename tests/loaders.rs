@@ -1157,6 +1157,8 @@ const TOKENS: &[&[u8]] = &[
     b"solid",
     b"\xff\xff\xff\xff",
     b"\x00\x00\xc0\x7f",
+    // A line end of its own in STL (classic Mac OS), whitespace elsewhere.
+    b"\r",
 ];
 
 fn mutate(rng: &mut XorShift, seed: &[u8]) -> Vec<u8> {
