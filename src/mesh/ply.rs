@@ -459,6 +459,10 @@ mod tests {
         let want = "t.ply: 9 bytes after the elements the header declares (3 `vertex`, 1 \
                     `face`) are ignored; the header's counts may be too small";
         assert_eq!(m.warnings, [want]);
+        // A file whose size is not known (0, as files under /proc give) has no count.
+        let src = format!("{head}{body}3 0 2 1\n");
+        let m = parse_with(src.as_bytes(), 0, Path::new("t.ply"), parse_at).unwrap();
+        assert!(m.warnings[0].starts_with("the bytes after the elements"), "{:?}", m.warnings);
         let binary = |extra: &[u8]| {
             let mut src = b"ply\nformat binary_little_endian 1.0\nelement vertex 1\n\
                             property float x\nproperty float y\nproperty float z\nend_header\n"

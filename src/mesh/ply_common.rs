@@ -470,10 +470,12 @@ impl<F: Fields> Ply<F> {
             let counts: Vec<String> = (self.header.elements.values())
                 .map(|d| format!("{} `{}`", d.count, d.name))
                 .collect();
-            let left = self.len.saturating_sub(end);
+            // The file's size may be unknown (0 from /proc) or wrong: then no count.
+            let left = self.len.checked_sub(end).filter(|&n| n > 0);
             format!(
-                "{left} bytes after the elements the header declares ({}) are ignored; the \
-                 header's counts may be too small",
+                "{} after the elements the header declares ({}) are ignored; the header's \
+                 counts may be too small",
+                left.map_or("the bytes".to_string(), |n| format!("{n} bytes")),
                 counts.join(", ")
             )
         }))
