@@ -17,7 +17,8 @@
 //! ASCII: keywords are matched case-insensitively; a file may hold several `solid ... endsolid`
 //! blocks; `facet normal nx ny nz` may omit the normal; an `outer loop` of more than three
 //! vertices is accepted as a polygon and triangulated by [`crate::polygon::triangulate_face`].
-//! Lines end at LF, CR LF or a CR alone (classic Mac OS files; the OBJ reader takes them too).
+//! Lines end at LF or CR LF, or in a file whose first line ends with a CR alone (classic Mac
+//! OS), at CR (the OBJ reader takes such files too).
 //!
 //! **Welding.** STL stores every facet's corners separately, with a per-facet normal. The
 //! [`Mesh`] produced here welds them: corners at bit-identical positions (after folding `-0.0`
@@ -475,29 +476,61 @@ trait Lines {
     fn line(&mut self) -> Result<(usize, Option<&str>), Fail>;
 }
 
-/// The reference's lines: split from the file in memory.
+/// How a file's lines end, decided at its first line end: a CR alone there (classic Mac OS)
+/// makes every CR a line end; an LF or a CR LF makes every LF one, a CR elsewhere staying
+/// whitespace, as it always was (so no file of LF lines reads differently for a stray CR).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum LineEnds {
+    Unknown,
+    Lf,
+    Cr,
+}
+
+impl LineEnds {
+    /// Where the first line end of `bytes` under this rule is.
+    fn find(self, bytes: &[u8]) -> Option<usize> {
+        match self {
+            Self::Lf => memchr::memchr(b'\n', bytes),
+            Self::Cr => memchr::memchr(b'\r', bytes),
+            Self::Unknown => memchr::memchr2(b'\n', b'\r', bytes),
+        }
+    }
+
+    /// The rule a first line end decides: `end` the byte found, `next` the one after it
+    /// (`None` at the end of the file).
+    fn decided(end: u8, next: Option<u8>) -> Self {
+        if end == b'\r' && next != Some(b'\n') { Self::Cr } else { Self::Lf }
+    }
+}
+
+/// The reference's lines: split from the file in memory, ended as [`LineEnds`] says.
 struct SliceLines<'a> {
     /// The rest of the file after the last line returned; `None` after the last.
     rest: Option<&'a [u8]>,
+    ends: LineEnds,
     /// The last line number seen (for end-of-file errors).
     last: usize,
 }
 
 impl<'a> SliceLines<'a> {
     fn new(bytes: &'a [u8]) -> Self {
-        Self { rest: Some(bytes), last: 0 }
+        Self { rest: Some(bytes), ends: LineEnds::Unknown, last: 0 }
     }
 
-    /// The next line, without its end: LF, CR LF or a CR alone (classic Mac OS files end
-    /// their lines so, as the OBJ reader accepts).
+    /// The next line, without its line end (a CR before an LF stays, as whitespace).
     fn next_piece(&mut self) -> Option<&'a [u8]> {
         let rest = self.rest?;
-        let Some(k) = memchr::memchr2(b'\n', b'\r', rest) else {
+        let Some(mut k) = self.ends.find(rest) else {
             self.rest = None;
             return Some(rest);
         };
-        let end = if rest[k] == b'\r' && rest.get(k + 1) == Some(&b'\n') { k + 2 } else { k + 1 };
-        self.rest = Some(&rest[end..]);
+        if self.ends == LineEnds::Unknown {
+            self.ends = LineEnds::decided(rest[k], rest.get(k + 1).copied());
+            if self.ends == LineEnds::Lf && rest[k] == b'\r' {
+                k += 1;
+            }
+        }
+        self.rest = Some(&rest[k + 1..]);
         Some(&rest[..k])
     }
 }
@@ -521,8 +554,9 @@ impl Lines for SliceLines<'_> {
 /// [`SliceLines`] ends them.
 struct StreamLines<R> {
     reader: R,
-    /// The current line, without its end.
+    /// The current line, without its line end.
     text: Vec<u8>,
+    ends: LineEnds,
     /// The last line number read.
     last: usize,
     /// Whether the last line (the one after the last line end, perhaps empty) is read.
@@ -531,7 +565,7 @@ struct StreamLines<R> {
 
 impl<R: BufRead> StreamLines<R> {
     fn new(reader: R) -> Self {
-        Self { reader, text: Vec::new(), last: 0, ended: false }
+        Self { reader, text: Vec::new(), ends: LineEnds::Unknown, last: 0, ended: false }
     }
 
     /// Reads the next line into `text`; true if it was the last (no line end after it).
@@ -542,18 +576,24 @@ impl<R: BufRead> StreamLines<R> {
             if buf.is_empty() {
                 return Ok(true);
             }
-            let Some(k) = memchr::memchr2(b'\n', b'\r', buf) else {
+            let Some(k) = self.ends.find(buf) else {
                 let n = buf.len();
                 self.text.extend_from_slice(buf);
                 self.reader.consume(n);
                 continue;
             };
-            let cr = buf[k] == b'\r';
+            let end = buf[k];
             self.text.extend_from_slice(&buf[..k]);
             self.reader.consume(k + 1);
-            // The LF of a CR LF may begin the next fill.
-            if cr && fill(&mut self.reader)?.first() == Some(&b'\n') {
-                self.reader.consume(1);
+            if self.ends == LineEnds::Unknown {
+                // The byte after a CR may begin the next fill.
+                let next =
+                    if end == b'\r' { fill(&mut self.reader)?.first().copied() } else { None };
+                self.ends = LineEnds::decided(end, next);
+                if self.ends == LineEnds::Lf && end == b'\r' {
+                    self.text.push(b'\r');
+                    self.reader.consume(1);
+                }
             }
             return Ok(false);
         }
@@ -872,9 +912,10 @@ mod tests {
         assert_eq!(e.to_string(), "t.stl:601: not valid UTF-8");
     }
 
-    /// Lines end at LF, CR LF or a CR alone (classic Mac OS files), in both readers whatever
-    /// their buffer (a CR LF split across two fills is one line end): the same mesh, and
-    /// errors name the same lines.
+    /// Lines end at LF, CR LF or a CR alone (classic Mac OS files), as the first line end
+    /// decides, in both readers whatever their buffer (a CR LF split across two fills is one
+    /// line end): the same mesh, and errors name the same lines. In a file of LF lines a CR
+    /// elsewhere stays whitespace, as it was.
     #[test]
     fn lines_end_at_lf_cr_lf_or_cr() {
         let lf = both(CUBE_CORNER.as_bytes()).unwrap();
@@ -884,9 +925,13 @@ mod tests {
             let e = both(format!("solid x{end}{end}facet{end}vertex{end}").as_bytes()).unwrap_err();
             assert!(e.to_string().starts_with("t.stl:4: expected `outer loop`"), "{end:?}: {e}");
         }
-        // LF CR is two line ends, CR LF one.
-        let e = both(b"solid x\n\rfacet\r\n\r\nvertex\r\n").unwrap_err();
-        assert!(e.to_string().starts_with("t.stl:5: expected `outer loop`"), "{e}");
+        let stray = CUBE_CORNER.replace("vertex 1 1 0", "vertex 1\r1\r 0");
+        assert_eq!(both(stray.as_bytes()).unwrap(), lf);
+        let stray = CUBE_CORNER.replace('\n', "\r\n").replace("vertex 1 1 0", "vertex 1\r1 0");
+        assert_eq!(both(stray.as_bytes()).unwrap(), lf);
+        // A file of CR lines: an LF is whitespace in it, and its first line decided so.
+        let e = both(b"solid x\r\rfacet\n\rvertex\r").unwrap_err();
+        assert!(e.to_string().starts_with("t.stl:4: expected `outer loop`"), "{e}");
     }
 
     /// Whitespace before the first word, past the buffer and the head: the first word is
@@ -897,9 +942,8 @@ mod tests {
         let ascii = format!("{pad}{CUBE_CORNER}");
         let m = both(ascii.as_bytes()).unwrap();
         assert_eq!(m.triangles.len(), 2);
-        // Two line ends a repeat: its LF and its CR alone.
         let e = both(format!("{pad}solid\nfacet\nvertex\n").as_bytes()).unwrap_err();
-        assert!(e.to_string().starts_with("t.stl:603: expected `outer loop`"), "{e}");
+        assert!(e.to_string().starts_with("t.stl:303: expected `outer loop`"), "{e}");
         // Not `solid`: binary, counted from the whitespace at byte 80.
         let e = both(format!("{pad}solidx").as_bytes()).unwrap_err();
         assert!(e.to_string().starts_with("t.stl: byte 80: the header declares"), "{e}");
