@@ -305,6 +305,23 @@ mod tests {
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
 
+    /// Faces of fewer than three corners in a mesh made by hand give no triangles and count
+    /// none, where the count had wrapped (and asked for an impossible allocation).
+    #[test]
+    fn hand_made_faces_of_fewer_than_three_corners_give_no_triangles() {
+        let corner = |position| Corner { position, texcoord: None, normal: None };
+        let obj = ObjMesh {
+            positions: vec![[0.0; 3], [4.0, 0.0, 0.0], [0.0, 4.0, 0.0]],
+            w: vec![1.0; 3],
+            colors: vec![None; 3],
+            corners: [0, 1, 2, 0, 1, 0].map(corner).to_vec(),
+            face_starts: vec![0, 0, 3, 5, 6],
+            ..ObjMesh::default()
+        };
+        assert_eq!((obj.face_count(), obj.triangle_count()), (4, 1));
+        assert_eq!(window_triangles(&obj).len(), 1);
+    }
+
     /// The format is the extension's in any case, and nothing else names one: not a name
     /// without an extension, nor one that ends in a format's name.
     #[test]

@@ -55,9 +55,10 @@ pub struct MaterialStatements {
 /// The contents of an OBJ file, faces in file order.
 ///
 /// What [`read`] and [`parse`] return holds together: `face_starts` rises from 0 to
-/// `corners.len()` by three or more corners a face, `w` has an entry per position, and every
-/// index is within its array. The functions of a mesh made or changed by hand
-/// ([`ObjMesh::faces`], [`to_mesh`], [`super::window_triangles`]) panic where it does not.
+/// `corners.len()` by three or more corners a face, `w` and `colors` have an entry per
+/// position, and every index is within its array. The functions of a mesh made or changed by
+/// hand ([`ObjMesh::faces`], [`to_mesh`], [`super::window_triangles`]) panic where it does
+/// not (faces of fewer than three corners give no triangles).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ObjMesh {
     /// `v` positions.
