@@ -2964,50 +2964,63 @@ mod tests {
         }
     }
 
-    /// A box the buffers do not hold panics at every level before anything is written, as
-    /// documented: the scalar kernel (which AVX2 hands such boxes) had walked `usize::MAX`
-    /// uncovered rows without end, and written a pixel outside a box whose offsets wrap.
+    /// What a kernel writes into `depth` and `color_out`, for the tests that ask only whether
+    /// a job is refused: a flat colour, depth 0.5 tested `Less`, no ids or overdraw.
+    fn refusal_target<'a>(depth: &'a mut [f32], color_out: &'a mut [[u8; 4]]) -> KernelTarget<'a> {
+        KernelTarget {
+            depth_plane: [0.5, 0.0, 0.0],
+            color: &SpanColor::Flat([1, 2, 3, 4]),
+            depth_test: DepthTest::Less,
+            id: 0,
+            depth,
+            color_out,
+            ids: None,
+            overdraw: None,
+        }
+    }
+
+    /// A narrow job whose box the buffers do not hold (a job is public and safe to build)
+    /// panics at every level before anything is written, as documented: rows past the end,
+    /// strides and offsets that overflow, and what the scalar kernel (which AVX2 hands such
+    /// boxes) had done: walked `usize::MAX` uncovered rows without end, and written a pixel
+    /// outside a box whose offsets wrap.
     #[test]
-    fn narrow_boxes_past_the_buffers_panic_at_every_level() {
-        let color = SpanColor::Flat([1, 2, 3, 4]);
+    fn narrow_jobs_past_the_buffers_panic_at_every_level() {
+        // (edges, step_y, columns, rows, first, stride), in buffers of 64 pixels; zero edges
+        // and steps cover every pixel of the box.
         let boxes = [
             // Nothing covered, rows without end.
-            ([-1, 0, 0], [0; 3], usize::MAX, 0, 4),
+            ([-1, 0, 0], [0; 3], 1, usize::MAX, 0, 4),
             // Every pixel covered, its second row's offset wrapping to the buffers' start.
-            ([0; 3], [256, 0, 0], 2, usize::MAX - 3, 4),
-            // One row past the end.
-            ([0; 3], [0; 3], 5, 0, 4),
+            ([0; 3], [256, 0, 0], 1, 2, usize::MAX - 3, 4),
+            // One row past the end (16 rows of 4 fit).
+            ([0; 3], [0; 3], 1, 17, 0, 4),
+            // A stride whose second row overflows, or lies past the end.
+            ([0; 3], [0; 3], 2, 3, 0, 1usize << 63),
+            ([0; 3], [0; 3], 2, 2, 5, usize::MAX / 2 + 1),
+            ([0; 3], [0; 3], 2, 2, 50, 40),
         ];
-        for (edges, step_y, rows, first, stride) in boxes {
-            for level in [SimdLevel::Scalar].into_iter().chain(SimdLevel::available()) {
-                let (mut d, mut c) = (vec![1.0f32; 16], vec![[0u8; 4]; 16]);
+        for (edges, step_y, columns, rows, first, stride) in boxes {
+            for level in SimdLevel::available() {
+                let (mut d, mut c) = (vec![1.0f32; 64], vec![[0u8; 4]; 64]);
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    shade_narrow(
-                        level,
-                        NarrowJob {
-                            edges,
-                            step_x: [0; 3],
-                            step_y,
-                            bias: [0; 2],
-                            columns: 1,
-                            rows,
-                            first,
-                            stride,
-                            target: KernelTarget {
-                                depth_plane: [0.5, 0.0, 0.0],
-                                color: &color,
-                                depth_test: DepthTest::Less,
-                                id: 0,
-                                depth: &mut d,
-                                color_out: &mut c,
-                                ids: None,
-                                overdraw: None,
-                            },
-                        },
-                    )
+                    let target = refusal_target(&mut d, &mut c);
+                    let (step_x, bias) = ([0; 3], [0; 2]);
+                    let job = NarrowJob {
+                        edges,
+                        step_x,
+                        step_y,
+                        bias,
+                        columns,
+                        rows,
+                        first,
+                        stride,
+                        target,
+                    };
+                    shade_narrow(level, job)
                 }));
                 assert!(result.is_err(), "{level:?}, {rows} rows from {first}: not refused");
-                assert_eq!(c, vec![[0u8; 4]; 16], "{level:?}: written before refusing");
+                assert_eq!(c, vec![[0u8; 4]; 64], "{level:?}: written before refusing");
             }
         }
     }
@@ -3382,47 +3395,6 @@ mod tests {
         }
     }
 
-    /// A narrow job whose rows lie past its buffers, or whose offsets overflow (a job is
-    /// public and safe to build), panics at every level instead of writing anywhere.
-    #[test]
-    fn narrow_jobs_past_the_buffers_panic() {
-        for level in SimdLevel::available() {
-            for (rows, stride, first) in
-                [(3, 1usize << 63, 0), (2, usize::MAX / 2 + 1, 5), (2, 40, 50)]
-            {
-                let shade = || {
-                    let (mut depth, mut color) = (vec![1.0f32; 64], vec![[0u8; 4]; 64]);
-                    let target = KernelTarget {
-                        depth_plane: [0.5, 0.0, 0.0],
-                        color: &SpanColor::Flat([1; 4]),
-                        depth_test: DepthTest::Less,
-                        id: 0,
-                        depth: &mut depth,
-                        color_out: &mut color,
-                        ids: None,
-                        overdraw: None,
-                    };
-                    // Every pixel of the box covered.
-                    let (edges, step_x, step_y, bias) = ([0; 3], [0; 3], [0; 3], [0; 2]);
-                    let job = NarrowJob {
-                        edges,
-                        step_x,
-                        step_y,
-                        bias,
-                        columns: 2,
-                        rows,
-                        first,
-                        stride,
-                        target,
-                    };
-                    shade_narrow(level, job)
-                };
-                let outcome = std::panic::catch_unwind(shade);
-                assert!(outcome.is_err(), "{level:?}: rows {rows}, stride {stride}");
-            }
-        }
-    }
-
     /// A span job whose buffers differ in length panics at every level, longer or shorter,
     /// before writing anything (the scalar kernel had drawn a longer colour buffer's span,
     /// which the vector kernels refuse).
@@ -3434,14 +3406,9 @@ mod tests {
                 let mut ids = vec![-1; ids_len];
                 let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                     let target = KernelTarget {
-                        depth_plane: [0.5, 0.0, 0.0],
-                        color: &SpanColor::Flat([1; 4]),
-                        depth_test: DepthTest::Less,
                         id: 7,
-                        depth: &mut depth,
-                        color_out: &mut color,
                         ids: Some(&mut ids),
-                        overdraw: None,
+                        ..refusal_target(&mut depth, &mut color)
                     };
                     shade_span(level, SpanJob { e1: 0, e2: 0, step1: 0, step2: 0, target });
                 }));
