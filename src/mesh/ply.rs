@@ -30,8 +30,8 @@ use ply_rs_bw::ply::{ElementDef, Property, PropertyType, ScalarType};
 
 use super::Mesh;
 use super::ply_common::{
-    At, COLOR_NAMES, Fail, Fields, NX, POSITION_NORMAL, Ply, RED, Sink, Source, X, parse_with,
-    read_file, scalar,
+    At, COLOR_NAMES, Fail, Fields, NX, POSITION_NORMAL, Ply, RED, Sink, Source, X, name_warnings,
+    parse_with, read_file, scalar,
 };
 use crate::error::Error;
 
@@ -42,27 +42,20 @@ pub fn read(path: &Path) -> Result<Mesh, Error> {
 
 /// [`read`], telling `report` how many bytes of the file it has read so far.
 pub(crate) fn read_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<Mesh, Error> {
-    read_file(path, report, parse_at).map(|mesh| clamped_colours(named(mesh, path), path))
-}
-
-/// `mesh` with the warnings of reading it ([`Ply::read_body`]'s) naming `path`.
-fn named(mut mesh: Mesh, path: &Path) -> Mesh {
-    for warning in &mut mesh.warnings {
-        *warning = format!("{}: {warning}", path.display());
-    }
-    mesh
+    read_file(path, report, parse_at).map(|mesh| finished(mesh, path))
 }
 
 /// Parses the contents of a PLY file; `path` is only used to name the file in errors and
 /// warnings.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, Error> {
-    let mesh = parse_with(bytes, bytes.len() as u64, path, parse_at)?;
-    Ok(clamped_colours(named(mesh, path), path))
+    parse_with(bytes, bytes.len() as u64, path, parse_at).map(|mesh| finished(mesh, path))
 }
 
-/// `mesh` with its colours, read as the file has them, clamped to [0, 1] (NaN as 0), and a
-/// warning naming `path` where that changed any.
-fn clamped_colours(mut mesh: Mesh, path: &Path) -> Mesh {
+/// `mesh` as read from `path`, finished: the warnings of reading it naming `path`, and its
+/// colours, read as the file has them, clamped to [0, 1] (NaN as 0), with a warning naming
+/// `path` where that changed any.
+fn finished(mut mesh: Mesh, path: &Path) -> Mesh {
+    name_warnings(&mut mesh.warnings, path);
     if let Some(colours) = &mut mesh.colors {
         mesh.warnings.extend(super::colour_warning(path.display(), colours.iter().copied()));
         let unit = |c: f32| if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };

@@ -46,6 +46,14 @@ pub(crate) enum At {
 /// An error before it names its file: where it is, and what is wrong.
 pub(crate) type Fail = (At, String);
 
+/// Puts `path` before each of `warnings` (`path: ...`), as the warnings of reading a file read
+/// (the body's own, [`Ply::read_body`]'s, know no path).
+pub(crate) fn name_warnings(warnings: &mut [String], path: &Path) {
+    for warning in warnings {
+        *warning = format!("{}: {warning}", path.display());
+    }
+}
+
 /// `fail` as [`Error::Parse`] naming `path`; a byte offset goes in the message as `byte N:`,
 /// with `line: 0`.
 pub(crate) fn parse_error(path: &Path, (at, message): Fail) -> Error {

@@ -49,8 +49,8 @@ use rayon::prelude::*;
 use crate::color::{linear_to_srgb8, srgb_decode};
 use crate::error::{Error, try_filled};
 use crate::mesh::ply_common::{
-    At, COLOR_NAMES, Fail, Fields, NX, POSITION_NORMAL, Ply, RED, Sink, Source, X, parse_with,
-    read_file, scalar,
+    At, COLOR_NAMES, Fail, Fields, NX, POSITION_NORMAL, Ply, RED, Sink, Source, X, name_warnings,
+    parse_with, read_file, scalar,
 };
 use crate::mesh::{Mesh, unorm8};
 use crate::model::MaterialTextures;
@@ -163,9 +163,7 @@ pub fn read_ply_reporting(path: &Path, report: &dyn Fn(u64)) -> Result<PointClou
 
 /// `cloud` with its warnings naming `path`.
 fn naming(mut cloud: PointCloud, path: &Path) -> PointCloud {
-    for warning in &mut cloud.warnings {
-        *warning = format!("{}: {warning}", path.display());
-    }
+    name_warnings(&mut cloud.warnings, path);
     cloud
 }
 
