@@ -213,6 +213,7 @@ impl Word for [u8; 4] {
 /// 0.37-0.47 ms against 0.52-0.63 with `fill` and 0.53 with aligned AVX-512 stores (Xeon with
 /// AVX-512), a tenth of the Stanford bunny's frame; and the lines stay cached for the draw
 /// that reads them next, which non-temporal stores (0.45-0.55 ms) would have sent to memory.
+/// On an AMD EPYC (Zen 4) it is no slower than `fill` (1080p: fastest 0.12 against 0.17 ms).
 pub fn fill_words<T: Word>(buffer: &mut [T], value: T) {
     #[cfg(target_arch = "x86_64")]
     fill_words_with(buffer, value, fast_strings());
