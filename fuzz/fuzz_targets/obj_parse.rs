@@ -17,7 +17,12 @@ fuzz_target!(|data: &[u8]| {
     let lines = data.iter().filter(|&&b| b == end).count() + 1;
     let parsed = obj::parse(data);
     match (&parsed, obj::parse_mesh(data, Path::new("f.obj"))) {
-        (Ok(obj), Ok((mesh, _))) => {
+        (Ok(obj), Ok((mut mesh, _))) => {
+            // `to_mesh` makes no warnings; `parse_mesh` names the file in each of its own
+            // (unknown statements, colours out of range), which `tests/obj_fuzz.rs` holds to
+            // `parse`'s one by one.
+            let warnings = std::mem::take(&mut mesh.warnings);
+            assert!(warnings.iter().all(|w| w.starts_with("f.obj")), "{warnings:?}");
             assert_eq!(format!("{mesh:?}"), format!("{:?}", obj::to_mesh(obj)));
         }
         (Err((line, message)), Err(Error::Parse { line: l, message: m, .. })) => {
@@ -40,7 +45,10 @@ fuzz_target!(|data: &[u8]| {
             let vertices = indexed.positions.len();
             assert!(indexed.triangles.iter().flatten().all(|&i| (i as usize) < vertices));
             let triangles = window_triangles(&mesh);
-            assert_eq!(triangles.len(), mesh.triangle_count());
+            // A face of n corners gives at most n - 2 triangles: fewer where its polygon is not
+            // simple (a bow-tie quad) or the triangulation leaves out collinear or repeated
+            // corners, as `tests/obj_fuzz.rs` asserts too.
+            assert!(triangles.len() <= mesh.triangle_count());
             // Drawing may refuse out-of-range vertices, but must not panic.
             let mut target = Target::new(16, 16).unwrap().with_ids().with_overdraw();
             let _ = trirast::draw(&mut target, &triangles, &RenderOptions::default());
