@@ -58,7 +58,9 @@ impl ClipVolume {
         Self { guard: [gx, gy] }
     }
 
-    /// The guard band's `[gx, gy]`: inside is `|x| <= gx w`, `|y| <= gy w`.
+    /// The guard band's `[gx, gy]`: inside is `|x| <= gx w`, `|y| <= gy w` (read by the x86
+    /// kernels).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     pub(crate) fn guard(&self) -> [f32; 2] {
         self.guard
     }

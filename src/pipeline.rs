@@ -1658,7 +1658,8 @@ impl Viewport {
         Self { half_width: width as f32 / 2.0, half_height: height as f32 / 2.0 }
     }
 
-    /// `[half width, half height]` in pixels.
+    /// `[half width, half height]` in pixels (read by the x86 kernels).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     pub(crate) fn half_size(&self) -> [f32; 2] {
         [self.half_width, self.half_height]
     }

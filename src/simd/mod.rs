@@ -21,6 +21,9 @@
 //!
 //! The level is detected once per draw call ([`SimdLevel::detect`]) and can be forced (tests,
 //! comparisons) with [`crate::RenderOptions::simd`] or `TRIRAST_SIMD`.
+// Elsewhere than x86-64 only the scalar versions exist: the level each function takes, and the
+// helpers only the x86 kernels call, go unused there.
+#![cfg_attr(not(target_arch = "x86_64"), allow(unused_variables, unused_mut, dead_code))]
 
 use glam::Vec4;
 
