@@ -624,7 +624,7 @@ impl WindowColor for SpanColor {
             match rejected {
                 Some(why) => sink.skip_many(why.into(), 1),
                 None if scratch.empty >> l & 1 != 0 => sink.skip_many(Skipped::Empty, 1),
-                None => sink.push_covered(scratch.records[l], scratch.cover(l)),
+                None => sink.push_line(&scratch.records[l], scratch.cover(l)),
             }
         }
         true

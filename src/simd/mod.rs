@@ -168,6 +168,48 @@ pub fn prefetch<T>(value: &T) {
     let _ = value;
 }
 
+/// Appends `record` to `out` without reading its line in first (non-temporal stores), when
+/// `out` has room; otherwise an ordinary push. A batch's records fill buffers larger than
+/// the caches and are read back only once the batch is binned, scattered, tile by tile:
+/// with ordinary stores each record's line was first read from memory, then written back.
+/// The stores are weakly ordered: [`store_fence`] must follow before another thread reads
+/// the records. The value in `out` is `record`, bit for bit, whichever way it went.
+#[inline]
+pub fn push_streamed(out: &mut Vec<WindowRecord>, record: &WindowRecord) {
+    #[cfg(target_arch = "x86_64")]
+    if out.len() < out.capacity() {
+        use std::arch::x86_64::{__m128i, _mm_loadu_si128, _mm_stream_si128};
+        let len = out.len();
+        let from = std::ptr::from_ref(record).cast::<__m128i>();
+        // SAFETY: SSE2 is part of the x86_64 baseline. `len < capacity`, so element `len`
+        // lies in `out`'s allocation; a record is 64 bytes aligned to 64 with no padding
+        // (its layout is asserted beside it), so the four 16-byte loads read initialized
+        // bytes of `record` and the four aligned streaming stores write exactly element
+        // `len`, which is then initialized and may be counted by `set_len`.
+        unsafe {
+            let to = out.as_mut_ptr().add(len).cast::<__m128i>();
+            for k in 0..4 {
+                _mm_stream_si128(to.add(k), _mm_loadu_si128(from.add(k)));
+            }
+            out.set_len(len + 1);
+        }
+        return;
+    }
+    out.push(*record);
+}
+
+/// Makes the streaming stores of [`push_streamed`] made so far on this thread visible
+/// before any store after it (such as the one that tells another thread the batch is
+/// ready).
+#[inline]
+pub fn store_fence() {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: SSE is part of the x86_64 baseline; a fence touches no memory.
+    unsafe {
+        std::arch::x86_64::_mm_sfence();
+    }
+}
+
 /// A four-byte value a buffer is cleared to ([`fill_words`]). Sealed: the string store
 /// writes `bits` into the buffer's memory, so it must be the value's own bytes, which holds
 /// for the four types here and need not for another crate's.
@@ -2505,6 +2547,34 @@ mod tests {
     use super::*;
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
+
+    /// A record pushed with streaming stores is the record, field for field, and so is one
+    /// pushed when the vector has no room (an ordinary push, which grows it); the records
+    /// before it stay as they were.
+    #[test]
+    fn streamed_records_are_the_records_pushed() {
+        let record = |k: i32| {
+            let mut r = WindowRecord::default();
+            r.xy = [[k, -k], [3 * k, 7], [-1, k << 8]];
+            r.z = [0.25, k as f32, -0.0];
+            r.colors = [[k as u8, 1, 2, 3], [4; 4], [255, 0, (k * 7) as u8, 9]];
+            r.inv_area2 = 1.0 / f64::from(k + 1);
+            r.id = k;
+            (r.clockwise, r.smooth) = (k % 2 == 0, k % 3 == 0);
+            r
+        };
+        // Room for five: the other seven go through an ordinary push.
+        let mut streamed = Vec::with_capacity(5);
+        for k in 0..12 {
+            push_streamed(&mut streamed, &record(k));
+        }
+        store_fence();
+        assert_eq!(streamed.len(), 12);
+        for (k, r) in streamed.iter().enumerate() {
+            // `Debug` prints each float as the shortest text that reads back to its bits.
+            assert_eq!(format!("{r:?}"), format!("{:?}", record(k as i32)), "record {k}");
+        }
+    }
 
     /// The string store fills exactly the slice it is given, as `fill` does: every length
     /// from 0 to 67 at every start within a line's first words, for each kind of word, the
