@@ -600,7 +600,10 @@ impl<S: Send> PreparedBatch<S> {
     {
         self.used = len.div_ceil(CHUNK);
         self.coverage = coverage;
-        let stream = len * size_of::<S>() > STREAM_BYTES;
+        // Only window records are streamed (`Sink::push_line`); larger records keep the
+        // prefetch of their lines, which `stream` turns off.
+        let window = size_of::<S>() == size_of::<crate::render::WindowRecord>();
+        let stream = window && len.saturating_mul(size_of::<S>()) > STREAM_BYTES;
         self.binned = None;
         if self.chunks.len() < self.used {
             self.chunks.resize_with(self.used, || Vec::with_capacity(CHUNK));
