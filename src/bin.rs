@@ -152,6 +152,11 @@ pub trait Record: Copy + Send + Sync {
     /// What the fragment stage reads per triangle.
     type Payload;
 
+    /// Whether a batch whose records outgrow the caches ([`STREAM_BYTES`]) writes them with
+    /// streaming stores ([`Sink::push_line`]; window records, one cache line each), and so
+    /// does not prefetch their lines.
+    const STREAMED: bool = false;
+
     /// The triangle's coverage setup.
     fn setup(&self) -> TriangleSetup;
 
@@ -445,10 +450,17 @@ impl<'a, S> Sink<'a, S> {
     /// setup, not empty) the caller computed.
     #[inline]
     pub(crate) fn push_covered(&mut self, record: S, cover: PixelRect) {
+        self.take_cover(cover);
+        self.out.push(record);
+    }
+
+    /// Counts a piece taken and keeps its coverage rectangle (not empty), for the record the
+    /// caller then puts in `out`.
+    #[inline]
+    fn take_cover(&mut self, cover: PixelRect) {
         debug_assert!(cover.x0 <= cover.x1 && cover.y0 <= cover.y1, "an empty rectangle");
         self.stats.rasterized += 1;
         self.covers.push(cover);
-        self.out.push(record);
     }
 
     /// What the batch is prepared for.
@@ -486,9 +498,7 @@ impl Sink<'_, crate::render::WindowRecord> {
         if !self.stream {
             return self.push_covered(*record, cover);
         }
-        debug_assert!(cover.x0 <= cover.x1 && cover.y0 <= cover.y1, "an empty rectangle");
-        self.stats.rasterized += 1;
-        self.covers.push(cover);
+        self.take_cover(cover);
         crate::simd::push_streamed(self.out, record);
     }
 }
@@ -579,7 +589,7 @@ pub fn pipelined<I: Sync, S: Send + Sync>(
     }
 }
 
-impl<S: Send> PreparedBatch<S> {
+impl<S: Record> PreparedBatch<S> {
     /// Runs the front end over a batch of `len` triangles in parallel: `prepare(k, sink)`
     /// gives the pieces of the batch's triangle `k` to `sink`, which keeps each piece's
     /// coverage rectangle for `coverage` (the clip and sample count it will be drawn with).
@@ -600,10 +610,7 @@ impl<S: Send> PreparedBatch<S> {
     {
         self.used = len.div_ceil(CHUNK);
         self.coverage = coverage;
-        // Only window records are streamed (`Sink::push_line`); larger records keep the
-        // prefetch of their lines, which `stream` turns off.
-        let window = size_of::<S>() == size_of::<crate::render::WindowRecord>();
-        let stream = window && len.saturating_mul(size_of::<S>()) > STREAM_BYTES;
+        let stream = S::STREAMED && len.saturating_mul(size_of::<S>()) > STREAM_BYTES;
         self.binned = None;
         if self.chunks.len() < self.used {
             self.chunks.resize_with(self.used, || Vec::with_capacity(CHUNK));
@@ -1717,7 +1724,7 @@ mod tests {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             for batches in [0usize, 1, 2, 7] {
                 let drawn = Mutex::new(Vec::new());
-                let mut pair = PreparedPair::<()>::default();
+                let mut pair = PreparedPair::<Prepared<()>>::default();
                 // As many batches as batches of 10 would make, of equal length but the last.
                 let items: Vec<usize> = (0..(10 * batches).saturating_sub(3)).collect();
                 let len = even_batch_len(items.len(), 10);

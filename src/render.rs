@@ -688,6 +688,7 @@ impl WindowRecord {
 
 impl bin::Record for WindowRecord {
     type Payload = SpanColor;
+    const STREAMED: bool = true;
 
     #[inline(always)]
     fn narrow_eight(
