@@ -169,19 +169,20 @@ pub trait Record: Copy + Send + Sync {
         None
     }
 
-    /// Sets eight records up for the narrow kernel at once, at `level`, within `tile`, into
-    /// `out` ([`crate::simd::narrow_eight`]), returning the lanes set up (bit `l`: record
-    /// `l`), which the tile loop then hands to [`crate::simd::shade_narrow_eight`]. None by
-    /// default: records whose triangles take no narrow kernel, or are kept whole, are drawn
-    /// one by one.
+    /// Sets eight records up for the narrow kernel at once, at `level`, within `tile`, for a
+    /// target with `samples` per pixel, into `out` ([`crate::simd::narrow_eight`]), returning
+    /// the lanes set up (bit `l`: record `l`), which the tile loop then hands to
+    /// [`crate::simd::shade_narrow_eight`] (or at 4x and 8x
+    /// [`crate::simd::shade_narrow_samples_eight`]). None by default: records whose triangles
+    /// take no narrow kernel, or are kept whole, are drawn one by one.
     #[inline(always)]
     fn narrow_eight(
         records: &[&Self; 8],
         tile: &PixelRect,
-        level: SimdLevel,
+        (level, samples): (SimdLevel, SampleCount),
         out: &mut crate::simd::NarrowEight,
     ) -> u8 {
-        let _ = (records, tile, level, out);
+        let _ = (records, tile, level, samples, out);
         0
     }
 }
@@ -1036,9 +1037,13 @@ where
 pub(crate) enum Eight {
     /// Window triangles for the narrow kernel at this level ([`Record::narrow_eight`]).
     Narrow(SimdLevel),
+    /// Window triangles on a 4x or 8x target for the narrow sample kernel at this level
+    /// ([`Record::narrow_eight`] with the pattern's boxes), where the target has no overdraw
+    /// buffer.
+    NarrowSamples(SimdLevel),
     /// The smallest triangles' coverage ([`crate::simd::small_eight`]).
     Small,
-    /// Nothing (multisampled window triangles, 8x targets): each record on its own.
+    /// Nothing (3D triangles on 8x targets): each record on its own.
     None,
 }
 
@@ -1051,6 +1056,7 @@ impl Eight {
     pub(crate) fn of(window: Option<SimdLevel>, samples: SampleCount) -> Self {
         match window {
             None if samples == crate::simd::SMALL_SAMPLES => Self::Small,
+            Some(level) if samples.count() > 1 => Self::NarrowSamples(level),
             _ if samples.count() > 1 => Self::None,
             Some(level) => Self::Narrow(level),
             None => Self::Small,
@@ -1108,7 +1114,12 @@ where
     let kernels = fragments.small_colors();
     let (mut lanes, queue_lanes) = match (kind, <&[&S; 8]>::try_from(records)) {
         (Eight::Narrow(level), Ok(eight)) => {
-            (S::narrow_eight(eight, clip, level, &mut setup.narrow), 0)
+            (S::narrow_eight(eight, clip, (level, SampleCount::X1), &mut setup.narrow), 0)
+        }
+        // Where the kernel can count fragments (per sample; an overdraw buffer counts them
+        // per pixel, which the one-by-one path does).
+        (Eight::NarrowSamples(level), Ok(eight)) if band.overdraw.is_none() => {
+            (S::narrow_eight(eight, clip, (level, band.samples()), &mut setup.narrow), 0)
         }
         // Multisampled, for the small kernel, or for a stage whose colour waits behind depth
         // in the shared queue.
@@ -1137,6 +1148,15 @@ where
         if let Eight::Narrow(level) = kind {
             covered +=
                 crate::simd::shade_narrow_eight(level, &setup.narrow, l..l + run, band, depth_test);
+        } else if let Eight::NarrowSamples(level) = kind {
+            let lanes = l..l + run;
+            covered += crate::simd::shade_narrow_samples_eight(
+                level,
+                &setup.narrow,
+                lanes,
+                band,
+                depth_test,
+            );
         } else {
             let (kernel_lanes, n) = if kernels {
                 let run = (l..l + run, &boxes, depth_test);

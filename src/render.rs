@@ -4,6 +4,7 @@ use crate::band::{self, Plan};
 use crate::bin::{self, Prepared, Skipped};
 use crate::error::Error;
 use crate::raster::Algorithm;
+use crate::sample::SampleCount;
 use crate::setup::{CullMode, PixelRect, Rejection, TriangleSetup, Vertex};
 use crate::shade::{self, DepthTest, FragmentOutput, Shading, TriangleColor, TriangleShader};
 use crate::simd::{self, SimdLevel, SpanColor};
@@ -694,10 +695,10 @@ impl bin::Record for WindowRecord {
     fn narrow_eight(
         records: &[&Self; 8],
         tile: &PixelRect,
-        level: SimdLevel,
+        (level, samples): (SimdLevel, SampleCount),
         out: &mut simd::NarrowEight,
     ) -> u8 {
-        simd::narrow_eight(level, records, tile, out)
+        simd::narrow_eight(level, records, tile, samples, out)
     }
 
     #[inline(always)]
@@ -885,9 +886,12 @@ mod tests {
     /// tile (`TriangleSetup::from_kept`), `edges_at` the centre of its first pixel, the depth
     /// plane and the colour (`span_parts_of`: flat, smooth with one alpha, smooth); and
     /// exactly the lanes that the kernel takes alone are set up (narrow before clipping,
-    /// reaching the tile). Random triangles of one to a dozen pixels and larger, both
-    /// windings, far out in the fixed-point range, flat and smooth, one alpha and three,
-    /// finite, NaN and infinite depths, random tiles around them.
+    /// reaching the tile). At 4x and 8x the box is the extent widened by the pattern's reach
+    /// (the same box of each sample's box at the corner offsets), which holds every pixel
+    /// of each sample's box, and its lanes are narrow at the pixel centres too. Random
+    /// triangles of one to a dozen pixels and larger, both windings, far out in the
+    /// fixed-point range, flat and smooth, one alpha and three, finite, NaN and infinite
+    /// depths, random tiles around them.
     #[test]
     fn eight_records_set_up_as_each_alone() {
         for level in [SimdLevel::Avx2, SimdLevel::Avx512] {
@@ -958,24 +962,38 @@ mod tests {
             };
             let mut eight = simd::NarrowEight::default();
             let refs = std::array::from_fn(|l| &records[l]);
-            let lanes = simd::narrow_eight(level, &refs, &tile, &mut eight);
+            let samples = [SampleCount::X1, SampleCount::X4, SampleCount::X8][round % 3];
+            let lanes = simd::narrow_eight(level, &refs, &tile, samples, &mut eight);
             for (l, record) in records.iter().enumerate() {
                 let setup = record.setup();
-                let b = setup.bounds;
                 let (depth, color) = TriangleShader::span_parts_of(
                     record.z,
                     record.colors,
                     record.inv_area2,
                     record.smooth,
                 );
-                let r = b.intersect(&tile).filter(|_| b.x1 - b.x0 < crate::raster::edge::NARROW);
-                let Some(r) = r else {
+                // The box of the samples at the pattern's corner offsets.
+                let reach = samples.reach();
+                let (first, last) =
+                    (setup.sample_bounds([reach; 2]), setup.sample_bounds([-reach; 2]));
+                let b = PixelRect { x1: last.x1, y1: last.y1, ..first };
+                let narrow = b.x1 - b.x0 < crate::raster::edge::NARROW;
+                let Some(r) = b.intersect(&tile).filter(|_| narrow) else {
                     assert_eq!(lanes >> l & 1, 0, "round {round}, lane {l}: {record:?} {tile:?}");
                     lanes_left += 1;
                     continue;
                 };
                 assert_eq!(lanes >> l & 1, 1, "round {round}, lane {l}: {record:?} {tile:?}");
                 lanes_set_up += 1;
+                // Each sample's pixels within the tile lie in the box, and a lane narrow with
+                // its samples is narrow at the centres.
+                for s in 0..samples.count() {
+                    if let Some(own) = setup.sample_bounds(samples.offset(s)).intersect(&tile) {
+                        assert_eq!(own.union(&r), r, "round {round}, lane {l}, sample {s}");
+                    }
+                }
+                let centres = setup.bounds;
+                assert!(centres.x1 - centres.x0 < crate::raster::edge::NARROW, "round {round}");
                 let (x, y) = (crate::fixed::pixel_centre(r.x0), crate::fixed::pixel_centre(r.y0));
                 let (edges, step_x, step_y, bias) = setup.edges_at(x, y);
                 let bits = |v: [f64; 3]| v.map(f64::to_bits);
@@ -1053,7 +1071,7 @@ mod tests {
             let Some(records) = random_records(&mut rng, round, around, depth) else { continue };
             let mut eight = simd::NarrowEight::default();
             let refs = std::array::from_fn(|l| &records[l]);
-            let lanes = simd::narrow_eight(level, &refs, &clip, &mut eight);
+            let lanes = simd::narrow_eight(level, &refs, &clip, SampleCount::X1, &mut eight);
             // The longest run of lanes set up from a random start.
             let start = rng.random_range(0..8);
             let run = start..start + (lanes >> start).trailing_ones() as usize;

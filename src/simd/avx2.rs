@@ -2187,6 +2187,7 @@ fn f64_halves(v: __m256i) -> [__m256d; 2] {
 pub(super) unsafe fn narrow_eight(
     records: &[&WindowRecord; 8],
     tile: &PixelRect,
+    reach: i32,
     out: &mut NarrowEight,
 ) -> u8 {
     let row = |l: usize, half: usize| {
@@ -2207,7 +2208,7 @@ pub(super) unsafe fn narrow_eight(
     ];
     let half = _mm256_set1_epi32(fixed::HALF);
     let EightBoxes { width, px0, py0, columns, rows, .. } =
-        eight_boxes([x0, y0, x1, y1, x2, y2], tile);
+        eight_boxes_reaching([x0, y0, x1, y1, x2, y2], tile, reach);
     let zero = _mm256_setzero_si256();
     // Narrow before clipping, as `bin::coverage_algorithm` asks of the kernel's triangles.
     let narrow = bits_of(_mm256_cmpgt_epi32(_mm256_set1_epi32(crate::raster::edge::NARROW), width));
@@ -2290,7 +2291,7 @@ pub(super) unsafe fn narrow_eight(
     lanes
 }
 
-/// Eight triangles' pixel boxes ([`eight_boxes`]).
+/// Eight triangles' pixel boxes ([`eight_boxes_reaching`]).
 pub(super) struct EightBoxes {
     /// The box's last column less its first, before clipping.
     pub width: __m256i,
@@ -2307,21 +2308,14 @@ pub(super) struct EightBoxes {
 }
 
 /// The boxes of eight triangles, their snapped vertices `[x0, y0, x1, y1, x2, y2]` in
-/// `i32` lanes: the pixels whose centre `256 p + 128` lies in the snapped extent
+/// `i32` lanes, with the extents widened by `reach` on every side, within `tile`: the pixels
+/// any of whose samples lies in the extent, for a pattern reaching `reach` from the centre
+/// each way on both axes; with `reach` 0, those whose centre `256 p + 128` does
 /// ([`crate::setup::sample_bounds`] at the centre: arithmetic shifts floor, `+ 255` makes
-/// the first one a ceiling), within `tile`.
+/// the first one a ceiling).
 #[inline]
 #[target_feature(enable = "avx2")]
-pub(super) fn eight_boxes(v: [__m256i; 6], tile: &PixelRect) -> EightBoxes {
-    eight_boxes_reaching(v, tile, 0)
-}
-
-/// [`eight_boxes`] of the extents widened by `reach` on every side: the pixels any of whose
-/// samples lies in the extent, for a pattern reaching `reach` from the centre each way on
-/// both axes.
-#[inline]
-#[target_feature(enable = "avx2")]
-fn eight_boxes_reaching(v: [__m256i; 6], tile: &PixelRect, reach: i32) -> EightBoxes {
+pub(super) fn eight_boxes_reaching(v: [__m256i; 6], tile: &PixelRect, reach: i32) -> EightBoxes {
     let [x0, y0, x1, y1, x2, y2] = v;
     let (half, reach) = (_mm256_set1_epi32(fixed::HALF), _mm256_set1_epi32(reach));
     let min = |a, b, c| _mm256_sub_epi32(_mm256_min_epi32(_mm256_min_epi32(a, b), c), reach);

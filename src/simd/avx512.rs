@@ -676,6 +676,7 @@ fn transposed(r: [__m512i; 8]) -> [__m256i; 16] {
 pub(super) unsafe fn narrow_eight(
     records: &[&WindowRecord; 8],
     tile: &PixelRect,
+    reach: i32,
     out: &mut NarrowEight,
 ) -> u8 {
     // SAFETY: a record is 64 bytes, aligned to 64 (`repr(C, align(64))`, no padding: its
@@ -691,7 +692,7 @@ pub(super) unsafe fn narrow_eight(
     ));
     let half = _mm256_set1_epi32(fixed::HALF);
     let super::avx2::EightBoxes { width, px0, py0, columns, rows, .. } =
-        super::avx2::eight_boxes([x0, y0, x1, y1, x2, y2], tile);
+        super::avx2::eight_boxes_reaching([x0, y0, x1, y1, x2, y2], tile, reach);
     // Narrow before clipping, as `bin::coverage_algorithm` asks of the kernel's triangles.
     let narrow = _mm256_cmpgt_epi32_mask(_mm256_set1_epi32(crate::raster::edge::NARROW), width);
     let reaches = _mm256_cmpgt_epi32_mask(columns, _mm256_setzero_si256())

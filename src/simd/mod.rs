@@ -1217,6 +1217,31 @@ impl NarrowEight {
         KernelTarget::lane((&self.depth, &self.id), l, color, depth_test, target)
     }
 
+    /// Lane `l` as the [`NarrowJob`] it stands for, with colour `color` (its
+    /// [`NarrowEight::color`]). Panics unless its box is narrow.
+    fn job<'a>(
+        &self,
+        l: usize,
+        color: &'a SpanColor,
+        depth_test: DepthTest,
+        target: &'a mut crate::target::TargetBand<'_>,
+    ) -> NarrowJob<'a> {
+        let b = NarrowBox::of_lane(self, l, target);
+        let v = &b.values;
+        // Integers below 2^53 in `f64`: the conversions back are exact.
+        NarrowJob {
+            edges: [0, 1, 2].map(|k| v.edge(k) as i64),
+            step_x: [0, 1, 2].map(|k| v.step_x(k) as i64),
+            step_y: [0, 1, 2].map(|k| v.step_y(k) as i64),
+            bias: [0, 1].map(|k| v.bias(k) as i64),
+            columns: b.columns,
+            rows: b.rows,
+            first: b.first,
+            stride: b.stride,
+            target: self.kernel_target(l, color, depth_test, target),
+        }
+    }
+
     /// Lane `l`'s colour as the span kernels take it.
     #[inline(always)]
     pub fn color(&self, l: usize) -> SpanColor {
@@ -1243,19 +1268,29 @@ impl NarrowEight {
 /// records, one cache line each, are transposed in registers and set up side by side: one
 /// by one, the setup and the calls around it (rebuilding the record's setup and planes, the
 /// job, the dispatch) took more of a frame of small triangles than the kernel's loop.
+///
+/// On a target with `samples` per pixel, the box is that of the pixels any of whose samples
+/// may be covered: the snapped extent widened by the pattern's reach on every side. Its
+/// width before clipping decides narrowness, so a lane set up is narrow at the pixel centres
+/// too (the multisampled path of [`crate::shade::shade_triangle`] takes it by row masks), and
+/// its box holds every pixel that path's box of the samples holds ([`shade_narrow_samples_eight`]
+/// draws the lanes).
 #[inline]
 pub fn narrow_eight(
     level: SimdLevel,
     records: &[&WindowRecord; 8],
     tile: &PixelRect,
+    samples: SampleCount,
     out: &mut NarrowEight,
 ) -> u8 {
+    // At most 112 (8x): a cast that cannot truncate.
+    let reach = samples.reach() as i32;
     #[cfg(target_arch = "x86_64")]
     if level == SimdLevel::Avx512 && level.is_available() {
         // SAFETY: AVX-512 support was just checked at run time.
-        return unsafe { avx512::narrow_eight(records, tile, out) };
+        return unsafe { avx512::narrow_eight(records, tile, reach, out) };
     }
-    narrow_eight_below(level, records, tile, out)
+    narrow_eight_below(level, records, tile, reach, out)
 }
 
 /// [`narrow_eight`] at the levels below AVX-512. Out of line: the tile and band loops inline
@@ -1265,14 +1300,15 @@ fn narrow_eight_below(
     level: SimdLevel,
     records: &[&WindowRecord; 8],
     tile: &PixelRect,
+    reach: i32,
     out: &mut NarrowEight,
 ) -> u8 {
     #[cfg(target_arch = "x86_64")]
     if level == SimdLevel::Avx2 && level.is_available() {
         // SAFETY: AVX2 and FMA support was just checked at run time.
-        return unsafe { avx2::narrow_eight(records, tile, out) };
+        return unsafe { avx2::narrow_eight(records, tile, reach, out) };
     }
-    let _ = (level, records, tile, out);
+    let _ = (level, records, tile, reach, out);
     0
 }
 
@@ -1318,22 +1354,46 @@ fn narrow_lane_job(
     target: &mut crate::target::TargetBand<'_>,
     depth_test: DepthTest,
 ) -> u64 {
-    let b = NarrowBox::of_lane(eight, l, target);
     let color = eight.color(l);
-    let v = &b.values;
-    // Integers below 2^53 in `f64`: the conversions back are exact.
-    let job = NarrowJob {
-        edges: [0, 1, 2].map(|k| v.edge(k) as i64),
-        step_x: [0, 1, 2].map(|k| v.step_x(k) as i64),
-        step_y: [0, 1, 2].map(|k| v.step_y(k) as i64),
-        bias: [0, 1].map(|k| v.bias(k) as i64),
-        columns: b.columns,
-        rows: b.rows,
-        first: b.first,
-        stride: b.stride,
-        target: eight.kernel_target(l, &color, depth_test, target),
-    };
-    shade_narrow(level, job)
+    shade_narrow(level, eight.job(l, &color, depth_test, target))
+}
+
+/// Shades lanes `lanes` of `eight` (set up by [`narrow_eight`] at `level` for the target's
+/// samples per pixel, in that order) into multisampled `target` with `depth_test`, each as
+/// the [`NarrowSamplesJob`] it stands for through [`shade_narrow_samples`]: its
+/// [`NarrowJob`], and its samples' edge offsets from the steps (`a = step_x / 256`, exactly).
+/// Returns the number of covered samples. Set up one by one, a small triangle's record at
+/// 4x was rebuilt into a setup and planes, its box of samples found sample by sample and
+/// its job built from the setup, around a kernel that does four times 1x's work.
+///
+/// # Panics
+/// If `lanes` reaches past 8, a lane's box is not narrow or not in the buffers, the target
+/// has one sample per pixel, or it has an overdraw buffer (which counts per pixel).
+pub fn shade_narrow_samples_eight(
+    level: SimdLevel,
+    eight: &NarrowEight,
+    lanes: std::ops::Range<usize>,
+    target: &mut crate::target::TargetBand<'_>,
+    depth_test: DepthTest,
+) -> u64 {
+    let samples = target.samples();
+    let n = samples.count();
+    assert!(n > 1, "a multisampled target");
+    let one = i64::from(fixed::ONE);
+    let mut covered = 0;
+    for l in lanes {
+        let color = eight.color(l);
+        let narrow = eight.job(l, &color, depth_test, target);
+        let mut offsets = [[0i64; 3]; MAX_SAMPLES];
+        for (s, o) in offsets.iter_mut().enumerate().take(n) {
+            let [ox, oy] = samples.offset(s);
+            // `a ox + b oy`, as `shade_triangle` derives them from the edges: the steps are
+            // `256 a` and `256 b`, so the sum divides exactly.
+            *o = std::array::from_fn(|k| (narrow.step_x[k] * ox + narrow.step_y[k] * oy) / one);
+        }
+        covered += shade_narrow_samples(level, NarrowSamplesJob { narrow, samples: n, offsets });
+    }
+    covered
 }
 
 /// Eight small triangles' coverage at once ([`small_eight`]), lane `l` for the `l`-th: the
