@@ -160,7 +160,7 @@ const SHARE_UNIT: i64 = 1 << 12;
 /// without balance, with a half step and with a quarter, grid 25.4, 22.7 and 21.1 ms, bunny
 /// 6.03, 5.29 and 5.15 ms. Later runs of the quarter step confirmed the bunny's gain (5.94
 /// -> 5.11 and 7.11 -> 7.00 ms) but not the grid's (22.0 -> 24.7 and 23.9 -> 24.6 ms), and
-/// fastest frames did not change: see ARCHITECTURE.md.
+/// fastest frames did not change: see docs/design-log.md, `band`.
 #[derive(Clone, Debug, Default)]
 pub struct BandBalance {
     /// Each band's share, summing to 1; empty (even shares) until a banded draw call.

@@ -118,8 +118,8 @@ pub trait FragmentShader<V>: Sync {
 
     /// Whether [`FragmentShader::shade`] may discard (return `None`). A shader that says
     /// `false` lets large triangles that cover a block of the target lower its depth bound,
-    /// so later triangles behind them are skipped there (see ARCHITECTURE.md, hierarchical
-    /// depth); saying `false` and then discarding draws wrong pictures.
+    /// so later triangles behind them are skipped there (see ARCHITECTURE.md, *Hierarchical
+    /// depth*); saying `false` and then discarding draws wrong pictures.
     fn may_discard(&self) -> bool {
         true
     }
@@ -930,7 +930,7 @@ where
 
     /// [`TriangleFragments::fragment`] of each lane. With perspective, the weights of all
     /// lanes first: one loop of divisions, which pipeline, rather than three divisions
-    /// waiting in each fragment's chain (see ARCHITECTURE.md, `shade`). Affine triangles need
+    /// waiting in each fragment's chain (see docs/design-log.md, `shade`). Affine triangles need
     /// no division, and compute their weights lane by lane.
     fn lanes(
         &self,

@@ -517,7 +517,7 @@ fn window_bounds(tri: &[Vertex; 3]) -> Option<PixelRect> {
 /// smooth shading the colour as the span kernels take it ([`SpanColor`]), rebuilt from a
 /// [`WindowRecord`] where the triangle is drawn; for perspective shading a [`TriangleColor`],
 /// kept whole with the setup and depth plane ([`Prepared`]). No match on the colour's kind per
-/// triangle and tile (see ARCHITECTURE.md, `render`).
+/// triangle and tile (see docs/design-log.md, `render`).
 trait WindowColor: Copy + Send + Sync + 'static {
     /// What a batch keeps of a triangle drawn with this colour.
     type Record: bin::Record<Payload = Self>;

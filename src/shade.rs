@@ -1345,7 +1345,7 @@ fn shade_columns(
 /// What a span kernel writes: the band's buffer elements `range`, the overdraw counts there
 /// too with `overdraw` (1x, where they are indexed alike), and the triangle's depth plane,
 /// colour, depth test and id. Always inlined: a job's parts returned through the stack were
-/// read back with loads that store forwarding fails (see ARCHITECTURE.md).
+/// read back with loads that store forwarding fails (see ARCHITECTURE.md, *Store forwarding*).
 #[inline(always)]
 fn kernel_target<'a>(
     target: &'a mut TargetBand<'_>,
