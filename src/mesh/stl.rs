@@ -7,7 +7,8 @@
 //! starts with `solid` (common) are misread as ASCII. Both formats are simple enough that a
 //! focused reader is shorter than the workarounds.
 //!
-//! Format detection: a file whose first word is `solid` is ASCII unless its size is exactly
+//! Format detection: a file whose first word is `solid` (after a UTF-8 byte order mark, if
+//! any) is ASCII unless its size is exactly
 //! `84 + 50 * count` for the little-endian triangle count at byte 80, in which case it is a
 //! binary file with a text-like header. Anything else is binary, and a size that disagrees with
 //! the count is an error naming byte 80, except that a count of 0 in a file of whole facets
@@ -178,11 +179,12 @@ fn detect<R: Read + Seek>(
     Ok((head, word.is_solid(), len))
 }
 
-/// The first word of a file, read a byte at a time: after any whitespace, up to the next
-/// whitespace or six bytes, which is enough to tell whether it is `solid`.
+/// The first word of a file, read a byte at a time: after a [`BOM`] or any whitespace, up to
+/// the next whitespace or six bytes (nine after a BOM), which is enough to tell whether it is
+/// `solid`.
 #[derive(Default)]
 struct FirstWord {
-    bytes: [u8; 6],
+    bytes: [u8; 9],
     len: usize,
     /// Whether the bytes so far decide it.
     done: bool,
@@ -199,11 +201,12 @@ impl FirstWord {
         }
         self.bytes[self.len] = b;
         self.len += 1;
-        self.done = self.len == self.bytes.len();
+        let bom = BOM.starts_with(&self.bytes[..self.len.min(BOM.len())]);
+        self.done = self.len == if bom { 9 } else { 6 };
     }
 
     fn is_solid(&self) -> bool {
-        self.bytes[..self.len].eq_ignore_ascii_case(b"solid")
+        first_word(&self.bytes[..self.len]).eq_ignore_ascii_case(b"solid")
     }
 }
 
@@ -321,16 +324,21 @@ fn binary_size(head: &[u8]) -> Option<u64> {
     Some(84 + 50 * u64::from(count))
 }
 
-/// The first whitespace-separated word of `bytes`.
+/// The first whitespace-separated word of `bytes`, without a [`BOM`] directly before it.
 fn first_word(bytes: &[u8]) -> &[u8] {
     let start = bytes.iter().position(|b| !b.is_ascii_whitespace()).unwrap_or(bytes.len());
     let rest = &bytes[start..];
+    let rest = rest.strip_prefix(BOM).unwrap_or(rest);
     let end = rest.iter().position(u8::is_ascii_whitespace).unwrap_or(rest.len());
     &rest[..end]
 }
 
-/// Whether the start of the file has bytes no ASCII STL contains.
+/// The UTF-8 byte order mark some editors write before an ASCII file's first word.
+const BOM: &[u8] = b"\xef\xbb\xbf";
+
+/// Whether the start of the file has bytes no ASCII STL contains (after a [`BOM`]).
 fn looks_binary(head: &[u8]) -> bool {
+    let head = head.strip_prefix(BOM).unwrap_or(head);
     head.iter().take(HEAD).any(|&b| b == 0 || (b < 0x20 && !b.is_ascii_whitespace()) || b > 0x7e)
 }
 
@@ -351,8 +359,10 @@ fn check_binary_size(head: &[u8], len: u64) -> Result<u32, Fail> {
         return Err(Fail::At(
             At::Byte(80),
             format!(
-                "the header declares {count} triangles, which take {expected} bytes (84 + 50 per \
-                 triangle), but the file has {len} bytes"
+                "the header declares {count} triangle{}, which take{} {expected} bytes (84 + 50 \
+                 per triangle), but the file has {len} bytes",
+                if count == 1 { "" } else { "s" },
+                if count == 1 { "s" } else { "" },
             ),
         ));
     }
@@ -678,7 +688,11 @@ fn parse_ascii(lines: &mut impl Lines) -> Result<Mesh, Fail> {
     let mut welder = Welder::default();
     let mut corners = Vec::new();
     let mut points = Vec::new();
-    expect(lines, "solid", "`solid`")?;
+    // The first line, after a byte order mark if the file has one.
+    let (line, tokens) = require(lines, "`solid`")?;
+    if !tokens[0].trim_start_matches('\u{feff}').eq_ignore_ascii_case("solid") {
+        return Err(on_line(line, format!("expected `solid`, found `{}`", tokens.join(" "))));
+    }
     loop {
         let (line, tokens) = require(lines, "`facet` or `endsolid`")?;
         let keyword = tokens[0];
@@ -836,7 +850,7 @@ mod tests {
         assert_eq!(m.triangles.len(), 1);
         b.push(0);
         let e = both(&b).unwrap_err().to_string();
-        assert!(e.starts_with("t.stl: byte 80: the header declares 1 triangles"), "{e}");
+        assert!(e.starts_with("t.stl: byte 80: the header declares 1 triangle, which takes"), "{e}");
         assert!(e.contains("not ASCII STL either"), "{e}");
     }
 
@@ -936,6 +950,20 @@ mod tests {
 
     /// Whitespace before the first word, past the buffer and the head: the first word is
     /// still found, and the lines are numbered from the start.
+    #[test]
+    fn ascii_after_a_byte_order_mark() {
+        // Editors on Windows may begin a text file with a UTF-8 byte order mark; such a file
+        // had been read as binary ("the header declares 1818521189 triangles").
+        for pad in ["", "\n  "] {
+            let ascii = format!("{pad}\u{feff}{CUBE_CORNER}");
+            let m = both(ascii.as_bytes()).unwrap();
+            assert_eq!(m.triangles.len(), 2, "{pad:?}");
+        }
+        // The mark alone, before whitespace, is no `solid`: binary, as any other first word.
+        let e = both(format!("\u{feff} {CUBE_CORNER}").as_bytes()).unwrap_err();
+        assert!(e.to_string().starts_with("t.stl: byte 80: the header declares"), "{e}");
+    }
+
     #[test]
     fn first_word_after_long_whitespace() {
         let pad = " \n\t\r".repeat(300);
