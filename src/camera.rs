@@ -136,9 +136,15 @@ impl Camera {
                 }
             }
         }
-        if !(self.near.is_finite() && self.far.is_finite() && self.near < self.far) {
+        if !(self.near.is_finite() && self.far.is_finite()) {
             return bad(format!(
-                "the near and far planes {} and {} are not finite with near < far",
+                "the near and far planes {} and {} are not both finite",
+                self.near, self.far
+            ));
+        }
+        if self.near >= self.far {
+            return bad(format!(
+                "the near plane {} is not nearer than the far plane {}",
                 self.near, self.far
             ));
         }
@@ -278,7 +284,7 @@ mod tests {
             (with(&fov(std::f32::consts::PI)), "field of view 3.14"),
             (with(&|c| c.near = 0.0), "near plane 0"),
             (with(&|c| c.near = -1.0), "near plane -1"),
-            (with(&|c| c.far = c.near), "near and far"),
+            (with(&|c| c.far = c.near), "not nearer than the far plane"),
             (with(&|c| c.far = f32::INFINITY), "near and far"),
             (with(&height(0.0)), "height 0"),
             (with(&height(f32::INFINITY)), "height inf"),

@@ -211,9 +211,10 @@ struct RenderArgs {
     /// gouraud (= smooth), phong (default).
     #[arg(long, value_enum)]
     shading: Option<ShadingArg>,
-    /// Coverage algorithm; both give identical pixels.
-    #[arg(long, value_enum, default_value_t = AlgorithmArg::Edge)]
-    algorithm: AlgorithmArg,
+    /// Coverage algorithm of the window projection (default edge); both give identical
+    /// pixels. The 3D pipeline chooses per triangle.
+    #[arg(long, value_enum)]
+    algorithm: Option<AlgorithmArg>,
     /// Culling. Window: none (default), cw, ccw (on-screen winding). 3D: back (default),
     /// front, none; counter-clockwise faces are front faces.
     #[arg(long, value_enum)]
@@ -263,7 +264,9 @@ struct RenderArgs {
     /// 1,000,000.
     #[arg(long, value_name = "N", value_parser = parse_frames)]
     frames: Option<usize>,
-    /// Render N frames orbiting the model (3D only), N 1 to 1,000,000.
+    /// Render N frames orbiting the model (3D only), N 1 to 1,000,000. Every output is
+    /// numbered: OUTPUT_000.png, ..., and --depth d.npy as d_000.npy, ... (likewise --ids,
+    /// --overdraw and --normals).
     #[arg(long, value_name = "N", value_parser = parse_turntable)]
     #[arg(conflicts_with_all = ["frames", "eye"])]
     turntable: Option<u32>,
@@ -906,6 +909,13 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
     if args.projection == ProjectionArg::Orthographic && args.fov.is_some() {
         return Err(usage("--fov is for the perspective projection".into()));
     }
+    if args.algorithm.is_some() {
+        return Err(usage(
+            "--algorithm is for --projection window: the 3D pipeline chooses the coverage \
+             algorithm per triangle (every one gives the same pixels)"
+                .into(),
+        ));
+    }
     let mut mesh = match &args.file {
         Some(path) => reading(path, |report| trirast::mesh::load_reporting(path, report))?,
         None => scene::default_model(),
@@ -1066,7 +1076,11 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
             // Named as the files are (the progress bar alone left them to be guessed).
             let last = frame_path(&args.output, frames - 1, frames);
             let first = frame_path(&args.output, 0, frames);
-            note!("wrote {frames} frames, {} to {}", first.display(), last.display());
+            if frames == 1 {
+                note!("wrote {}", first.display());
+            } else {
+                note!("wrote {frames} frames, {} to {}", first.display(), last.display());
+            }
             Ok(())
         }
     }
@@ -1184,7 +1198,7 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
     let clear =
         args.background.map_or(trirast::target::DEFAULT_CLEAR_COLOR, |[r, g, b]| [r, g, b, 255]);
     let options = RenderOptions::default()
-        .with_algorithm(args.algorithm.into())
+        .with_algorithm(args.algorithm.unwrap_or(AlgorithmArg::Edge).into())
         .with_shading(shading)
         .with_cull(cull)
         .with_depth_test(args.depth_test.into());
@@ -1194,10 +1208,13 @@ fn render_window(args: &RenderArgs, target: &mut Target) -> Result<(), Error> {
 /// `out.png` -> `out_007.png`: frame `k` of `total`, numbered with at least three digits and
 /// as many as the last frame needs, so that the names sort in frame order.
 fn frame_path(output: &Path, k: u32, total: u32) -> PathBuf {
-    let stem = output.file_stem().and_then(|s| s.to_str()).unwrap_or("frame");
-    let ext = output.extension().and_then(|s| s.to_str()).unwrap_or("png");
+    // The name's own bytes, whatever their encoding: names that are not UTF-8 had all
+    // become `frame_000...`, so that two outputs wrote one file.
+    let mut name = output.file_stem().unwrap_or("frame".as_ref()).to_os_string();
     let digits = total.saturating_sub(1).max(1).ilog10() as usize + 1;
-    output.with_file_name(format!("{stem}_{k:0width$}.{ext}", width = digits.max(3)))
+    name.push(format!("_{k:0width$}.", width = digits.max(3)));
+    name.push(output.extension().unwrap_or("png".as_ref()));
+    output.with_file_name(name)
 }
 
 /// What a command writes to a file, for [`check_outputs`].
@@ -1261,17 +1278,19 @@ fn check_outputs(
             let format = kind.extension();
             return Err(usage(format!("{option} {}: it is written as .{format}", path.display())));
         }
-        if let Some(j) = outputs[..k].iter().position(|r| *r == outputs[k]) {
+        if let Some(j) = (0..k).find(|&j| one_file(&outputs[j], &outputs[k])) {
             let first = named[j].0;
             return Err(usage(format!("{first} and {option} both name {}", path.display())));
         }
         let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
         if let Some(dir) = dir.filter(|d| !d.is_dir()) {
-            return Err(usage(format!(
-                "{option} {}: there is no directory {}",
-                path.display(),
-                dir.display()
-            )));
+            let exists = dir.exists();
+            let (path, dir) = (path.display(), dir.display());
+            return Err(usage(if exists {
+                format!("{option} {path}: {dir} is not a directory")
+            } else {
+                format!("{option} {path}: there is no directory {dir}")
+            }));
         }
         let first = frames.map_or_else(|| path.to_path_buf(), |total| frame_path(path, 0, total));
         can_write(option, path, &first)?;
@@ -1298,7 +1317,10 @@ fn can_write(option: &str, path: &Path, first: &Path) -> Result<(), Error> {
     let opened = std::fs::OpenOptions::new().write(true).create(true).truncate(false).open(first);
     match opened {
         Ok(_) if existing.is_none() => {
-            let _ = std::fs::remove_file(first);
+            // The file made, where the name leads: through a dangling link, the link's
+            // target (removing the name had removed the link and left the new file).
+            let made = std::fs::canonicalize(first).unwrap_or_else(|_| first.to_path_buf());
+            let _ = std::fs::remove_file(made);
             Ok(())
         }
         Ok(_) => Ok(()),
@@ -1312,17 +1334,7 @@ fn can_write(option: &str, path: &Path, first: &Path) -> Result<(), Error> {
 fn writes(output: &Path, frames: Option<u32>, input: &Path) -> bool {
     let input_at = resolved(input);
     let Some(total) = frames else {
-        if input_at == resolved(output) {
-            return true;
-        }
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::MetadataExt as _;
-            if let (Ok(a), Ok(b)) = (std::fs::metadata(output), std::fs::metadata(input)) {
-                return (a.dev(), a.ino()) == (b.dev(), b.ino());
-            }
-        }
-        return false;
+        return one_file(&resolved(output), &input_at);
     };
     // Only the frame whose number the input's name (where it leads) carries can be it.
     let stem = input_at.file_stem().and_then(|s| s.to_str()).unwrap_or("");
@@ -1330,6 +1342,22 @@ fn writes(output: &Path, frames: Option<u32>, input: &Path) -> bool {
     number
         .parse::<u32>()
         .is_ok_and(|k| k < total && writes(&frame_path(output, k, total), None, input))
+}
+
+/// Whether two [`resolved`] paths name one file: the same path or, on Unix, two names (hard
+/// links) of one existing file.
+fn one_file(a: &Path, b: &Path) -> bool {
+    if a == b {
+        return true;
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt as _;
+        if let (Ok(a), Ok(b)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+            return (a.dev(), a.ino()) == (b.dev(), b.ino());
+        }
+    }
+    false
 }
 
 /// Where `path` leads: the file itself with links and `..` resolved when it exists, else its
@@ -1734,6 +1762,32 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
 }
 
 /// The points of a splat hierarchy: its leaves' centres.
+/// Warns of splats the view cannot draw because they reach the camera's plane (the view frames
+/// the points' centres, as `render` frames a mesh): splats larger than the cloud (a few points
+/// sampled from a mesh, or radii given in other units) had given an empty picture without a
+/// word but "N nodes culled".
+fn warn_of_splats_at_the_eye(tree: &trirast::splat::SplatTree, camera: &Camera) {
+    let forward = (camera.target - camera.eye).normalize_or_zero();
+    let leaves = tree.nodes.iter().filter(|n| n.child_count == 0);
+    let (mut reaching, mut largest) = (0usize, 0.0f32);
+    for n in leaves.clone() {
+        if (Vec3::from(n.centre) - camera.eye).dot(forward) <= n.radius {
+            reaching += 1;
+            largest = largest.max(n.radius);
+        }
+    }
+    if reaching > 0 {
+        let distance = (camera.target - camera.eye).length();
+        let verb = if reaching == 1 { "reaches" } else { "reach" };
+        note!(
+            "trirast: warning: {reaching} of {} {verb} the camera's plane and cannot be drawn \
+             (splat radius up to {largest:.3e}; the camera is {distance:.3e} from the points' \
+             centre)",
+            counted(leaves.count(), "splat"),
+        );
+    }
+}
+
 fn leaf_centres(tree: &trirast::splat::SplatTree) -> Vec<[f32; 3]> {
     tree.nodes.iter().filter(|n| n.child_count == 0).map(|n| n.centre).collect()
 }
@@ -1789,6 +1843,7 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
         width as f32 / height as f32,
         Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y },
     );
+    warn_of_splats_at_the_eye(&tree, &camera);
     let shape = match args.shape {
         ShapeArg::Round => SplatShape::Round,
         ShapeArg::Square => SplatShape::Square,
@@ -1984,10 +2039,10 @@ fn report(stats: &trirast::DrawStats) {
         1 => " (clipping added a piece)".to_string(),
         n => format!(" (clipping added {n} pieces)"),
     };
+    let fragments = if stats.fragments == 1 { "fragment" } else { "fragments" };
     note!(
-        "{} triangles: {} rasterized{clipped}, {} culled or clipped away, {} degenerate; {} \
-         fragments",
-        stats.submitted,
+        "{}: {} rasterized{clipped}, {} culled or clipped away, {} degenerate; {} {fragments}",
+        counted(stats.submitted, "triangle"),
         stats.rasterized,
         stats.culled,
         stats.degenerate,

@@ -1041,7 +1041,8 @@ fn textures_too_large_for_memory_are_refused_up_front() {
 fn clashing_or_unreachable_outputs_are_refused_before_rendering() {
     let dir = TempDir::new("outputs");
     fs::create_dir(dir.path("sub")).unwrap();
-    let cases: [&[&str]; 9] = [
+    dir.write("file.txt", "not a directory");
+    let cases: [&[&str]; 10] = [
         &["render", "--size", "64x48", "-o", "a.png", "--depth", "a.png"],
         &["demo", "-o", "a.jpg"],
         &["render", "--size", "64x48", "-o", "a.png", "--ids", "d.npy", "--overdraw", "./d.npy"],
@@ -1051,10 +1052,12 @@ fn clashing_or_unreachable_outputs_are_refused_before_rendering() {
         &["render", "--size", "64x48", "-o", "a.png", "--ids", "sub/"],
         &["render", "--size", "64x48", "--turntable", "3", "-o", "new/"],
         &["demo", "-o", "sub"],
+        &["render", "--size", "64x48", "-o", "a.png", "--depth", "file.txt/d.npy"],
     ];
     for args in cases {
         let err = run_err(&dir.0, args);
-        let refused = ["both name", "no directory", "written as", "names a directory"];
+        let refused =
+            ["both name", "no directory", "is not a directory", "written as", "names a directory"];
         assert!(refused.iter().any(|r| err.contains(r)), "{args:?}: {err}");
         assert!(!dir.path("a.png").exists(), "{args:?}: nothing is written");
     }
@@ -1132,6 +1135,21 @@ fn outputs_that_are_inputs_or_each_other_are_refused() {
             let err = run_err(&dir.0, ["pack", "c.tsplat", "-o", output]);
             assert!(err.contains("is the input"), "{output}: {err}");
         }
+        // Two outputs that are two names of one file (the ids had replaced the depth).
+        fs::write(dir.path("d.npy"), "").unwrap();
+        fs::hard_link(dir.path("d.npy"), dir.path("hard.npy")).unwrap();
+        let args =
+            ["render", "--size", "8x8", "-o", "h.png", "--depth", "d.npy", "--ids", "hard.npy"];
+        assert!(run_err(&dir.0, args).contains("both name"));
+        assert!(!dir.path("h.png").exists());
+        // An output through a link to a file not yet made is written where the link leads,
+        // and the link stays (checking it could be written had replaced the link by an
+        // empty file beside a stray one).
+        std::os::unix::fs::symlink("made.png", dir.path("dangling.png")).unwrap();
+        run_ok(&dir.0, ["render", "--size", "8x8", "-o", "dangling.png"]);
+        let link = fs::symlink_metadata(dir.path("dangling.png")).unwrap();
+        assert!(link.file_type().is_symlink());
+        assert_eq!(read_png(&dir.path("made.png")).width, 8);
     }
     // Accepted: the same name in another directory; a turntable whose frames are not the
     // texture it reads (t.png itself is not written: its frames are t_000.png, t_001.png).
@@ -1164,7 +1182,7 @@ fn options_are_honoured_or_refused() {
     let (once, timed) = (read_png(&dir.path("once.png")), read_png(&dir.path("timed.png")));
     assert!(once.rgba == timed.rgba, "timing changes the image");
 
-    let refused: [(&[&str], &str); 14] = [
+    let refused: [(&[&str], &str); 15] = [
         (&["render", "--projection", "window", "--turntable", "3"], "--turntable"),
         (&["render", "--projection", "window", "--view", "10,10"], "--view"),
         (&["render", "--projection", "window", "--eye", "1,1,1", "--target", "0,0,0"], "--eye"),
@@ -1179,6 +1197,8 @@ fn options_are_honoured_or_refused() {
         (&["render", "--view", "10,10", "--eye", "1,1,1", "--target", "0,0,0"], "--eye"),
         (&["render", "uv.obj", "--texture", "no-such.png"], "no-such.png"),
         (&["render", "--per-sample", "--overdraw", "o.npy"], "--per-sample"),
+        // The 3D pipeline chooses its coverage algorithm per triangle (it had been ignored).
+        (&["render", "--algorithm", "scanline"], "--algorithm is for --projection window"),
     ];
     for (args, named) in refused {
         let err = run_err(&dir.0, [args, &["--size", "32x24", "-o", "x.png"]].concat());
@@ -1439,6 +1459,56 @@ fn unwritable_standard_streams_are_not_panics() {
         assert!(!stderr_of(&out).contains("panicked"));
     }
     assert!(dir.path("p.png").exists());
+}
+
+/// Splats that reach the camera's plane cannot be drawn; the view frames the points' centres,
+/// so splats larger than the cloud had given an empty picture with no word but "culled".
+#[test]
+fn splat_says_when_splats_reach_the_camera() {
+    let dir = TempDir::new("huge-splats");
+    let header = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+                  property float z\nproperty float radius\nend_header\n";
+    let points = |radius: f32| {
+        let corners = ["0 0 0", "1 0 0", "0 1 0", "0 0 1"];
+        corners.map(|c| format!("{c} {radius}\n")).concat()
+    };
+    dir.write("huge.ply", &format!("{header}{}", points(10.0)));
+    dir.write("fine.ply", &format!("{header}{}", points(0.05)));
+    let args = |file| ["splat", file, "--size", "32x24", "-o", "s.png"];
+    let err = run_ok(&dir.0, args("huge.ply"));
+    assert!(err.contains("4 of 4 splats reach the camera's plane"), "{err}");
+    let err = run_ok(&dir.0, args("fine.ply"));
+    assert!(!err.contains("camera's plane"), "{err}");
+}
+
+/// Names of outputs that are not UTF-8 keep their bytes in a turntable's numbered files (two
+/// such names had both become `frame_000.npy`, ..., one array written over the other).
+#[cfg(unix)]
+#[test]
+fn turntable_numbers_names_that_are_not_utf8() {
+    use std::os::unix::ffi::{OsStrExt as _, OsStringExt as _};
+    let dir = TempDir::new("non-utf8");
+    let name = |bytes: &[u8]| OsString::from_vec(bytes.to_vec());
+    let args = [
+        OsString::from("render"),
+        "--size".into(),
+        "8x8".into(),
+        "--turntable".into(),
+        "2".into(),
+        "-o".into(),
+        name(b"\xfe.png"),
+        "--depth".into(),
+        name(b"\xff.npy"),
+        "--ids".into(),
+        name(b"\xfd.npy"),
+    ];
+    run_ok(&dir.0, &args);
+    let made = |bytes: &[u8]| dir.0.join(std::ffi::OsStr::from_bytes(bytes));
+    for k in [b"_000", b"_001"] {
+        assert_eq!(read_png(&made(&[b"\xfe", &k[..], b".png"].concat())).width, 8);
+        read_npy(&made(&[b"\xff", &k[..], b".npy"].concat())).check("<f4", 8, 8);
+        read_npy(&made(&[b"\xfd", &k[..], b".npy"].concat())).check("<i4", 8, 8);
+    }
 }
 
 /// A budget that stops refinement at a level of single points says so, not that the budget
