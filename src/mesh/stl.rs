@@ -850,7 +850,10 @@ mod tests {
         assert_eq!(m.triangles.len(), 1);
         b.push(0);
         let e = both(&b).unwrap_err().to_string();
-        assert!(e.starts_with("t.stl: byte 80: the header declares 1 triangle, which takes"), "{e}");
+        assert!(
+            e.starts_with("t.stl: byte 80: the header declares 1 triangle, which takes"),
+            "{e}"
+        );
         assert!(e.contains("not ASCII STL either"), "{e}");
     }
 

@@ -247,10 +247,22 @@ fn parse_at<R: Read>(source: &mut Source<R>, len: u64) -> Result<PointCloud, Fai
         format!("element `{element}` has two properties `{property}` (first at line {first})")
     })?;
     let layout = check_header(&ply)?;
+    // A mesh's faces say nothing about its surface's points: said, since the picture (splats
+    // at the vertices only) would otherwise be taken for the mesh's.
+    let faces = ply.header.elements.get("face").map_or(0, |face| face.count);
+    let unused_faces = (faces > 0).then(|| {
+        format!(
+            "line {}: {} not used: a point cloud is the file's vertices (`trirast sample` \
+             spreads points over a mesh's surface)",
+            ply.element_line("face"),
+            if faces == 1 { "its face is".to_string() } else { format!("its {faces} faces are") },
+        )
+    });
     let colours_outside = (0, f32::INFINITY, f32::NEG_INFINITY);
     let mut body = Body { layout, colours_outside, ..Body::default() };
     let tail = ply.read_body(source, &mut body)?;
     let mut cloud = body.into_cloud();
+    cloud.warnings.extend(unused_faces);
     cloud.warnings.extend(tail);
     Ok(cloud)
 }
@@ -811,7 +823,13 @@ mod tests {
         assert_eq!(cloud.warnings, [want]);
         let faces = "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
         let cloud = read(format!("{head}{faces}{points}3 0 1 0\n"));
-        assert_eq!((cloud.len(), cloud.warnings.len()), (2, 0));
+        // The faces are read past without a word about trailing bytes, but said unused.
+        assert_eq!(cloud.len(), 2);
+        let want = "c.ply: line 7: its face is not used: a point cloud is the file's vertices \
+                    (`trirast sample` spreads points over a mesh's surface)";
+        assert_eq!(cloud.warnings, [want]);
+        let faces = "element face 0\nproperty list uchar int vertex_indices\nend_header\n";
+        assert!(read(format!("{head}{faces}{points}")).warnings.is_empty());
     }
 
     #[test]
