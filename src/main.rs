@@ -1761,7 +1761,6 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
     Ok(tree)
 }
 
-/// The points of a splat hierarchy: its leaves' centres.
 /// Warns of splats the view cannot draw because they reach the camera's plane (the view frames
 /// the points' centres, as `render` frames a mesh): splats larger than the cloud (a few points
 /// sampled from a mesh, or radii given in other units) had given an empty picture without a
@@ -1788,6 +1787,7 @@ fn warn_of_splats_at_the_eye(tree: &trirast::splat::SplatTree, camera: &Camera) 
     }
 }
 
+/// The points of a splat hierarchy: its leaves' centres.
 fn leaf_centres(tree: &trirast::splat::SplatTree) -> Vec<[f32; 3]> {
     tree.nodes.iter().filter(|n| n.child_count == 0).map(|n| n.centre).collect()
 }
