@@ -227,7 +227,8 @@ impl MaterialTextures {
                             .as_ref()
                             .map_or_else(String::new, |(f, l)| format!("{}:{l}: ", f.display()));
                         warnings.push(format!(
-                            "{at}material `{}`: texture not used, its diffuse colour instead: {e}",
+                            "{at}the texture of material `{}` cannot be used ({e}); using its \
+                             diffuse colour",
                             m.name
                         ));
                         None
@@ -898,7 +899,11 @@ mod tests {
         assert_eq!(textures.get(0).map(|t| (t.width(), t.height())), Some((4, 2)));
         assert!([1, 2, 4].iter().all(|&k| textures.get(k).is_none()));
         assert_eq!(textures.warnings.len(), 2, "{:?}", textures.warnings);
-        assert!(textures.warnings[1].starts_with("material `d`"), "{:?}", textures.warnings);
+        assert!(
+            textures.warnings[1].starts_with("the texture of material `d`"),
+            "{:?}",
+            textures.warnings
+        );
     }
 
     /// Gouraud's colours lit side by side are those of one vertex at a time, bit for bit, at

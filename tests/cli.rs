@@ -1320,7 +1320,10 @@ fn sample_warns_about_a_texture_that_does_not_decode() {
     for (command, err) in [("render", render), ("sample", sample)] {
         assert!(err.contains("warning") && err.contains("t.png"), "{command}: {err}");
         assert!(err.contains("material `tex`"), "{command}: the warning names it: {err}");
-        assert!(err.contains("m.mtl:3: material"), "{command}: and its `map_Kd` line: {err}");
+        let line = "m.mtl:3: the texture of material `tex` cannot be used";
+        assert!(err.contains(line), "{command}: and its `map_Kd` line: {err}");
+        // In the words of the warnings for textures missing when the library is read.
+        assert!(err.contains("; using its diffuse colour"), "{command}: {err}");
     }
 }
 
