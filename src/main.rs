@@ -641,6 +641,13 @@ fn material_textures(mesh: &trirast::mesh::Mesh) -> impl Iterator<Item = &Path> 
     mesh.materials.iter().filter_map(|m| m.diffuse_texture.as_deref())
 }
 
+/// The files reading `mesh` read besides its own: its material libraries and their textures,
+/// which no output may write over (an output named as an `.obj`'s `mtllib` had replaced it).
+fn files_read(mesh: &trirast::mesh::Mesh) -> Vec<&Path> {
+    let libraries = mesh.material_libraries.iter().map(PathBuf::as_path);
+    libraries.chain(material_textures(mesh)).collect()
+}
+
 /// Refuses, before any is decoded, textures whose loading needs more memory than the system
 /// can give ([`trirast::texture::LOAD_BYTES_PER_TEXEL`] a texel, each file once, as if all
 /// loaded at once): four PNGs of 16384 x 4096 texels, 260 KB each, had grown past 4 GB and
@@ -938,10 +945,8 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
             mesh.triangle_materials = Some(vec![0; mesh.triangles.len()]);
         }
     }
-    // The materials' textures are inputs too, known once the mesh is read.
-    let textures: Vec<&Path> =
-        mesh.materials.iter().filter_map(|m| m.diffuse_texture.as_deref()).collect();
-    check_outputs(&outputs, &textures, args.turntable)?;
+    // The materials' libraries and textures are inputs too, known once the mesh is read.
+    check_outputs(&outputs, &files_read(&mesh), args.turntable)?;
     warn_about(&mesh);
     if mesh.positions.is_empty() {
         note!("trirast: warning: the file has no faces: nothing to draw");
@@ -1689,6 +1694,7 @@ fn working<T>(items: usize, message: impl FnOnce() -> String, work: impl FnOnce(
 fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Error> {
     check_outputs(&[("--output", Some(output), Written::Ply)], &[file], None)?;
     let mesh = reading(file, |report| trirast::mesh::load_reporting(file, report))?;
+    check_outputs(&[("--output", Some(output), Written::Ply)], &files_read(&mesh), None)?;
     warn_about(&mesh);
     check_texture_memory(material_textures(&mesh))?;
     let textures = MaterialTextures::load(&mesh);

@@ -1127,6 +1127,20 @@ fn outputs_that_are_inputs_or_each_other_are_refused() {
         assert!(before == after, "{args:?}: an input was written");
         assert!(!dir.path("x.npy").exists(), "{args:?}: nothing is written");
     }
+    // A material library is an input too, whatever its name (`--depth lib.npy` had replaced
+    // an `.obj`'s `mtllib lib.npy`).
+    for (library, args) in [
+        ("lib.npy", &["render", "l.obj", "--size", "8x8", "-o", "l.png", "--depth", "lib.npy"][..]),
+        ("lib.ply", &["sample", "l.obj", "-o", "lib.ply"][..]),
+    ] {
+        let mtl = "newmtl tex\nKd 1 0 0\n";
+        dir.write(library, mtl);
+        dir.write("l.obj", &format!("mtllib {library}\nusemtl tex\n{quad}"));
+        let err = run_err(&dir.0, args);
+        assert!(err.contains(&format!("is the input {library}")), "{err}");
+        assert_eq!(fs::read_to_string(dir.path(library)).unwrap(), mtl, "{args:?}");
+        assert!(!dir.path("l.png").exists(), "{args:?}: nothing is written");
+    }
     #[cfg(unix)]
     {
         std::os::unix::fs::symlink(dir.path("c.tsplat"), dir.path("link.tsplat")).unwrap();

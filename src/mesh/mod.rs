@@ -65,6 +65,9 @@ pub struct Mesh {
     pub polygon_count: usize,
     /// Problems that did not stop loading (a missing texture, say), for the user to see.
     pub warnings: Vec<String>,
+    /// The material libraries read (an OBJ's `mtllib` files), in the order read: inputs too,
+    /// for a caller that must not write over what it read.
+    pub material_libraries: Vec<PathBuf>,
 }
 
 /// A mesh file's format, as [`load`] chooses its reader.

@@ -283,6 +283,7 @@ pub fn apply(mesh: &mut Mesh, obj: &MaterialStatements, obj_path: &Path) -> Resu
                 Err(e) => return Err(e),
             };
             mesh.warnings.extend(lib.warnings);
+            mesh.material_libraries.push(file.clone());
             for (m, at) in lib.materials.into_iter().zip(lib.texture_lines) {
                 defined.entry(m.name.clone()).or_insert_with(|| (m, file.clone(), at));
             }
