@@ -8,12 +8,11 @@
 //! focused reader is shorter than the workarounds.
 //!
 //! Format detection: a file whose first word is `solid` (after a UTF-8 byte order mark, if
-//! any) is ASCII unless its size is exactly
-//! `84 + 50 * count` for the little-endian triangle count at byte 80, in which case it is a
-//! binary file with a text-like header. Anything else is binary, and a size that disagrees with
-//! the count is an error naming byte 80, except that a count of 0 in a file of whole facets
-//! (some exporters write 0) is read by the size, with a warning; a file beginning `solid`
-//! is so read only when its first bytes are not text.
+//! any) is ASCII unless its size is exactly `84 + 50 * count` for the little-endian triangle
+//! count at byte 80, in which case it is a binary file with a text-like header. Anything else
+//! is binary, and a size that disagrees with the count is an error naming byte 80, except that
+//! a count of 0 in a file of whole facets (some exporters write 0) is read by the size, with a
+//! warning; a file beginning `solid` is so read only when its first bytes are not text.
 //!
 //! ASCII: keywords are matched case-insensitively; a file may hold several `solid ... endsolid`
 //! blocks; `facet normal nx ny nz` may omit the normal; an `outer loop` of more than three
@@ -951,8 +950,6 @@ mod tests {
         assert!(e.to_string().starts_with("t.stl:4: expected `outer loop`"), "{e}");
     }
 
-    /// Whitespace before the first word, past the buffer and the head: the first word is
-    /// still found, and the lines are numbered from the start.
     #[test]
     fn ascii_after_a_byte_order_mark() {
         // Editors on Windows may begin a text file with a UTF-8 byte order mark; such a file
@@ -967,6 +964,8 @@ mod tests {
         assert!(e.to_string().starts_with("t.stl: byte 80: the header declares"), "{e}");
     }
 
+    /// Whitespace before the first word, past the buffer and the head: the first word is
+    /// still found, and the lines are numbered from the start.
     #[test]
     fn first_word_after_long_whitespace() {
         let pad = " \n\t\r".repeat(300);
