@@ -152,8 +152,8 @@ pub trait Record: Copy + Send + Sync {
     /// What the fragment stage reads per triangle.
     type Payload;
 
-    /// Whether a batch whose records outgrow the caches ([`STREAM_BYTES`]) writes them with
-    /// streaming stores ([`Sink::push_line`]; window records, one cache line each), and so
+    /// Whether a batch whose records outgrow the caches (`STREAM_BYTES`) writes them with
+    /// streaming stores (`Sink::push_line`; window records, one cache line each), and so
     /// does not prefetch their lines.
     const STREAMED: bool = false;
 
