@@ -995,7 +995,7 @@ fn malformed_files_name_the_file_and_position() {
         (
             "negative_list.ply",
             negative_list,
-            format!(": byte {face_at}: `face` 0: List length cannot be negative"),
+            format!(": byte {face_at}: `face` 0: the list's length is negative"),
         ),
         (
             "float_indices.ply",

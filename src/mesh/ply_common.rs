@@ -811,6 +811,8 @@ fn crate_message(e: &ParseError) -> String {
         m if m.starts_with("Couldn't parse element at index") => {
             "a list value does not fit its type"
         }
+        // A signed count type (`list char ...`) holding a negative count.
+        m if m.starts_with("List length cannot be negative") => "the list's length is negative",
         m => m.trim_end_matches('.'),
     };
     match value {
