@@ -1772,10 +1772,11 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
 /// sampled from a mesh, or radii given in other units) had given an empty picture without a
 /// word but "N nodes culled".
 fn warn_of_splats_at_the_eye(tree: &trirast::splat::SplatTree, camera: &Camera) {
-    let forward = (camera.target - camera.eye).normalize_or_zero();
-    let leaves = tree.nodes.iter().filter(|n| n.child_count == 0);
-    let (mut reaching, mut largest) = (0usize, 0.0f32);
-    for n in leaves.clone() {
+    // The camera module's direction at any scale; a view without one has no plane to reach.
+    let Some(forward) = camera::direction(camera.target - camera.eye) else { return };
+    let (mut leaves, mut reaching, mut largest) = (0usize, 0usize, 0.0f32);
+    for n in tree.nodes.iter().filter(|n| n.child_count == 0) {
+        leaves += 1;
         if (Vec3::from(n.centre) - camera.eye).dot(forward) <= n.radius {
             reaching += 1;
             largest = largest.max(n.radius);
@@ -1788,7 +1789,7 @@ fn warn_of_splats_at_the_eye(tree: &trirast::splat::SplatTree, camera: &Camera) 
             "trirast: warning: {reaching} of {} {verb} the camera's plane and cannot be drawn \
              (splat radius up to {largest:.3e}; the camera is {distance:.3e} from the points' \
              centre)",
-            counted(leaves.count(), "splat"),
+            counted(leaves, "splat"),
         );
     }
 }
