@@ -1767,29 +1767,26 @@ fn load_splats(file: &Path) -> Result<trirast::splat::SplatTree, Error> {
     Ok(tree)
 }
 
-/// Warns of splats the view cannot draw because they reach the camera's plane (the view frames
-/// the points' centres, as `render` frames a mesh): splats larger than the cloud (a few points
-/// sampled from a mesh, or radii given in other units) had given an empty picture without a
-/// word but "N nodes culled".
-fn warn_of_splats_at_the_eye(tree: &trirast::splat::SplatTree, camera: &Camera) {
-    // The camera module's direction at any scale; a view without one has no plane to reach.
-    let Some(forward) = camera::direction(camera.target - camera.eye) else { return };
-    let (mut leaves, mut reaching, mut largest) = (0usize, 0usize, 0.0f32);
-    for n in tree.nodes.iter().filter(|n| n.child_count == 0) {
-        leaves += 1;
-        if (Vec3::from(n.centre) - camera.eye).dot(forward) <= n.radius {
-            reaching += 1;
-            largest = largest.max(n.radius);
-        }
-    }
+/// Warns of splats the view could not draw because they reach the camera's plane (the view
+/// frames the points' centres, as `render` frames a mesh): splats larger than the cloud (a few
+/// points sampled from a mesh, or radii given in other units) had given an empty picture without
+/// a word but "N nodes culled". The renderer counts them, so the rule is its own.
+fn warn_of_splats_at_the_eye(
+    tree: &trirast::splat::SplatTree,
+    camera: &Camera,
+    stats: &trirast::splat::render::SplatStats,
+) {
+    let reaching = stats.at_eye;
     if reaching > 0 {
+        let leaves = tree.nodes.iter().filter(|n| n.child_count == 0);
+        let largest = leaves.clone().map(|n| n.radius).fold(0.0f32, f32::max);
         let distance = (camera.target - camera.eye).length();
         let verb = if reaching == 1 { "reaches" } else { "reach" };
         note!(
             "trirast: warning: {reaching} of {} {verb} the camera's plane and cannot be drawn \
              (splat radius up to {largest:.3e}; the camera is {distance:.3e} from the points' \
              centre)",
-            counted(leaves, "splat"),
+            counted(leaves.count(), "splat"),
         );
     }
 }
@@ -1850,7 +1847,6 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
         width as f32 / height as f32,
         Projection::Perspective { fov_y: camera::DEFAULT_FOV_Y },
     );
-    warn_of_splats_at_the_eye(&tree, &camera);
     let shape = match args.shape {
         ShapeArg::Round => SplatShape::Round,
         ShapeArg::Square => SplatShape::Square,
@@ -1904,6 +1900,7 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
             stats.leaves_drawn,
             counted(stats.culled, "node"),
         );
+        warn_of_splats_at_the_eye(&tree, &camera, &stats);
     }
     trirast::output::write_png_with(&args.output, &target, args.png_compression.into())?;
     if let Some(p) = &args.depth {

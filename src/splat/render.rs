@@ -105,6 +105,10 @@ pub struct SplatStats {
     pub leaves_drawn: usize,
     /// Nodes culled (frustum or normal cone).
     pub culled: usize,
+    /// Leaves not drawn because their sphere reaches the camera's plane, where no projection
+    /// holds (not counted in `culled`): splats larger than their distance to the eye, which
+    /// a user should hear of, since they leave a picture empty with nothing culled.
+    pub at_eye: usize,
     /// Pixels written (passed the depth test).
     pub pixels: u64,
 }
@@ -237,7 +241,7 @@ impl View<'_> {
         let leaf = n.child_count == 0;
         if p.w <= r * 1e-3 || (self.perspective && p.w - r <= 0.0) {
             // Straddles the camera plane: no projection; refine, or drop a leaf.
-            return if leaf { Visit::Culled } else { Visit::Refine { inside } };
+            return if leaf { Visit::AtEye } else { Visit::Refine { inside } };
         }
         // One division per node: everything below scales by 1/w.
         let inv_w = 1.0 / p.w;
@@ -286,6 +290,8 @@ impl View<'_> {
 
 enum Visit {
     Culled,
+    /// A leaf reaching the camera's plane: not drawn.
+    AtEye,
     Draw(Splat),
     /// Visit the children; `inside`: this node lies inside every frustum plane.
     Refine {
@@ -346,6 +352,7 @@ pub fn render(
                     st.visited += 1;
                     match v.classify(i, parent_inside) {
                         Visit::Culled => st.culled += 1,
+                        Visit::AtEye => st.at_eye += 1,
                         Visit::Draw(s) => {
                             st.drawn += 1;
                             st.leaves_drawn += usize::from(tree.nodes[i].child_count == 0);
@@ -383,6 +390,7 @@ pub fn render(
             stats.drawn += st.drawn;
             stats.leaves_drawn += st.leaves_drawn;
             stats.culled += st.culled;
+            stats.at_eye += st.at_eye;
         }
     }
     stats.pixels = draw_splats(target, &parts, &tiles, options.shape);
@@ -720,6 +728,7 @@ mod tests {
     fn decision(v: &Visit) -> String {
         match v {
             Visit::Culled => "culled".into(),
+            Visit::AtEye => "at the eye".into(),
             Visit::Draw(s) => format!("{s:?}"),
             Visit::Refine { .. } => "refine".into(),
         }
@@ -767,7 +776,7 @@ mod tests {
                 let mut next = Vec::new();
                 for &i in &frontier {
                     match view.classify(i, false) {
-                        Visit::Culled => {}
+                        Visit::Culled | Visit::AtEye => {}
                         Visit::Draw(s) => {
                             let mut band = ordered.band();
                             let (all, plain) = (band.rect(), plain(&band));
@@ -865,5 +874,34 @@ mod tests {
         assert!(checked > 1000 && outside > 1000, "{checked} checked, {outside} culled");
         // Under an inside parent, only back faces are culled.
         assert!(culled < checked);
+    }
+
+    /// Leaves whose sphere reaches the camera's plane are counted as such, not as culled, and
+    /// only they: a row of points along the view axis, the nearest ones closer to the eye than
+    /// their radius.
+    #[test]
+    fn leaves_at_the_eye_are_counted() {
+        let n = 40;
+        let cloud = PointCloud {
+            positions: (0..n).map(|k| [0.0, 0.0, -0.25 * k as f32]).collect(),
+            radii: Some(vec![0.6; n]),
+            ..PointCloud::default()
+        };
+        let tree = SplatTree::build(&cloud).unwrap();
+        let camera = Camera {
+            eye: Vec3::ZERO,
+            target: Vec3::NEG_Z,
+            up: Vec3::Y,
+            projection: Projection::Perspective { fov_y: 0.8 },
+            near: 0.01,
+            far: 100.0,
+        };
+        let options = SplatOptions::default().with_threshold(0.0);
+        let mut target = Target::new(64, 48).unwrap();
+        let stats = render(&mut target, &tree, &camera, &options);
+        // Depths 0, 0.25 and 0.5 are within 0.6 of the eye's plane; 0.75 on are not.
+        assert_eq!(stats.at_eye, 3, "{stats:?}");
+        assert_eq!(stats.leaves_drawn, n - 3, "{stats:?}");
+        assert_eq!(stats.culled, 0, "{stats:?}");
     }
 }
