@@ -946,7 +946,7 @@ fn render(args: &RenderArgs) -> Result<(), Error> {
         }
     }
     // The materials' libraries and textures are inputs too, known once the mesh is read.
-    check_outputs(&outputs, &files_read(&mesh), args.turntable)?;
+    check_not_inputs(&outputs, &files_read(&mesh), args.turntable)?;
     warn_about(&mesh);
     if mesh.positions.is_empty() {
         note!("trirast: warning: the file has no faces: nothing to draw");
@@ -1266,17 +1266,11 @@ fn check_outputs(
     inputs: &[&Path],
     frames: Option<u32>,
 ) -> Result<(), Error> {
+    check_not_inputs(outputs, inputs, frames)?;
     let named: Vec<(&str, &Path, Written)> =
         outputs.iter().filter_map(|&(option, path, kind)| Some((option, path?, kind))).collect();
     let outputs: Vec<PathBuf> = named.iter().map(|&(_, p, _)| resolved(p)).collect();
     for (k, &(option, path, kind)) in named.iter().enumerate() {
-        if let Some(input) = inputs.iter().find(|&&input| writes(path, frames, input)) {
-            return Err(usage(format!(
-                "{option} {} is the input {}: writing it would destroy what is read",
-                path.display(),
-                input.display()
-            )));
-        }
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         let ext = ext.as_deref().unwrap_or("");
         if KNOWN_FORMATS.contains(&ext) && ext != kind.extension() {
@@ -1299,6 +1293,27 @@ fn check_outputs(
         }
         let first = frames.map_or_else(|| path.to_path_buf(), |total| frame_path(path, 0, total));
         can_write(option, path, &first)?;
+    }
+    Ok(())
+}
+
+/// The part of [`check_outputs`] that needs the inputs: an output that would write over one
+/// of them. Checked again once a mesh names the files it read (material libraries, textures),
+/// without probing the outputs a second time.
+fn check_not_inputs(
+    outputs: &[(&str, Option<&Path>, Written)],
+    inputs: &[&Path],
+    frames: Option<u32>,
+) -> Result<(), Error> {
+    for &(option, path, _) in outputs {
+        let Some(path) = path else { continue };
+        if let Some(input) = inputs.iter().find(|&&input| writes(path, frames, input)) {
+            return Err(usage(format!(
+                "{option} {} is the input {}: writing it would destroy what is read",
+                path.display(),
+                input.display()
+            )));
+        }
     }
     Ok(())
 }
@@ -1694,7 +1709,7 @@ fn working<T>(items: usize, message: impl FnOnce() -> String, work: impl FnOnce(
 fn sample(file: &Path, points: usize, output: &Path, seed: u64) -> Result<(), Error> {
     check_outputs(&[("--output", Some(output), Written::Ply)], &[file], None)?;
     let mesh = reading(file, |report| trirast::mesh::load_reporting(file, report))?;
-    check_outputs(&[("--output", Some(output), Written::Ply)], &files_read(&mesh), None)?;
+    check_not_inputs(&[("--output", Some(output), Written::Ply)], &files_read(&mesh), None)?;
     warn_about(&mesh);
     check_texture_memory(material_textures(&mesh))?;
     let textures = MaterialTextures::load(&mesh);
@@ -1895,7 +1910,9 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
             " (coarser than --threshold: budget reached)"
         };
         note!(
-            "level {level} px: {} ({} of them single points), {} culled, {ms:.1} ms{note}",
+            "level {} px: {} ({} of them single points), {} culled, {ms:.1} ms{note}",
+            // `--threshold 1e30` had printed its thirty-one digits.
+            if level < 1e6 { level.to_string() } else { format!("{level:e}") },
             counted(stats.drawn, "splat"),
             stats.leaves_drawn,
             counted(stats.culled, "node"),

@@ -1498,6 +1498,21 @@ fn splat_says_when_splats_reach_the_camera() {
     assert!(!err.contains("camera's plane"), "{err}");
 }
 
+/// A huge `--threshold` is said in exponent form, not as its thirty-one digits.
+#[test]
+fn splat_says_a_huge_threshold_briefly() {
+    let dir = TempDir::new("huge-threshold");
+    let header = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                  property float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
+    dir.write("c.ply", header);
+    let args = ["splat", "c.ply", "--size", "32x24", "--threshold", "1e30", "-o", "s.png"];
+    let err = run_ok(&dir.0, args);
+    assert!(err.contains("level 1e30 px"), "{err}");
+    let args = ["splat", "c.ply", "--size", "32x24", "--threshold", "2.5", "-o", "s.png"];
+    let err = run_ok(&dir.0, args);
+    assert!(err.contains("level 2.5 px"), "{err}");
+}
+
 /// Names of outputs that are not UTF-8 keep their bytes in a turntable's numbered files (two
 /// such names had both become `frame_000.npy`, ..., one array written over the other). Linux
 /// only: its file systems take any bytes but `/` and NUL in a name, where macOS's refuse some.
