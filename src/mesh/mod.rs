@@ -175,6 +175,23 @@ fn without_bom(text: &[u8]) -> &[u8] {
     text.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(text)
 }
 
+/// `bytes` as a message quotes them: UTF-8 as it is, each other byte as `\xNN`, so a message
+/// says which byte it was (`\xff`, where U+FFFD would not) and shows it the way the command
+/// line's escaping shows control characters.
+pub(crate) fn shown(bytes: &[u8]) -> std::borrow::Cow<'_, str> {
+    if let Ok(text) = std::str::from_utf8(bytes) {
+        return text.into();
+    }
+    let mut out = String::with_capacity(bytes.len() + 8);
+    for chunk in bytes.utf8_chunks() {
+        out.push_str(chunk.valid());
+        for b in chunk.invalid() {
+            out.push_str(&format!("\\x{b:02x}"));
+        }
+    }
+    out.into()
+}
+
 /// The statement of an MTL line `raw`: the text before any `#`, trimmed, bytes that are not
 /// UTF-8 replaced (U+FFFD). Exporters write names in other encodings (Latin-1); a name so
 /// read still matches the OBJ's `usemtl`, whose words are converted the same way.

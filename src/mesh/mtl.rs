@@ -159,9 +159,16 @@ fn statement(
         let mut rgb = [0.0f32; 3];
         let f = args
             .iter()
-            .map(|a| match a.parse::<f32>() {
+            .enumerate()
+            .map(|(k, a)| match a.parse::<f32>() {
                 Ok(v) if v.is_finite() => Ok(v),
-                _ => Err((line, format!("`Kd` expected a finite number, found `{a}`"))),
+                _ => {
+                    // Quoted from the line's bytes, as the OBJ reader quotes (`\xe9`, where
+                    // the text has U+FFFD).
+                    let word = super::statement_words(raw).nth(k + 1);
+                    let a = word.map_or(std::borrow::Cow::Borrowed(*a), super::shown);
+                    Err((line, format!("`Kd` expected a finite number, found `{a}`")))
+                }
             })
             .collect::<Result<Vec<_>, _>>()?;
         match f.len() {
@@ -435,7 +442,7 @@ mod tests {
             (b"newmtl a\nKd nan 0 0\n", 2, "finite"),
             (b"newmtl a\nKd 0,5 0,5 0,5\n", 2, "found `0,5`"),
             (b"newmtl a\nKd 0.5 0.5 0.5 1.0\n", 2, "found 4 numbers"),
-            (b"newmtl a\nKd 1 1 \xe9\n", 2, "found `\u{fffd}`"),
+            (b"newmtl a\nKd 1 1 \xe9\n", 2, "found `\\xe9`"),
         ];
         for (src, line, needle) in cases {
             let mut text = src.to_vec();

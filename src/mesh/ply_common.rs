@@ -650,7 +650,7 @@ impl<F: Fields> Ply<F> {
 fn header_error(e: &ParseError, line: usize, bytes: &[u8]) -> Fail {
     let last = bytes.split(|&b| b == b'\n').count();
     let line = e.line().unwrap_or(line).clamp(1, last);
-    let text = bytes.split(|&b| b == b'\n').nth(line - 1).map(String::from_utf8_lossy);
+    let text = bytes.split(|&b| b == b'\n').nth(line - 1).map(super::shown);
     let text = text.as_deref().unwrap_or("").trim();
     let text: String = text.chars().take(80).collect();
     let first = e.to_string();
