@@ -1411,8 +1411,7 @@ fn write_outputs(args: &RenderArgs, target: &Target, frame: Option<u32>) -> Resu
         trirast::output::write_npy(&named(p), o, width, height)?;
     }
     if let (Some(p), Some(n)) = (&args.normals, &target.normals) {
-        let shape = [u64::from(height), u64::from(width), 3];
-        trirast::output::write_npy_shaped(&named(p), n.as_flattened(), &shape)?;
+        trirast::output::write_npy_arrays(&named(p), n, width, height)?;
     }
     if frame.is_none() {
         note!("wrote {}", png.display());

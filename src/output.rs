@@ -75,16 +75,41 @@ where
     write_npy_shaped(path, data, &[u64::from(height), u64::from(width)])
 }
 
+/// Writes `data` (row-major, `height * width` arrays of `N` values, as [`Target::normals`]
+/// holds) as a little-endian `.npy` array of shape (height, width, N).
+///
+/// # Errors
+/// As [`write_npy_shaped`].
+pub fn write_npy_arrays<T, const N: usize>(
+    path: &Path,
+    data: &[[T; N]],
+    width: u32,
+    height: u32,
+) -> Result<(), Error>
+where
+    T: npyz::Serialize + npyz::AutoSerialize,
+{
+    write_npy_shaped(path, data.as_flattened(), &[u64::from(height), u64::from(width), N as u64])
+}
+
 /// Writes `data` (row-major) as a little-endian `.npy` array of the given shape.
 ///
 /// # Errors
 /// [`Error::Io`] when the file cannot be written, or (kind `InvalidInput`, nothing written)
-/// when the shape's element count is not `data.len()`.
+/// when the shape's element count is not `data.len()`, or when the elements are arrays (the
+/// `.npy` writer takes scalars: [`write_npy_arrays`] writes arrays as a last axis).
 pub fn write_npy_shaped<T>(path: &Path, data: &[T], shape: &[u64]) -> Result<(), Error>
 where
     T: npyz::Serialize + npyz::AutoSerialize,
 {
     let io = |e| Error::io(path, e);
+    // Refused before the file is made: the writer panics on them once it has been truncated.
+    if let npyz::DType::Array(n, _) = T::default_dtype() {
+        let message = format!(
+            "npy elements must be scalars, found arrays of {n}: write them with write_npy_arrays"
+        );
+        return Err(io(std::io::Error::new(std::io::ErrorKind::InvalidInput, message)));
+    }
     // Checked: a product that wrapped to the data's length had passed with a header
     // promising 2^64 elements.
     let count = shape.iter().try_fold(1u64, |n, &side| n.checked_mul(side));
@@ -164,6 +189,17 @@ mod tests {
         assert!(!path.exists());
         write_npy(&path, &[1.0f32; 6], 3, 2).unwrap();
         write_npy_shaped::<f32>(&path, &[], &[0, 1 << 40]).unwrap();
+        // Arrays are refused as elements (the writer had panicked, the file already
+        // truncated) and written as a last axis by `write_npy_arrays`.
+        let arrays = [[1.0f32, 2.0, 3.0], [4.0, 5.0, 6.0]];
+        let kept = std::fs::read(&path).unwrap();
+        assert!(refused(write_npy(&path, &arrays, 2, 1).unwrap_err()));
+        assert!(refused(write_npy_shaped(&path, &[[7u8; 4]], &[1, 1]).unwrap_err()));
+        assert_eq!(std::fs::read(&path).unwrap(), kept);
+        write_npy_arrays(&path, &arrays, 2, 1).unwrap();
+        let npy = npyz::NpyFile::new(std::fs::File::open(&path).unwrap()).unwrap();
+        assert_eq!(npy.shape(), [1, 2, 3]);
+        assert_eq!(npy.into_vec::<f32>().unwrap(), arrays.as_flattened());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
