@@ -37,6 +37,8 @@ use crate::shade::{DepthTest, Shading};
 use crate::target::Target;
 use earcut::Earcut;
 use earcut::int::EarcutI32;
+use std::collections::HashMap;
+
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
 /// At most this many corners of a polygon may lie on one point for earcut to see it. A simple
@@ -496,6 +498,50 @@ fn rings_without_repeats(points: &[[f64; 2]], holes: &[usize]) -> Vec<Vec<usize>
     bounds.windows(2).map(|w| ring((w[0], w[1]))).collect()
 }
 
+/// The corners of `ring` (indices into `points`, none equal to the one before it) but those
+/// strictly between their two neighbours on one line, which go into `runs` under the kept
+/// side they lie on (earcut leaves such corners out; the Delaunay path takes them back once
+/// the rest is triangulated, [`with_straight_corners`]). Spade's bulk
+/// load inserts vertices closest to their mean first, and while all it has inserted lie on one
+/// line it locates each new one by a linear search: a triangle with 10,000 corners along one
+/// side took 5 s. Neighbours are the ring's own, not the corners kept: the corners of a
+/// straight run each lie between theirs (so all go, leaving its ends), and a ring cannot be
+/// one run, as a run moves one way along its line. The test is exact: [`robust::orient2d`]
+/// for the line, comparisons for between.
+fn without_straight_corners(
+    points: &[[f64; 2]],
+    ring: &[usize],
+    runs: &mut HashMap<[usize; 2], Vec<usize>>,
+) -> Vec<usize> {
+    let n = ring.len();
+    if n < 3 {
+        return ring.to_vec();
+    }
+    let coord = |i: usize| robust::Coord { x: points[i][0], y: points[i][1] };
+    let straight: Vec<bool> = (0..n)
+        .map(|k| {
+            let (a, b, c) =
+                (coord(ring[(k + n - 1) % n]), coord(ring[k]), coord(ring[(k + 1) % n]));
+            let between = |a: f64, b: f64, c: f64| (a < b && b < c) || (c < b && b < a);
+            robust::orient2d(a, b, c) == 0.0 && (between(a.x, b.x, c.x) || between(a.y, b.y, c.y))
+        })
+        .collect();
+    // From a kept corner round the ring, so that every run has both ends.
+    let Some(first) = straight.iter().position(|&s| !s) else { return ring.to_vec() };
+    let (mut from, mut between) = (ring[first], Vec::new());
+    for k in (first + 1..n).chain(0..=first) {
+        if straight[k] {
+            between.push(ring[k]);
+        } else {
+            if !between.is_empty() {
+                runs.insert([from, ring[k]], std::mem::take(&mut between));
+            }
+            from = ring[k];
+        }
+    }
+    (0..n).filter(|&k| !straight[k]).map(|k| ring[k]).collect()
+}
+
 /// How many of the `corners` lie on the most visited point (see [`point_key`]).
 fn most_at_one_point(points: &[[f64; 2]], corners: impl Iterator<Item = usize>) -> usize {
     let mut keys: Vec<[u64; 2]> = corners.map(|i| point_key(&points[i])).collect();
@@ -664,7 +710,9 @@ impl Refusal {
 /// constraints. A triangle is inside when the way to it from outside crosses the sides an odd
 /// number of times; where two ways disagree the rings are not a polygon's boundary.
 ///
-/// A corner equal to the one before it on its ring is left out, as earcut leaves it out.
+/// A corner equal to the one before it on its ring is left out, as earcut leaves it out. One
+/// strictly between its neighbours on a straight side is left out of the triangulation and
+/// then taken back ([`without_straight_corners`]), so it is a corner of the triangles.
 /// `None`, for earcut to decide, where the result would not be a triangulation of the polygon
 /// over all its other corners: two of them on one point (spade keeps one vertex per position,
 /// so a bridge or a pinch would lose one), a ring left with fewer than 3, sides that cross
@@ -674,9 +722,16 @@ impl Refusal {
 /// `n` corners and `h` holes has.
 fn cdt_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Result<Vec<[usize; 3]>, Refusal> {
     let rings = rings_without_repeats(data, holes);
-    if rings.iter().any(|r| r.len() < 3)
-        || most_at_one_point(data, rings.iter().flatten().copied()) > 1
-    {
+    if most_at_one_point(data, rings.iter().flatten().copied()) > 1 {
+        return Err(Refusal::Other);
+    }
+    // Corners strictly between their neighbours on a straight side are left out of the
+    // triangulation and taken back at the end (see `with_straight_corners`): the corners
+    // between the ends of each kept side, in the ring's order.
+    let mut straight_runs: HashMap<[usize; 2], Vec<usize>> = HashMap::new();
+    let rings: Vec<Vec<usize>> =
+        rings.iter().map(|r| without_straight_corners(data, r, &mut straight_runs)).collect();
+    if rings.iter().any(|r| r.len() < 3) {
         return Err(Refusal::Other);
     }
     // The corners kept, and the sides between them as spade's indices into `kept`.
@@ -736,7 +791,46 @@ fn cdt_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Result<Vec<[usize
             if ccw { [a, b, c] } else { [a, c, b] }
         })
         .collect();
-    (tris.len() + 2 == n + 2 * holes.len()).then_some(tris).ok_or(Refusal::Other)
+    if tris.len() + 2 != n + 2 * holes.len() {
+        return Err(Refusal::Other);
+    }
+    with_straight_corners(tris, straight_runs).ok_or(Refusal::Other)
+}
+
+/// `tris` with the corners of `runs` taken back: the triangle on each kept side `[a, c]` with
+/// corners between them (`runs`, in the ring's order from `a`) is cut into a fan from its
+/// third corner, which is off the side's line. Each corner so taken adds one triangle, so
+/// every corner is used and there are `n + 2h - 2` triangles, as in any triangulation of the
+/// ring; the fan keeps the triangle's winding. `None` if a run's side is on no triangle.
+fn with_straight_corners(
+    tris: Vec<[usize; 3]>,
+    mut runs: HashMap<[usize; 2], Vec<usize>>,
+) -> Option<Vec<[usize; 3]>> {
+    if runs.is_empty() {
+        return Some(tris);
+    }
+    let mut out = Vec::with_capacity(tris.len() + runs.values().map(Vec::len).sum::<usize>());
+    let mut pending = Vec::new();
+    for t in tris {
+        pending.push(t);
+        while let Some([a, b, c]) = pending.pop() {
+            let cut = [[a, b, c], [b, c, a], [c, a, b]].into_iter().find_map(|[u, v, w]| {
+                let between = match runs.remove(&[u, v]) {
+                    Some(run) => run,
+                    None => runs.remove(&[v, u]).map(|run| run.into_iter().rev().collect())?,
+                };
+                Some((u, between, v, w))
+            });
+            let Some((u, between, v, w)) = cut else {
+                out.push([a, b, c]);
+                continue;
+            };
+            let chain: Vec<usize> = std::iter::once(u).chain(between).chain([v]).collect();
+            // Last first, so that the fan comes out in the chain's order.
+            pending.extend(chain.windows(2).rev().map(|p| [p[0], p[1], w]));
+        }
+    }
+    runs.is_empty().then_some(out)
 }
 
 /// Runs earcut in `f64` and winds the triangles counter-clockwise (y up) iff `ccw`.
@@ -981,7 +1075,8 @@ mod tests {
     fn comb(n: usize) -> Vec<[f64; 2]> {
         let half = n / 2;
         let top = (0..half).map(|i| [i as f64, if i % 2 == 0 { 1.0 } else { 3.0 }]);
-        let bottom = (0..half).rev().map(|i| [i as f64, 0.0 - (i % 3) as f64 * 0.25]);
+        // No three corners on a line (those the Delaunay path leaves out).
+        let bottom = (0..half).rev().map(|i| [i as f64, [0.0, -0.25, -0.75][i % 3]]);
         top.chain(bottom).collect()
     }
 
@@ -1020,6 +1115,57 @@ mod tests {
             let drawn = triangulate_face(&face(&pinched));
             assert_eq!(drawn == fan(pinched.len()), !earcut, "{n}");
         }
+    }
+
+    /// Corners strictly between their neighbours on a straight side are left out of the
+    /// Delaunay triangulation (spade located each by a linear search while all it had lay on
+    /// one line: 10,000 along one side took 5 s) and taken back as fans: every corner is
+    /// used, the triangles are wound as asked and tile the polygon, and a corner where the
+    /// ring turns back along its side (a spike) is not taken for a straight one.
+    #[test]
+    fn straight_sides_are_triangulated_through_every_corner() {
+        let tiles = |data: &[[f64; 2]], holes: &[usize], ccw: bool, area: f64| {
+            let tris = cdt_rings(data, holes, ccw).expect("a simple polygon");
+            assert_eq!(tris.len() + 2, data.len() + 2 * holes.len());
+            for t in &tris {
+                assert_eq!(area2(data, &[*t]) > 0.0, ccw, "{t:?}");
+            }
+            assert_eq!(area2(data, &tris).abs(), area);
+            let mut used: Vec<usize> = tris.iter().flatten().copied().collect();
+            used.sort_unstable();
+            used.dedup();
+            assert_eq!(used.len(), data.len());
+        };
+        let n = 20_000;
+        let mut ring: Vec<[f64; 2]> = (0..=n).map(|k| [k as f64 / 64.0, 0.0]).collect();
+        ring.push([n as f64 / 128.0, 40.0]);
+        for ccw in [true, false] {
+            tiles(&ring, &[], ccw, 40.0 * n as f64 / 64.0);
+        }
+        // Straight runs on every side of a square and of its hole, one wrapping round the
+        // outer ring's start (steps of powers of two: exact corners, exact areas).
+        let side = |from: [f64; 2], to: [f64; 2], m: usize| {
+            (0..m).map(move |k| {
+                let t = k as f64 / m as f64;
+                [from[0] + (to[0] - from[0]) * t, from[1] + (to[1] - from[1]) * t]
+            })
+        };
+        let [a, b, c, d] = [[0.0, 0.0], [64.0, 0.0], [64.0, 64.0], [0.0, 64.0]];
+        let mut data: Vec<[f64; 2]> = side(a, b, 512)
+            .chain(side(b, c, 256))
+            .chain(side(c, d, 4))
+            .chain(side(d, a, 64))
+            .collect();
+        data.rotate_left(40);
+        let outer = data.len();
+        let hole = side([8.0, 8.0], [8.0, 16.0], 64).chain(side([8.0, 16.0], [16.0, 8.0], 2));
+        data.extend(hole.chain(side([16.0, 8.0], [8.0, 8.0], 8)));
+        tiles(&data, &[outer], true, 2.0 * (64.0 * 64.0 - 32.0));
+        // A spike: the ring goes out along a line and back; its tip is no straight corner.
+        let spike = [[0.0, 0.0], [2.0, 0.0], [4.0, 0.0], [1.0, 0.0], [0.0, 3.0]];
+        let mut runs = HashMap::new();
+        assert_eq!(without_straight_corners(&spike, &[0, 1, 2, 3, 4], &mut runs), [0, 2, 3, 4]);
+        assert_eq!(runs, HashMap::from([([0, 2], vec![1])]));
     }
 
     #[test]
@@ -1064,7 +1210,7 @@ mod tests {
         assert_eq!(cdt_rings(&crossed, &[], true), Err(Refusal::Crossing));
         // A corner of the top touching a side of the bottom at that side's midpoint.
         let mut touching = ring.clone();
-        touching[500] = [499.5, -0.375];
+        touching[500] = [499.5, -0.5];
         assert_eq!(cdt_rings(&touching, &[], true), Err(Refusal::Other));
         let mut outside = ring.clone();
         outside.extend([[10.0, 20.0], [11.0, 20.0], [10.5, 21.0]]);
