@@ -673,7 +673,9 @@ fn plane_bounds(
 /// the pixel centre (`None` discards it). Then write depth to the passing samples, colour and
 /// id to the passing samples, and the normal to the pixel.
 ///
-/// `clip` must lie within the band's rows. At 1x the only sample is the pixel centre, and the
+/// Only pixels of `clip` within the band are shaded (a clip reaching past the band's columns
+/// had written the pixels it wrapped to in the rows next to them). At 1x the only sample is
+/// the pixel centre, and the
 /// fragments that pass are handed to the stage [`LANES`] at a time, so their writes may wait
 /// until then (at the latest, until the call returns). Returns
 /// the number of covered samples. A `kernel` (flat or smooth colour without normals)
@@ -692,6 +694,8 @@ pub fn shade_triangle(
     kernel: Option<(SimdLevel, &SpanColor)>,
     fragment: impl FragmentStage,
 ) -> u64 {
+    let Some(clip) = clip.intersect(&target.rect()) else { return 0 };
+    let clip = &clip;
     // Where the draw call has no kernel, the stage's own (the 3D pipeline's vertex colours).
     let own = if kernel.is_none() { fragment.span_color() } else { None };
     let kernel = kernel.or(own.as_ref().map(|(level, color)| (*level, color)));
@@ -1842,6 +1846,50 @@ fn row_pixels(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A clip reaching past the band's columns shades only the band's pixels, as the same
+    /// clip cut to the band does (it had written the pixels its columns wrapped to, at the
+    /// right of the rows above), for every algorithm, sample count and kernel.
+    #[test]
+    fn clips_past_the_band_shade_only_the_band() {
+        let corners = [[-6.0f32, 17.0], [3.0, 17.0], [-5.0, 30.0]];
+        let v = corners.map(|[x, y]| Vertex::new(x, y, 0.5, [9, 8, 7, 255]));
+        let setup = TriangleSetup::new(&v, crate::CullMode::None).unwrap();
+        let depth = PlaneEquation::from_coefficients([0.5, 0.0, 0.0]);
+        let color = SpanColor::Flat([1, 2, 3, 4]);
+        let wide = PixelRect { x0: -8, y0: 16, x1: 70, y1: 31 };
+        let cut = PixelRect { x0: 0, y0: 16, x1: 3, y1: 31 };
+        for samples in [SampleCount::X1, SampleCount::X4] {
+            for algorithm in [Algorithm::EdgeFunctions, Algorithm::Scanline, Algorithm::EdgeMasks] {
+                for kernel in [None, Some(SimdLevel::Scalar), Some(SimdLevel::detect())] {
+                    let shaded = |clip: &PixelRect| {
+                        let mut target =
+                            crate::Target::multisampled(64, 64, samples).unwrap().with_ids();
+                        let fragment = |_: i32, _: i32, _: f64, _: f64, _: f32| {
+                            Some(FragmentOutput { color: [5; 4], normal: None })
+                        };
+                        let kernel = kernel.map(|level| (level, &color));
+                        let n = shade_triangle(
+                            &mut target.band(),
+                            &setup,
+                            algorithm,
+                            clip,
+                            &depth,
+                            DepthTest::Less,
+                            1,
+                            kernel,
+                            fragment,
+                        );
+                        (n, target.ids.unwrap(), target.color)
+                    };
+                    let what = format!("{samples:?} {algorithm:?} {kernel:?}");
+                    let (n, ids, color) = shaded(&wide);
+                    assert!(n > 0, "{what}");
+                    assert_eq!((n, ids, color), shaded(&cut), "{what}");
+                }
+            }
+        }
+    }
 
     /// The colour a triangle keeps gives, per channel, `quantize_channel` of the plane the
     /// definition names: the plane's coefficients with fused multiply-adds for smooth colours

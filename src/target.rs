@@ -424,10 +424,17 @@ impl TargetBand<'_> {
         self.width
     }
 
-    /// Index of pixel `(x, y)` (image coordinates, `y` within the band) in per-pixel buffers.
+    /// Index of pixel `(x, y)` (image coordinates) in per-pixel buffers. The pixel must lie in
+    /// the band (asserted in debug builds), as for [`Target::index`].
     #[inline]
     #[must_use]
     pub fn index(&self, x: i32, y: i32) -> usize {
+        debug_assert!(
+            (self.rect.x0..=self.rect.x1).contains(&x)
+                && (self.rect.y0..=self.rect.y1).contains(&y),
+            "pixel ({x}, {y}) outside the band {:?}",
+            self.rect
+        );
         (y - self.rect.y0) as usize * self.width + x as usize
     }
 }
