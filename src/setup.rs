@@ -484,11 +484,14 @@ pub fn extent(xy: [[i64; 2]; 3]) -> [[i64; 2]; 2] {
 pub fn sample_bounds(extent: [[i64; 2]; 2], offset: [i64; 2]) -> PixelRect {
     let [[x0, y0], [x1, y1]] = extent;
     let [ox, oy] = offset;
+    // Saturated, and clamped to `i32`: an offset of `i64::MAX` had overflowed (a debug
+    // panic, a wrapped box in release). Real offsets are under a pixel.
+    let pixel = |v: i64| v.clamp(i32::MIN.into(), i32::MAX.into()) as i32;
     PixelRect {
-        x0: fixed::first_centre_at_or_after(x0 - ox) as i32,
-        y0: fixed::first_centre_at_or_after(y0 - oy) as i32,
-        x1: fixed::last_centre_at_or_before(x1 - ox) as i32,
-        y1: fixed::last_centre_at_or_before(y1 - oy) as i32,
+        x0: pixel(fixed::first_centre_at_or_after(x0.saturating_sub(ox))),
+        y0: pixel(fixed::first_centre_at_or_after(y0.saturating_sub(oy))),
+        x1: pixel(fixed::last_centre_at_or_before(x1.saturating_sub(ox))),
+        y1: pixel(fixed::last_centre_at_or_before(y1.saturating_sub(oy))),
     }
 }
 

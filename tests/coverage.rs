@@ -645,3 +645,47 @@ fn non_finite_vertices_are_dropped_and_counted() {
     let drawn: u32 = target.overdraw.unwrap().iter().sum();
     assert_eq!(u64::from(drawn), stats.fragments);
 }
+
+/// The public rectangle tests answer for rectangles reaching to `i32`'s ends and for any
+/// reach, as for the same rectangles cut to just past the vertex range (they had overflowed
+/// their edge functions: a debug panic, a wrong answer in release); so does a sample's box for
+/// any offset.
+#[test]
+fn rectangle_tests_take_any_rectangle() {
+    let red = [255, 0, 0, 255];
+    let huge = Vertex::new;
+    let big = TriangleSetup::new(
+        &[
+            huge(-32000.0, -32000.0, 0.5, red),
+            huge(32000.0, -32000.0, 0.5, red),
+            huge(0.0, 32000.0, 0.5, red),
+        ],
+        CullMode::None,
+    )
+    .unwrap();
+    let small = TriangleSetup::new(
+        &[huge(2.0, 2.0, 0.5, red), huge(9.0, 2.0, 0.5, red), huge(2.0, 9.0, 0.5, red)],
+        CullMode::None,
+    )
+    .unwrap();
+    let all = PixelRect { x0: i32::MIN, y0: i32::MIN, x1: i32::MAX, y1: i32::MAX };
+    let inner = PixelRect { x0: -100, y0: -100, x1: 100, y1: 100 };
+    for reach in [0, 96, i64::MAX, i64::MIN] {
+        for tri in [&big, &small] {
+            // No triangle covers the whole plane; the big one covers the inner square.
+            assert!(!raster::covers_rect_within(tri, &all, reach));
+            let reject = raster::TrivialReject::new(tri, reach);
+            assert!(!reject.misses(&all), "{reach}");
+        }
+        let far = PixelRect { x0: i32::MAX - 10, y0: 0, x1: i32::MAX, y1: 10 };
+        assert!(raster::TrivialReject::new(&small, reach.clamp(0, 1 << 20)).misses(&far));
+    }
+    assert!(raster::covers_rect(&big, &inner));
+    assert!(!raster::covers_rect(&small, &inner));
+    // Offsets past any target move the box off every target.
+    for offset in [[i64::MAX, i64::MIN], [i64::MIN, i64::MAX], [i64::MIN, 0]] {
+        let b = small.sample_bounds(offset);
+        assert!(b.intersect(&inner).is_none(), "{b:?}");
+    }
+    assert_eq!(small.sample_bounds([0, 0]), small.bounds);
+}

@@ -137,12 +137,22 @@ impl TrivialReject {
 
 /// The four corners (fixed point) of the pixel centres of `rect` pushed out by `reach` on
 /// each axis: any point within `reach` of a centre of `rect` lies in their rectangle.
+///
+/// Coordinates are clamped to [`CORNER_LIMIT`], four times the vertex range: no triangle
+/// reaches past it, so a triangle covers or misses the clamped rectangle exactly when it
+/// does the one asked about, and edge functions evaluated at the corners cannot overflow
+/// (`i32::MIN` pixels had).
 #[must_use]
 pub fn rect_corners(rect: &PixelRect, reach: i64) -> [[i64; 2]; 4] {
-    let [x0, y0] = [rect.x0, rect.y0].map(|v| fixed::pixel_centre(v) - reach);
-    let [x1, y1] = [rect.x1, rect.y1].map(|v| fixed::pixel_centre(v) + reach);
+    let limit = |v: i64| v.clamp(-CORNER_LIMIT, CORNER_LIMIT);
+    let [x0, y0] = [rect.x0, rect.y0].map(|v| limit(fixed::pixel_centre(v).saturating_sub(reach)));
+    let [x1, y1] = [rect.x1, rect.y1].map(|v| limit(fixed::pixel_centre(v).saturating_add(reach)));
     [[x0, y0], [x1, y0], [x0, y1], [x1, y1]]
 }
+
+/// The largest magnitude of a corner from [`rect_corners`] (fixed point): four times the
+/// vertex range (2^23, [`fixed::MAX_COORD`] pixels), so edge values at it stay below 2^51.
+pub const CORNER_LIMIT: i64 = 1 << 25;
 
 /// Collects the spans of one triangle (convenient for tests and tools).
 #[must_use]
