@@ -1798,8 +1798,8 @@ fn warn_of_splats_at_the_eye(
         let verb = if reaching == 1 { "reaches" } else { "reach" };
         note!(
             "trirast: warning: {reaching} of {} {verb} the camera's plane and cannot be drawn \
-             (splat radius up to {largest:.3e}; the camera is {distance:.3e} from the points' \
-             centre)",
+             (the largest splat radius is {largest:.3e}; the camera is {distance:.3e} from the \
+             points' centre)",
             counted(leaves.count(), "splat"),
         );
     }
@@ -1910,8 +1910,12 @@ fn splat(args: &SplatArgs) -> Result<(), Error> {
         };
         note!(
             "level {} px: {} ({} of them single points), {} culled, {ms:.1} ms{note}",
-            // `--threshold 1e30` had printed its thirty-one digits.
-            if level < 1e6 { level.to_string() } else { format!("{level:e}") },
+            // `--threshold 1e30` had printed its thirty-one digits (and 1e-30 its 31 decimals).
+            if level == 0.0 || (1e-3..1e6).contains(&level) {
+                level.to_string()
+            } else {
+                format!("{level:e}")
+            },
             counted(stats.drawn, "splat"),
             stats.leaves_drawn,
             counted(stats.culled, "node"),

@@ -506,8 +506,9 @@ fn rings_without_repeats(points: &[[f64; 2]], holes: &[usize]) -> Vec<Vec<usize>
 /// line it locates each new one by a linear search: a triangle with 10,000 corners along one
 /// side took 5 s. Neighbours are the ring's own, not the corners kept: the corners of a
 /// straight run each lie between theirs (so all go, leaving its ends), and a ring cannot be
-/// one run, as a run moves one way along its line. The test is exact: [`robust::orient2d`]
-/// for the line, comparisons for between.
+/// one run, as a run moves one way along its line. The test is exact ([`robust::orient2d`]
+/// for the line, comparisons for between) for the coordinates [`cdt_rings`] lets through:
+/// `robust` has no guard against underflow, which differences below 2^-511 would need.
 fn without_straight_corners(
     points: &[[f64; 2]],
     ring: &[usize],
@@ -723,6 +724,12 @@ impl Refusal {
 fn cdt_rings(data: &[[f64; 2]], holes: &[usize], ccw: bool) -> Result<Vec<[usize; 3]>, Refusal> {
     let rings = rings_without_repeats(data, holes);
     if most_at_one_point(data, rings.iter().flatten().copied()) > 1 {
+        return Err(Refusal::Other);
+    }
+    // Refused as spade refuses them, and before the straight corners' test, which would not be
+    // exact for them (see `without_straight_corners`).
+    let tiny = |c: f64| c != 0.0 && c.abs() < spade::MIN_ALLOWED_VALUE;
+    if rings.iter().flatten().any(|&i| data[i].iter().any(|&c| tiny(c))) {
         return Err(Refusal::Other);
     }
     // Corners strictly between their neighbours on a straight side are left out of the

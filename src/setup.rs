@@ -478,20 +478,25 @@ pub fn extent(xy: [[i64; 2]; 3]) -> [[i64; 2]; 2] {
     [[min(0), min(1)], [max(0), max(1)]]
 }
 
-/// Pixels `p` whose sample position `256 p + 128 + offset` lies within `extent` on both axes.
+/// Pixels `p` whose sample position `256 p + 128 + offset` lies within `extent` on both axes,
+/// `i32::MIN` and `i32::MAX` left out (no target reaches them): empty when those pixels lie
+/// wholly beyond `i32`'s range.
 #[inline]
 #[must_use]
 pub fn sample_bounds(extent: [[i64; 2]; 2], offset: [i64; 2]) -> PixelRect {
     let [[x0, y0], [x1, y1]] = extent;
     let [ox, oy] = offset;
-    // Saturated, and clamped to `i32`: an offset of `i64::MAX` had overflowed (a debug
-    // panic, a wrapped box in release). Real offsets are under a pixel.
-    let pixel = |v: i64| v.clamp(i32::MIN.into(), i32::MAX.into()) as i32;
+    // Saturated, and clamped within `i32`: an offset of `i64::MAX` had overflowed (a debug
+    // panic, a wrapped box in release). Real offsets are under a pixel. A first pixel past
+    // `i32::MAX` becomes `i32::MAX` with the last at most `i32::MAX - 1`, an empty box, and
+    // likewise below.
+    let first = |v: i64| v.clamp(i64::from(i32::MIN) + 1, i32::MAX.into()) as i32;
+    let last = |v: i64| v.clamp(i32::MIN.into(), i64::from(i32::MAX) - 1) as i32;
     PixelRect {
-        x0: pixel(fixed::first_centre_at_or_after(x0.saturating_sub(ox))),
-        y0: pixel(fixed::first_centre_at_or_after(y0.saturating_sub(oy))),
-        x1: pixel(fixed::last_centre_at_or_before(x1.saturating_sub(ox))),
-        y1: pixel(fixed::last_centre_at_or_before(y1.saturating_sub(oy))),
+        x0: first(fixed::first_centre_at_or_after(x0.saturating_sub(ox))),
+        y0: first(fixed::first_centre_at_or_after(y0.saturating_sub(oy))),
+        x1: last(fixed::last_centre_at_or_before(x1.saturating_sub(ox))),
+        y1: last(fixed::last_centre_at_or_before(y1.saturating_sub(oy))),
     }
 }
 

@@ -1498,7 +1498,7 @@ fn splat_says_when_splats_reach_the_camera() {
     assert!(!err.contains("camera's plane"), "{err}");
 }
 
-/// A huge `--threshold` is said in exponent form, not as its thirty-one digits.
+/// A huge or tiny `--threshold` is said in exponent form, not as thirty-odd digits.
 #[test]
 fn splat_says_a_huge_threshold_briefly() {
     let dir = TempDir::new("huge-threshold");
@@ -1508,9 +1508,13 @@ fn splat_says_a_huge_threshold_briefly() {
     let args = ["splat", "c.ply", "--size", "32x24", "--threshold", "1e30", "-o", "s.png"];
     let err = run_ok(&dir.0, args);
     assert!(err.contains("level 1e30 px"), "{err}");
-    let args = ["splat", "c.ply", "--size", "32x24", "--threshold", "2.5", "-o", "s.png"];
-    let err = run_ok(&dir.0, args);
-    assert!(err.contains("level 2.5 px"), "{err}");
+    for (threshold, said) in
+        [("2.5", "level 2.5 px"), ("1e-30", "level 1e-30 px"), ("0", "level 0 px")]
+    {
+        let args = ["splat", "c.ply", "--size", "32x24", "--threshold", threshold, "-o", "s.png"];
+        let err = run_ok(&dir.0, args);
+        assert!(err.contains(said), "{err}");
+    }
 }
 
 /// Names of outputs that are not UTF-8 keep their bytes in a turntable's numbered files (two

@@ -646,10 +646,11 @@ fn non_finite_vertices_are_dropped_and_counted() {
     assert_eq!(u64::from(drawn), stats.fragments);
 }
 
-/// The public rectangle tests answer for rectangles reaching to `i32`'s ends and for any
-/// reach, as for the same rectangles cut to just past the vertex range (they had overflowed
-/// their edge functions: a debug panic, a wrong answer in release); so does a sample's box for
-/// any offset.
+/// The public rectangle tests answer rightly for rectangles reaching to `i32`'s ends and for
+/// any reach (they had overflowed their edge functions: a debug panic, a wrong answer in
+/// release): no triangle covers the whole plane, none misses it, a big one covers a square
+/// inside it, a small one misses a far rectangle; a sample's box for an offset past any
+/// target is off every target.
 #[test]
 fn rectangle_tests_take_any_rectangle() {
     let red = [255, 0, 0, 255];

@@ -176,20 +176,39 @@ fn without_bom(text: &[u8]) -> &[u8] {
 }
 
 /// `bytes` as a message quotes them: UTF-8 as it is, each other byte as `\xNN`, so a message
-/// says which byte it was (`\xff`, where U+FFFD would not) and shows it the way the command
-/// line's escaping shows control characters.
+/// says which byte it was (`\xff`, where U+FFFD would not), escaped as the command line
+/// escapes control characters (`\u{1b}`).
 pub(crate) fn shown(bytes: &[u8]) -> std::borrow::Cow<'_, str> {
+    shown_at_most(bytes, usize::MAX).0
+}
+
+/// [`shown`] of the first `n` characters and other bytes of `bytes`, and whether there were
+/// more: cut before escaping, so that no `\xNN` is cut through.
+pub(crate) fn shown_at_most(bytes: &[u8], n: usize) -> (std::borrow::Cow<'_, str>, bool) {
     if let Ok(text) = std::str::from_utf8(bytes) {
-        return text.into();
+        return match text.char_indices().nth(n) {
+            Some((cut, _)) => (text[..cut].into(), true),
+            None => (text.into(), false),
+        };
     }
-    let mut out = String::with_capacity(bytes.len() + 8);
+    let (mut out, mut left) = (String::with_capacity(bytes.len() + 8), n);
     for chunk in bytes.utf8_chunks() {
-        out.push_str(chunk.valid());
+        for c in chunk.valid().chars() {
+            if left == 0 {
+                return (out.into(), true);
+            }
+            out.push(c);
+            left -= 1;
+        }
         for b in chunk.invalid() {
+            if left == 0 {
+                return (out.into(), true);
+            }
             out.push_str(&format!("\\x{b:02x}"));
+            left -= 1;
         }
     }
-    out.into()
+    (out.into(), false)
 }
 
 /// The statement of an MTL line `raw`: the text before any `#`, trimmed, bytes that are not

@@ -581,9 +581,9 @@ impl Statements {
                 match &mut self.unknown {
                     Some(unknown) => unknown.more += 1,
                     None => {
-                        let mut keyword = super::shown(keyword).into_owned();
-                        if let Some((cut, _)) = keyword.char_indices().nth(24) {
-                            keyword.truncate(cut);
+                        let (keyword, cut) = super::shown_at_most(keyword, 24);
+                        let mut keyword = keyword.into_owned();
+                        if cut {
                             keyword.push_str("...");
                         }
                         self.unknown = Some(Unknown { line, keyword, more: 0 });
@@ -1096,6 +1096,11 @@ mod tests {
             mesh.warnings,
             [format!("m.obj:2: unknown statement `{}...` ignored", "x".repeat(24))]
         );
+        // Cut by characters and bytes before they are escaped: no `\xNN` is cut through.
+        let bytes = [b"v 0 0 0\nab".as_slice(), &[0xff; 30], b"\n"].concat();
+        let (mesh, _) = parse_mesh(&bytes, Path::new("m.obj")).unwrap();
+        let shown = format!("ab{}...", "\\xff".repeat(22));
+        assert_eq!(mesh.warnings, [format!("m.obj:2: unknown statement `{shown}` ignored")]);
         let skipped = b"o a\ng b\ns 1\nl 1 2\np 1\nmaplib x\nusemap x\ncstype bezier\nv 0 0 0\n";
         assert!(parse_mesh(skipped, Path::new("m.obj")).unwrap().0.warnings.is_empty());
     }

@@ -650,9 +650,8 @@ impl<F: Fields> Ply<F> {
 fn header_error(e: &ParseError, line: usize, bytes: &[u8]) -> Fail {
     let last = bytes.split(|&b| b == b'\n').count();
     let line = e.line().unwrap_or(line).clamp(1, last);
-    let text = bytes.split(|&b| b == b'\n').nth(line - 1).map(super::shown);
-    let text = text.as_deref().unwrap_or("").trim();
-    let text: String = text.chars().take(80).collect();
+    let text = bytes.split(|&b| b == b'\n').nth(line - 1).unwrap_or(b"").trim_ascii();
+    let text = super::shown_at_most(text, 80).0;
     let first = e.to_string();
     let first = first.split("\n\t").next().unwrap_or("").trim();
     let crate_line = e.line().map(|l| format!("Line {l}: ")).unwrap_or_default();

@@ -126,8 +126,8 @@ impl TrivialReject {
     /// so every sample of its pixels? True when one edge is negative at the four corners of
     /// those points' rectangle: its edge function is linear, so it is negative over all of
     /// it. `false` does not promise a covered sample (a rectangle off a corner of the
-    /// triangle, outside two edges but wholly outside neither, passes). `rect` lies within a
-    /// target (at most 16384 pixels a side), where no edge value overflows.
+    /// triangle, outside two edges but wholly outside neither, passes), nor does it for a
+    /// rectangle wholly past [`CORNER_LIMIT`], whose corners [`rect_corners`] clamps.
     #[must_use]
     pub fn misses(&self, rect: &PixelRect) -> bool {
         let corners = rect_corners(rect, self.reach);
@@ -138,10 +138,11 @@ impl TrivialReject {
 /// The four corners (fixed point) of the pixel centres of `rect` pushed out by `reach` on
 /// each axis: any point within `reach` of a centre of `rect` lies in their rectangle.
 ///
-/// Coordinates are clamped to [`CORNER_LIMIT`], four times the vertex range: no triangle
-/// reaches past it, so a triangle covers or misses the clamped rectangle exactly when it
-/// does the one asked about, and edge functions evaluated at the corners cannot overflow
-/// (`i32::MIN` pixels had).
+/// Coordinates are clamped to [`CORNER_LIMIT`], four times the vertex range, so that edge
+/// functions evaluated at the corners cannot overflow (`i32::MIN` pixels had). No triangle
+/// reaches past the limit, so a triangle covers the clamped rectangle exactly when it covers
+/// the one asked about; a rectangle wholly past it collapses onto the limit, where
+/// [`TrivialReject::misses`] may no longer find one edge to reject it by.
 #[must_use]
 pub fn rect_corners(rect: &PixelRect, reach: i64) -> [[i64; 2]; 4] {
     let limit = |v: i64| v.clamp(-CORNER_LIMIT, CORNER_LIMIT);

@@ -106,8 +106,8 @@ pub struct SplatStats {
     /// Nodes culled (frustum or normal cone).
     pub culled: usize,
     /// Leaves not drawn because their sphere reaches the camera's plane, where no projection
-    /// holds (not counted in `culled`): splats larger than their distance to the eye, which
-    /// a user should hear of, since they leave a picture empty with nothing culled.
+    /// holds (not counted in `culled`): splats whose radius is at least their depth along the
+    /// view, which a user should hear of, since they leave a picture empty with nothing culled.
     pub at_eye: usize,
     /// Pixels written (passed the depth test).
     pub pixels: u64,
