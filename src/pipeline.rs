@@ -608,14 +608,9 @@ impl Pipeline {
                                 let vertex = |i: u32| &shaded[i as usize];
                                 let source = (window.as_slice(), 0, vertex, position);
                                 let out = (sink, None::<&fn([&_; 3], u32) -> _>);
-                                front.prepare_range(
-                                    batch,
-                                    range,
-                                    first,
-                                    source,
-                                    (level, None),
-                                    out,
-                                );
+                                // No vertices prefetched (see `VERTICES_AHEAD`).
+                                let kernels = (level, None);
+                                front.prepare_range(batch, range, first, source, kernels, out);
                             } else if let Some((lo, _)) = windowed {
                                 // Its corner is known: inside, only depth and `1 / w` to find.
                                 let vertex = |i: u32| {
@@ -626,14 +621,9 @@ impl Pipeline {
                                 };
                                 let source = (window.as_slice(), lo, vertex, position);
                                 let out = (sink, None::<&fn([&_; 3], u32) -> _>);
-                                front.prepare_range(
-                                    batch,
-                                    range,
-                                    first,
-                                    source,
-                                    (level, None),
-                                    out,
-                                );
+                                // No vertices prefetched (see `VERTICES_AHEAD`).
+                                let kernels = (level, None);
+                                front.prepare_range(batch, range, first, source, kernels, out);
                             } else {
                                 for k in range {
                                     // Shaded once: the positions are at hand for clipping.
