@@ -1382,10 +1382,24 @@ fn one_file(a: &Path, b: &Path) -> bool {
 
 /// Where `path` leads: the file itself with links and `..` resolved when it exists, else its
 /// directory resolved and its name (the name as given where the directory is missing, which
-/// [`check_outputs`] reports anyway).
+/// [`check_outputs`] reports anyway). A link to a file not yet made leads where it points
+/// (`-o link.png --depth d.npy`, the link to `d.npy`, had been accepted and the depth written
+/// over the picture), through at most 40 links, as the system follows them.
 fn resolved(path: &Path) -> PathBuf {
+    resolved_within(path, 40)
+}
+
+/// [`resolved`], following at most `links` more links.
+fn resolved_within(path: &Path, links: u32) -> PathBuf {
     if let Ok(p) = std::fs::canonicalize(path) {
         return p;
+    }
+    if links > 0
+        && let Ok(target) = std::fs::read_link(path)
+    {
+        // Relative to the link's directory (an absolute target replaces it).
+        let dir = path.parent().unwrap_or(Path::new(""));
+        return resolved_within(&dir.join(target), links - 1);
     }
     let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
     match (std::fs::canonicalize(dir), path.file_name()) {

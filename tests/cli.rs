@@ -1164,6 +1164,15 @@ fn outputs_that_are_inputs_or_each_other_are_refused() {
         let link = fs::symlink_metadata(dir.path("dangling.png")).unwrap();
         assert!(link.file_type().is_symlink());
         assert_eq!(read_png(&dir.path("made.png")).width, 8);
+        // A link to a file not yet made names the file it leads to, as another output may
+        // (the depth had been written over the picture), also through a second link.
+        std::os::unix::fs::symlink("later.npy", dir.path("first.png")).unwrap();
+        std::os::unix::fs::symlink("first.png", dir.path("second.png")).unwrap();
+        for link in ["first.png", "second.png"] {
+            let args = ["render", "--size", "8x8", "-o", link, "--depth", "later.npy"];
+            assert!(run_err(&dir.0, args).contains("both name"), "{link}");
+            assert!(!dir.path("later.npy").exists(), "{link}");
+        }
     }
     // Accepted: the same name in another directory; a turntable whose frames are not the
     // texture it reads (t.png itself is not written: its frames are t_000.png, t_001.png).

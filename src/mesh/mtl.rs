@@ -91,11 +91,13 @@ fn library(
             None => format!("line {line}: {note}"),
         })
         .collect();
-    if let Some(more) = ignored.checked_sub(MAX_IGNORED_WARNINGS).filter(|&n| n > 0) {
-        let lines =
-            if more == 1 { "line that cannot be read is" } else { "lines that cannot be read are" };
+    // Said first: after the lines it names, a reader that shows the first warnings only (the
+    // CLI shows 20) had hidden it, and with it how many lines were lost ("1 more warning").
+    if ignored > MAX_IGNORED_WARNINGS {
         let file = file.map_or(String::new(), |file| format!("{}: ", file.display()));
-        lib.warnings.push(format!("{file}{more} more {lines} ignored"));
+        let count = format!("{ignored} lines cannot be read and are ignored");
+        let named = format!("the first {MAX_IGNORED_WARNINGS} are named below");
+        lib.warnings.insert(0, format!("{file}{count}; {named}"));
     }
     Ok(lib)
 }
@@ -459,12 +461,16 @@ mod tests {
                 assert_eq!((a.diffuse, &a.diffuse_texture), (Material::default().diffuse, &None));
             }
         }
-        // Twenty lines are named, the rest counted.
+        // Twenty lines are named, all counted, the count first.
         let lib = parse("Kd 1\n".repeat(25).as_bytes(), Path::new("")).unwrap();
         assert_eq!(lib.warnings.len(), 21);
-        assert_eq!(lib.warnings[20], "5 more lines that cannot be read are ignored");
-        let lib = parse("Kd 1\n".repeat(21).as_bytes(), Path::new("")).unwrap();
-        assert_eq!(lib.warnings[20], "1 more line that cannot be read is ignored");
+        let count = "25 lines cannot be read and are ignored; the first 20 are named below";
+        assert_eq!(lib.warnings[0], count);
+        assert!(lib.warnings[1].starts_with("line 1: `Kd` before any"), "{:?}", lib.warnings);
+        assert_eq!(
+            parse("Kd 1\n".repeat(20).as_bytes(), Path::new("")).unwrap().warnings.len(),
+            20
+        );
         // A file's warnings name it with the line, as the OBJ reader's do.
         let path = std::env::temp_dir().join(format!("trirast-mtl-{}.mtl", std::process::id()));
         std::fs::write(&path, "Kd 1\n".repeat(21) + "newmtl a\nKd 2 0 0\n").unwrap();
@@ -472,9 +478,10 @@ mod tests {
         std::fs::remove_file(&path).unwrap();
         let file = path.display();
         assert_eq!(lib.warnings.len(), 22);
-        assert!(lib.warnings[0].starts_with(&format!("{file}:1: `Kd` before any")));
-        assert!(lib.warnings[20].starts_with(&format!("{file}:23: `Kd 2 0 0` is outside")));
-        assert_eq!(lib.warnings[21], format!("{file}: 1 more line that cannot be read is ignored"));
+        let count = "21 lines cannot be read and are ignored; the first 20 are named below";
+        assert_eq!(lib.warnings[0], format!("{file}: {count}"));
+        assert!(lib.warnings[1].starts_with(&format!("{file}:1: `Kd` before any")));
+        assert!(lib.warnings[21].starts_with(&format!("{file}:23: `Kd 2 0 0` is outside")));
     }
 
     /// A name defined twice in a library is named in a warning with both lines; both
