@@ -1807,14 +1807,14 @@ fn warn_of_splats_at_the_eye(
     let reaching = stats.at_eye;
     if reaching > 0 {
         let leaves = tree.nodes.iter().filter(|n| n.child_count == 0);
-        let largest = leaves.clone().map(|n| n.radius).fold(0.0f32, f32::max);
+        let largest = leaves.map(|n| n.radius).fold(0.0f32, f32::max);
         let distance = (camera.target - camera.eye).length();
         let verb = if reaching == 1 { "reaches" } else { "reach" };
         note!(
             "trirast: warning: {reaching} of {} {verb} the camera's plane and cannot be drawn \
              (the largest splat radius is {largest:.3e}; the camera is {distance:.3e} from the \
              points' centre)",
-            counted(leaves.count(), "splat"),
+            counted(tree.leaf_count(), "splat"),
         );
     }
 }
